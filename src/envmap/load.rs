@@ -1,0 +1,338 @@
+//! Loaders: OpenEXR (via the `exr` crate) and Radiance RGBE `.hdr` (own reader), lat-long or
+//! cube cross, and the `--env` source syntax (`PATH` or `builtin:sky[:T]`).
+//!
+//! Every failure names the file and the problem; dimensions are checked before any pixel buffer
+//! is allocated; NaN/Inf/negative texels are clamped and counted (see [`SanitizeReport`]).
+
+use super::{CubeMap, Image, SanitizeReport};
+use crate::error::{Error, Result};
+use glam::Vec3;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+/// Largest accepted image side, in pixels (refused before allocating).
+pub const MAX_SIDE: usize = 32768;
+/// Largest accepted pixel count (refused before allocating): 2^28 texels = 3 GiB of RGB f32.
+pub const MAX_PIXELS: usize = 1 << 28;
+
+/// The layout of an environment image, detected from its aspect ratio.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Layout {
+    /// 2:1 latitude-longitude (Mitsuba 3 convention).
+    LatLong,
+    /// 4:3 horizontal cross: `+Y` above, then `-X +Z +X -Z`, then `-Y` below (column 1).
+    HorizontalCross,
+    /// 3:4 vertical cross: `+Y`, `-X +Z +X`, `-Y`, `-Z` (the last one rotated by 180 degrees).
+    VerticalCross,
+}
+
+/// Detect the layout from the image size, or say why it is none of them.
+pub fn detect_layout(width: usize, height: usize) -> std::result::Result<Layout, String> {
+    if width == 2 * height && height > 0 {
+        Ok(Layout::LatLong)
+    } else if width * 3 == height * 4 && width % 4 == 0 && width > 0 {
+        Ok(Layout::HorizontalCross)
+    } else if width * 4 == height * 3 && width % 3 == 0 && width > 0 {
+        Ok(Layout::VerticalCross)
+    } else {
+        Err(format!(
+            "{width}x{height} is neither a 2:1 lat-long map nor a 4:3 / 3:4 cube cross with square faces"
+        ))
+    }
+}
+
+fn check_dims(path: &Path, width: usize, height: usize) -> Result<()> {
+    if width == 0 || height == 0 {
+        return Err(Error::file(path, format!("empty image ({width}x{height})")));
+    }
+    if width > MAX_SIDE || height > MAX_SIDE || width.saturating_mul(height) > MAX_PIXELS {
+        return Err(Error::file(
+            path,
+            format!("absurd dimensions {width}x{height} (limit {MAX_SIDE} per side, {MAX_PIXELS} pixels)"),
+        ));
+    }
+    Ok(())
+}
+
+/// Read an image file (EXR or Radiance HDR, sniffed from its first bytes).
+/// Returns the raw image: not yet sanitized.
+pub fn read_image(path: &Path) -> Result<Image> {
+    let mut head = [0u8; 4];
+    let mut f = std::fs::File::open(path).map_err(|e| Error::file(path, format!("cannot open: {e}")))?;
+    let n = f.read(&mut head).map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
+    drop(f);
+    if n == 4 && head == [0x76, 0x2f, 0x31, 0x01] {
+        read_exr(path)
+    } else if n >= 2 && &head[..2] == b"#?" {
+        let bytes = std::fs::read(path).map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
+        read_hdr_bytes(&bytes).map_err(|p| Error::file(path, p))
+    } else {
+        Err(Error::file(path, "not an OpenEXR or Radiance HDR file (unknown magic bytes)"))
+    }
+}
+
+/// Read the first RGB(A) layer of an OpenEXR file as f32.
+pub fn read_exr(path: &Path) -> Result<Image> {
+    let meta = exr::meta::MetaData::read_from_file(path, false)
+        .map_err(|e| Error::file(path, format!("invalid OpenEXR header: {e}")))?;
+    let header = meta.headers.first().ok_or_else(|| Error::file(path, "OpenEXR file has no layer"))?;
+    let size = header.layer_size;
+    check_dims(path, size.0, size.1)?;
+    let names: Vec<String> = header.channels.list.iter().map(|c| c.name.to_string()).collect();
+    for want in ["R", "G", "B"] {
+        if !names.iter().any(|n| n == want || n.ends_with(&format!(".{want}"))) {
+            return Err(Error::file(
+                path,
+                format!("OpenEXR file has channels [{}], needs R, G and B", names.join(", ")),
+            ));
+        }
+    }
+    let img = exr::prelude::read_first_rgba_layer_from_file(
+        path,
+        |res, _| Image::new(res.0, res.1),
+        |img: &mut Image, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+            let w = img.width;
+            img.data[pos.1 * w + pos.0] = Vec3::new(r, g, b);
+        },
+    )
+    .map_err(|e| Error::file(path, format!("cannot decode OpenEXR: {e}")))?;
+    Ok(img.layer_data.channel_data.pixels)
+}
+
+/// Parse a Radiance RGBE (`.hdr`) file: `#?RADIANCE`/`#?RGBE` header, `FORMAT=32-bit_rle_rgbe`,
+/// resolution line `-Y H +X W`, then flat or new-style run-length-encoded scanlines.
+pub fn read_hdr_bytes(bytes: &[u8]) -> std::result::Result<Image, String> {
+    let mut pos = 0usize;
+    let line = |pos: &mut usize| -> std::result::Result<String, String> {
+        let start = *pos;
+        while *pos < bytes.len() && bytes[*pos] != b'\n' {
+            *pos += 1;
+            if *pos - start > 4096 {
+                return Err("Radiance header line longer than 4096 bytes".into());
+            }
+        }
+        if *pos >= bytes.len() {
+            return Err("truncated Radiance header".into());
+        }
+        let s = String::from_utf8_lossy(&bytes[start..*pos]).into_owned();
+        *pos += 1;
+        Ok(s)
+    };
+    let magic = line(&mut pos)?;
+    if !magic.starts_with("#?") {
+        return Err("not a Radiance HDR file (missing #? signature)".into());
+    }
+    loop {
+        let l = line(&mut pos)?;
+        if l.is_empty() {
+            break;
+        }
+        if let Some(fmt) = l.strip_prefix("FORMAT=") {
+            if fmt.trim() != "32-bit_rle_rgbe" {
+                return Err(format!("unsupported Radiance pixel format '{}' (needs 32-bit_rle_rgbe)", fmt.trim()));
+            }
+        }
+    }
+    let res = line(&mut pos)?;
+    let parts: Vec<&str> = res.split_whitespace().collect();
+    if parts.len() != 4 || parts[0] != "-Y" || parts[2] != "+X" {
+        return Err(format!("unsupported Radiance resolution line '{res}' (needs '-Y H +X W')"));
+    }
+    let h: usize = parts[1].parse().map_err(|_| format!("bad height in '{res}'"))?;
+    let w: usize = parts[3].parse().map_err(|_| format!("bad width in '{res}'"))?;
+    if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE || w * h > MAX_PIXELS {
+        return Err(format!("absurd dimensions {w}x{h} (limit {MAX_SIDE} per side, {MAX_PIXELS} pixels)"));
+    }
+    // A file cannot hold more pixels than 4 bytes each (flat), or than it has bytes (RLE, at
+    // best ~ 2 bytes per 127 pixels per channel): refuse obvious lies before allocating.
+    if (bytes.len() - pos).saturating_mul(128) < w * h {
+        return Err(format!("truncated: {} bytes of pixel data cannot hold {w}x{h} pixels", bytes.len() - pos));
+    }
+    let mut img = Image::new(w, h);
+    let mut scan = vec![[0u8; 4]; w];
+    for y in 0..h {
+        read_hdr_scanline(bytes, &mut pos, &mut scan).map_err(|e| format!("scanline {y}: {e}"))?;
+        for x in 0..w {
+            img.data[y * w + x] = rgbe_to_rgb(scan[x]);
+        }
+    }
+    Ok(img)
+}
+
+fn rgbe_to_rgb(p: [u8; 4]) -> Vec3 {
+    if p[3] == 0 {
+        return Vec3::ZERO;
+    }
+    let f = (2.0f32).powi(p[3] as i32 - 136); // 2^(e-128) / 256
+    Vec3::new(p[0] as f32 + 0.5, p[1] as f32 + 0.5, p[2] as f32 + 0.5) * f
+}
+
+fn read_hdr_scanline(bytes: &[u8], pos: &mut usize, scan: &mut [[u8; 4]]) -> std::result::Result<(), String> {
+    let w = scan.len();
+    let take = |pos: &mut usize| -> std::result::Result<u8, String> {
+        let b = *bytes.get(*pos).ok_or("truncated pixel data")?;
+        *pos += 1;
+        Ok(b)
+    };
+    let is_rle = (8..0x8000).contains(&w) && bytes.get(*pos..*pos + 2) == Some(&[2, 2]);
+    if !is_rle {
+        for px in scan.iter_mut() {
+            for c in px.iter_mut() {
+                *c = take(pos)?;
+            }
+        }
+        return Ok(());
+    }
+    let hdr = [take(pos)?, take(pos)?, take(pos)?, take(pos)?];
+    if hdr[2] & 0x80 != 0 || ((hdr[2] as usize) << 8 | hdr[3] as usize) != w {
+        return Err("run-length scanline width does not match the image width".into());
+    }
+    for ch in 0..4 {
+        let mut x = 0;
+        while x < w {
+            let n = take(pos)? as usize;
+            if n > 128 {
+                let run = n - 128;
+                if x + run > w {
+                    return Err("run-length run overflows the scanline".into());
+                }
+                let v = take(pos)?;
+                for px in &mut scan[x..x + run] {
+                    px[ch] = v;
+                }
+                x += run;
+            } else {
+                if n == 0 || x + n > w {
+                    return Err("bad run-length literal count".into());
+                }
+                for px in &mut scan[x..x + n] {
+                    px[ch] = take(pos)?;
+                }
+                x += n;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Extract the six faces of a cube cross (see [`Layout`]).
+pub fn cross_to_cube(img: &Image, layout: Layout) -> CubeMap {
+    let n = match layout {
+        Layout::HorizontalCross => img.width / 4,
+        Layout::VerticalCross => img.width / 3,
+        Layout::LatLong => panic!("not a cross"),
+    };
+    // (face, column block, row block, rotated by 180 degrees)
+    let place: [(usize, usize, usize, bool); 6] = match layout {
+        Layout::HorizontalCross => [(0, 2, 1, false), (1, 0, 1, false), (2, 1, 0, false), (3, 1, 2, false), (4, 1, 1, false), (5, 3, 1, false)],
+        _ => [(0, 2, 1, false), (1, 0, 1, false), (2, 1, 0, false), (3, 1, 2, false), (4, 1, 1, false), (5, 1, 3, true)],
+    };
+    let mut cube = CubeMap::new(n);
+    for (face, bx, by, rot) in place {
+        for r in 0..n {
+            for c in 0..n {
+                let (sc, sr) = if rot { (n - 1 - c, n - 1 - r) } else { (c, r) };
+                let i = cube.index(face, c, r);
+                cube.data[i] = img.get(bx * n + sc, by * n + sr);
+            }
+        }
+    }
+    cube
+}
+
+/// Where an environment map comes from (the `--env` argument).
+#[derive(Clone, Debug, PartialEq)]
+pub enum EnvSource {
+    /// The built-in procedural sky at time of day `hours` (0..24).
+    Sky { hours: f32 },
+    /// An `.exr` or `.hdr` file, lat-long or cube cross.
+    File(PathBuf),
+}
+
+impl std::str::FromStr for EnvSource {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        if let Some(rest) = s.strip_prefix("builtin:") {
+            let mut it = rest.splitn(2, ':');
+            let name = it.next().unwrap_or("");
+            if name != "sky" {
+                return Err(Error::invalid(format!("unknown built-in environment 'builtin:{name}' (expected builtin:sky[:T])")));
+            }
+            let hours = match it.next() {
+                None => super::sky::DEFAULT_HOURS,
+                Some(t) => t.parse::<f32>().ok().filter(|h| h.is_finite()).ok_or_else(|| {
+                    Error::invalid(format!("bad time '{t}' in 'builtin:sky:{t}' (expected hours, e.g. builtin:sky:10.5)"))
+                })?,
+            };
+            Ok(EnvSource::Sky { hours })
+        } else if s.is_empty() {
+            Err(Error::invalid("empty --env (expected a file path or builtin:sky[:T])"))
+        } else {
+            Ok(EnvSource::File(PathBuf::from(s)))
+        }
+    }
+}
+
+/// A loaded environment: the sanitized cube map, what was clamped, and where it came from.
+#[derive(Clone, Debug)]
+pub struct LoadedEnv {
+    pub cube: CubeMap,
+    pub report: SanitizeReport,
+    pub layout: Option<Layout>,
+}
+
+/// Load an environment source as a sanitized cube map with faces of `face_size` texels.
+pub fn load_env(src: &EnvSource, face_size: usize) -> Result<LoadedEnv> {
+    if face_size == 0 || face_size > 4096 {
+        return Err(Error::invalid(format!("face size {face_size} out of range 1..=4096")));
+    }
+    match src {
+        EnvSource::Sky { hours } => {
+            let mut cube = super::sky::sky_cube(face_size, *hours);
+            let report = cube.sanitize();
+            Ok(LoadedEnv { cube, report, layout: None })
+        }
+        EnvSource::File(path) => {
+            let mut img = read_image(path)?;
+            let layout = detect_layout(img.width, img.height).map_err(|p| Error::file(path, p))?;
+            // Clamp before any filtering so no bad value is spread into neighbours.
+            let report = img.sanitize();
+            let cube = match layout {
+                Layout::LatLong => super::resample::latlong_to_cube(&img, face_size),
+                _ => super::resample::resize_cube(&cross_to_cube(&img, layout), face_size),
+            };
+            Ok(LoadedEnv { cube, report, layout: Some(layout) })
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hdr_flat_and_rle_round_trip() {
+        // 8x2 image, first scanline flat, second run-length encoded.
+        let mut f = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 2 +X 8\n".to_vec();
+        for x in 0..8u8 {
+            f.extend_from_slice(&[x * 10, 128, 64, 129]);
+        }
+        f.extend_from_slice(&[2, 2, 0, 8]);
+        for ch in 0..4 {
+            f.extend_from_slice(&[128 + 8, [200, 100, 50, 130][ch]]);
+        }
+        let img = read_hdr_bytes(&f).unwrap();
+        assert_eq!((img.width, img.height), (8, 2));
+        assert!((img.get(1, 0).x - 10.5 / 128.0).abs() < 1e-6);
+        assert!((img.get(5, 1).x - 200.5 / 64.0).abs() < 1e-6);
+        assert!(read_hdr_bytes(&f[..f.len() - 3]).unwrap_err().contains("truncated"));
+    }
+
+    #[test]
+    fn env_source_syntax() {
+        assert_eq!("builtin:sky".parse::<EnvSource>().unwrap(), EnvSource::Sky { hours: super::super::sky::DEFAULT_HOURS });
+        assert_eq!("builtin:sky:7.5".parse::<EnvSource>().unwrap(), EnvSource::Sky { hours: 7.5 });
+        assert!("builtin:sky:x".parse::<EnvSource>().is_err());
+        assert!("builtin:moon".parse::<EnvSource>().is_err());
+    }
+}

@@ -1,0 +1,354 @@
+//! Environment maps: the cube-map type, the direction conventions, loaders, resampling and the
+//! built-in procedural sky.
+//!
+//! Conventions (written once, in `docs/conventions.md`, and used everywhere):
+//! - Lat-long maps use Mitsuba 3's mapping: `d = (sin t sin p, cos t, -sin t cos p)`,
+//!   `p = 2 pi u`, `t = pi v`, +Y up, `u` along image columns, `v` down the rows.
+//! - Cube faces are stored in the order +X, -X, +Y, -Y, +Z, -Z with the Vulkan/wgpu/OpenGL cube
+//!   texture orientation, so a GPU `textureSample(cube, dir)` and [`dir_to_face_uv`] agree.
+
+pub mod load;
+pub mod resample;
+pub mod sky;
+
+use glam::{DVec3, Vec3};
+
+/// Rec. 709 luminance of linear RGB.
+#[inline]
+pub fn luminance(c: Vec3) -> f32 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+}
+
+/// The six cube faces in storage order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[repr(u8)]
+pub enum Face {
+    PosX = 0,
+    NegX = 1,
+    PosY = 2,
+    NegY = 3,
+    PosZ = 4,
+    NegZ = 5,
+}
+
+impl Face {
+    pub const ALL: [Face; 6] = [Face::PosX, Face::NegX, Face::PosY, Face::NegY, Face::PosZ, Face::NegZ];
+    pub fn from_index(i: usize) -> Face {
+        Face::ALL[i]
+    }
+    pub fn name(self) -> &'static str {
+        ["+X", "-X", "+Y", "-Y", "+Z", "-Z"][self as usize]
+    }
+}
+
+/// Unnormalised direction of face coordinates `(a, b)` in `[-1, 1]^2` (a = 2u-1, b = 2v-1).
+#[inline]
+pub fn face_ab_to_vec(face: usize, a: f32, b: f32) -> Vec3 {
+    match face {
+        0 => Vec3::new(1.0, -b, -a),
+        1 => Vec3::new(-1.0, -b, a),
+        2 => Vec3::new(a, 1.0, b),
+        3 => Vec3::new(a, -1.0, -b),
+        4 => Vec3::new(a, -b, 1.0),
+        _ => Vec3::new(-a, -b, -1.0),
+    }
+}
+
+/// f64 twin of [`face_ab_to_vec`] (used by the reference and the tests).
+#[inline]
+pub fn face_ab_to_dvec(face: usize, a: f64, b: f64) -> DVec3 {
+    match face {
+        0 => DVec3::new(1.0, -b, -a),
+        1 => DVec3::new(-1.0, -b, a),
+        2 => DVec3::new(a, 1.0, b),
+        3 => DVec3::new(a, -1.0, -b),
+        4 => DVec3::new(a, -b, 1.0),
+        _ => DVec3::new(-a, -b, -1.0),
+    }
+}
+
+/// Unit direction of texture coordinates `(u, v)` in `[0, 1]^2` on `face`.
+#[inline]
+pub fn face_uv_to_dir(face: usize, u: f32, v: f32) -> Vec3 {
+    face_ab_to_vec(face, 2.0 * u - 1.0, 2.0 * v - 1.0).normalize()
+}
+
+/// Face and face coordinates `(a, b)` in `[-1, 1]^2` of a (not necessarily unit) direction.
+/// Ties between axes go to X, then Y, then Z. Returns face 0, (0,0) for the zero vector.
+#[inline]
+pub fn dir_to_face_ab(d: Vec3) -> (usize, f32, f32) {
+    let (ax, ay, az) = (d.x.abs(), d.y.abs(), d.z.abs());
+    if ax >= ay && ax >= az {
+        if ax == 0.0 {
+            return (0, 0.0, 0.0);
+        }
+        if d.x > 0.0 { (0, -d.z / ax, -d.y / ax) } else { (1, d.z / ax, -d.y / ax) }
+    } else if ay >= az {
+        if d.y > 0.0 { (2, d.x / ay, d.z / ay) } else { (3, d.x / ay, -d.z / ay) }
+    } else if d.z > 0.0 {
+        (4, d.x / az, -d.y / az)
+    } else {
+        (5, -d.x / az, -d.y / az)
+    }
+}
+
+/// Face and texture coordinates `(u, v)` in `[0, 1]^2` of a direction.
+#[inline]
+pub fn dir_to_face_uv(d: Vec3) -> (usize, f32, f32) {
+    let (f, a, b) = dir_to_face_ab(d);
+    (f, 0.5 * (a + 1.0), 0.5 * (b + 1.0))
+}
+
+/// Texel `(col, row)` of face coordinates on a face of `n` x `n` texels (clamped to the face).
+#[inline]
+pub fn uv_to_texel(u: f32, v: f32, n: usize) -> (usize, usize) {
+    let c = ((u * n as f32) as isize).clamp(0, n as isize - 1) as usize;
+    let r = ((v * n as f32) as isize).clamp(0, n as isize - 1) as usize;
+    (c, r)
+}
+
+/// Lat-long (Mitsuba 3) direction of `(u, v)`: `d = (sin t sin p, cos t, -sin t cos p)`.
+#[inline]
+pub fn latlong_to_dir(u: f32, v: f32) -> Vec3 {
+    let (sp, cp) = (2.0 * std::f32::consts::PI * u).sin_cos();
+    let (st, ct) = (std::f32::consts::PI * v).sin_cos();
+    Vec3::new(st * sp, ct, -st * cp)
+}
+
+/// f64 twin of [`latlong_to_dir`].
+#[inline]
+pub fn latlong_to_dvec(u: f64, v: f64) -> DVec3 {
+    let (sp, cp) = (2.0 * std::f64::consts::PI * u).sin_cos();
+    let (st, ct) = (std::f64::consts::PI * v).sin_cos();
+    DVec3::new(st * sp, ct, -st * cp)
+}
+
+/// Inverse of [`latlong_to_dir`] for a unit direction: `(u, v)` with `u` in `[0, 1)`.
+#[inline]
+pub fn dir_to_latlong(d: Vec3) -> (f32, f32) {
+    let t = d.y.clamp(-1.0, 1.0).acos();
+    let mut p = d.x.atan2(-d.z);
+    if p < 0.0 {
+        p += 2.0 * std::f32::consts::PI;
+    }
+    let u = p / (2.0 * std::f32::consts::PI);
+    (if u >= 1.0 { 0.0 } else { u }, t / std::f32::consts::PI)
+}
+
+/// Solid angle of the face rectangle `[a0, a1] x [b0, b1]` (face coordinates in `[-1, 1]`).
+/// `Omega = A(a1,b1) - A(a0,b1) - A(a1,b0) + A(a0,b0)`, `A(x, y) = atan2(x y, sqrt(x^2 + y^2 + 1))`.
+#[inline]
+pub fn face_rect_solid_angle(a0: f64, b0: f64, a1: f64, b1: f64) -> f64 {
+    fn corner(x: f64, y: f64) -> f64 {
+        (x * y).atan2((x * x + y * y + 1.0).sqrt())
+    }
+    corner(a1, b1) - corner(a0, b1) - corner(a1, b0) + corner(a0, b0)
+}
+
+/// Solid angle of texel `(col, row)` on a face of `n` x `n` texels.
+#[inline]
+pub fn texel_solid_angle(col: usize, row: usize, n: usize) -> f64 {
+    let h = 2.0 / n as f64;
+    let a0 = -1.0 + col as f64 * h;
+    let b0 = -1.0 + row as f64 * h;
+    face_rect_solid_angle(a0, b0, a0 + h, b0 + h)
+}
+
+/// Per-map report of texels that were not finite and non-negative: they are clamped to zero and
+/// counted here, and never reach a distribution.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct SanitizeReport {
+    /// Texels with at least one NaN channel.
+    pub nan: u64,
+    /// Texels with an infinite channel (and no NaN).
+    pub inf: u64,
+    /// Texels with a finite negative channel (and no NaN or Inf).
+    pub negative: u64,
+}
+
+impl SanitizeReport {
+    pub fn total(&self) -> u64 {
+        self.nan + self.inf + self.negative
+    }
+    pub fn add(&mut self, o: SanitizeReport) {
+        self.nan += o.nan;
+        self.inf += o.inf;
+        self.negative += o.negative;
+    }
+}
+
+impl std::fmt::Display for SanitizeReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} NaN, {} Inf, {} negative texels clamped to 0", self.nan, self.inf, self.negative)
+    }
+}
+
+/// Clamp one RGB texel: every channel that is NaN, infinite or negative becomes 0.
+/// Returns the clamped value and which class of bad value it had (for counting).
+#[inline]
+pub fn sanitize_texel(c: Vec3, report: &mut SanitizeReport) -> Vec3 {
+    let a = c.to_array();
+    if a.iter().any(|x| x.is_nan()) {
+        report.nan += 1;
+    } else if a.iter().any(|x| x.is_infinite()) {
+        report.inf += 1;
+    } else if a.iter().any(|&x| x < 0.0) {
+        report.negative += 1;
+    } else {
+        return c;
+    }
+    Vec3::from_array(a.map(|x| if x.is_finite() && x > 0.0 { x } else { 0.0 }))
+}
+
+/// An RGB image in linear float (row-major, top row first).
+#[derive(Clone, Debug)]
+pub struct Image {
+    pub width: usize,
+    pub height: usize,
+    pub data: Vec<Vec3>,
+}
+
+impl Image {
+    pub fn new(width: usize, height: usize) -> Self {
+        Image { width, height, data: vec![Vec3::ZERO; width * height] }
+    }
+    #[inline]
+    pub fn get(&self, x: usize, y: usize) -> Vec3 {
+        self.data[y * self.width + x]
+    }
+    /// Clamp NaN/Inf/negative texels to zero and count them.
+    pub fn sanitize(&mut self) -> SanitizeReport {
+        let mut r = SanitizeReport::default();
+        for t in &mut self.data {
+            *t = sanitize_texel(*t, &mut r);
+        }
+        r
+    }
+}
+
+/// A cube map of six square faces of `size` x `size` linear RGB texels.
+/// Texel `(col, row)` of face `f` is at `data[(f * size + row) * size + col]`; `col` follows `u`,
+/// `row` follows `v` (see [`face_uv_to_dir`]). Radiance is piecewise constant per texel (nearest
+/// lookup): the sampler, the estimators and the reference all integrate this same function.
+#[derive(Clone, Debug)]
+pub struct CubeMap {
+    pub size: usize,
+    pub data: Vec<Vec3>,
+}
+
+impl CubeMap {
+    pub fn new(size: usize) -> Self {
+        assert!(size > 0, "cube face size must be positive");
+        CubeMap { size, data: vec![Vec3::ZERO; 6 * size * size] }
+    }
+
+    /// Build from a function of the texel centre direction.
+    pub fn from_fn(size: usize, f: impl Fn(Vec3) -> Vec3 + Sync) -> Self {
+        use rayon::prelude::*;
+        let mut m = CubeMap::new(size);
+        let n = size;
+        m.data.par_iter_mut().enumerate().for_each(|(i, t)| {
+            let face = i / (n * n);
+            let row = (i / n) % n;
+            let col = i % n;
+            let u = (col as f32 + 0.5) / n as f32;
+            let v = (row as f32 + 0.5) / n as f32;
+            *t = f(face_uv_to_dir(face, u, v));
+        });
+        m
+    }
+
+    #[inline]
+    pub fn index(&self, face: usize, col: usize, row: usize) -> usize {
+        (face * self.size + row) * self.size + col
+    }
+
+    #[inline]
+    pub fn texel(&self, face: usize, col: usize, row: usize) -> Vec3 {
+        self.data[self.index(face, col, row)]
+    }
+
+    /// Face, column and row of the texel that a direction falls in.
+    #[inline]
+    pub fn texel_of(&self, d: Vec3) -> (usize, usize, usize) {
+        let (f, u, v) = dir_to_face_uv(d);
+        let (c, r) = uv_to_texel(u, v, self.size);
+        (f, c, r)
+    }
+
+    /// Radiance in direction `d` (nearest texel).
+    #[inline]
+    pub fn lookup(&self, d: Vec3) -> Vec3 {
+        let (f, c, r) = self.texel_of(d);
+        self.texel(f, c, r)
+    }
+
+    /// Clamp NaN/Inf/negative texels to zero and count them.
+    pub fn sanitize(&mut self) -> SanitizeReport {
+        let mut r = SanitizeReport::default();
+        for t in &mut self.data {
+            *t = sanitize_texel(*t, &mut r);
+        }
+        r
+    }
+
+    /// Integral of RGB radiance over the sphere (f64): sum of texel radiance x texel solid angle.
+    pub fn integral(&self) -> DVec3 {
+        let n = self.size;
+        let mut s = DVec3::ZERO;
+        for f in 0..6 {
+            for r in 0..n {
+                for c in 0..n {
+                    s += self.texel(f, c, r).as_dvec3() * texel_solid_angle(c, r, n);
+                }
+            }
+        }
+        s
+    }
+}
+
+/// Unfold a cube map as a 4:3 horizontal cross (`+Y` above; `-X +Z +X -Z`; `-Y` below), the
+/// layout [`load::Layout::HorizontalCross`] reads back. Empty blocks are black.
+pub fn cube_to_cross(cube: &CubeMap) -> Image {
+    let n = cube.size;
+    let mut img = Image::new(4 * n, 3 * n);
+    let place = [(0usize, 2usize, 1usize), (1, 0, 1), (2, 1, 0), (3, 1, 2), (4, 1, 1), (5, 3, 1)];
+    for (face, bx, by) in place {
+        for r in 0..n {
+            for c in 0..n {
+                img.data[(by * n + r) * 4 * n + bx * n + c] = cube.texel(face, c, r);
+            }
+        }
+    }
+    img
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn face_round_trip() {
+        for f in 0..6 {
+            for &(u, v) in &[(0.5, 0.5), (0.1, 0.9), (0.73, 0.21), (0.01, 0.02)] {
+                let d = face_uv_to_dir(f, u, v);
+                let (g, u2, v2) = dir_to_face_uv(d);
+                assert_eq!(f, g);
+                assert!((u - u2).abs() < 1e-5 && (v - v2).abs() < 1e-5, "{f} {u} {v} -> {u2} {v2}");
+            }
+        }
+    }
+
+    #[test]
+    fn solid_angles_sum_to_4pi() {
+        for n in [1, 3, 16] {
+            let mut s = 0.0;
+            for r in 0..n {
+                for c in 0..n {
+                    s += texel_solid_angle(c, r, n);
+                }
+            }
+            assert!((6.0 * s - 4.0 * std::f64::consts::PI).abs() < 1e-12);
+        }
+    }
+}

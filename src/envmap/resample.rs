@@ -1,0 +1,116 @@
+//! Lat-long -> cube and cube -> cube resampling that preserves energy (the integral of radiance
+//! over solid angle): each target texel is the solid-angle-weighted mean of `s x s` sub-points of
+//! its footprint. When the target is coarser than the source the sub-points use nearest lookups
+//! and `s` covers every source texel (area / box filter); when it is finer they use bilinear lookups.
+
+use super::{dir_to_face_uv, dir_to_latlong, face_ab_to_vec, CubeMap, Image};
+use glam::Vec3;
+use rayon::prelude::*;
+
+/// Fill a cube map of `size` from `fetch(direction)`, averaging `s x s` sub-points per texel
+/// weighted by the cube-face Jacobian `(1 + a^2 + b^2)^(-3/2)` (solid angle per unit face area).
+pub fn cube_from_fetch(size: usize, s: usize, fetch: impl Fn(Vec3) -> Vec3 + Sync) -> CubeMap {
+    let mut cube = CubeMap::new(size);
+    let n = size;
+    let h = 2.0 / n as f32;
+    cube.data.par_iter_mut().enumerate().for_each(|(i, t)| {
+        let face = i / (n * n);
+        let row = (i / n) % n;
+        let col = i % n;
+        let mut sum = Vec3::ZERO;
+        let mut wsum = 0.0f32;
+        for sy in 0..s {
+            for sx in 0..s {
+                let a = -1.0 + (col as f32 + (sx as f32 + 0.5) / s as f32) * h;
+                let b = -1.0 + (row as f32 + (sy as f32 + 0.5) / s as f32) * h;
+                let q = 1.0 + a * a + b * b;
+                let w = 1.0 / (q * q.sqrt());
+                sum += w * fetch(face_ab_to_vec(face, a, b).normalize());
+                wsum += w;
+            }
+        }
+        *t = sum / wsum;
+    });
+    cube
+}
+
+/// Resample a (sanitized) 2:1 lat-long image into a cube map of `size` x `size` faces.
+pub fn latlong_to_cube(img: &Image, size: usize) -> CubeMap {
+    // Source texels (along the equator) per target texel: (2 pi / W) vs (pi / 2 / N).
+    let ratio = img.width as f32 / (4.0 * size as f32);
+    if ratio > 1.0 {
+        let s = ((2.0 * ratio).ceil() as usize).clamp(2, 32);
+        cube_from_fetch(size, s, |d| latlong_nearest(img, d))
+    } else {
+        cube_from_fetch(size, 2, |d| latlong_bilinear(img, d))
+    }
+}
+
+/// Resample a cube map to another face size.
+pub fn resize_cube(src: &CubeMap, size: usize) -> CubeMap {
+    if size == src.size {
+        return src.clone();
+    }
+    let ratio = src.size as f32 / size as f32;
+    if ratio > 1.0 {
+        let s = ((ratio).ceil() as usize).clamp(1, 32);
+        cube_from_fetch(size, s, |d| src.lookup(d))
+    } else {
+        cube_from_fetch(size, 2, |d| cube_bilinear(src, d))
+    }
+}
+
+/// Nearest lat-long texel in direction `d`.
+pub fn latlong_nearest(img: &Image, d: Vec3) -> Vec3 {
+    let (u, v) = dir_to_latlong(d);
+    let x = ((u * img.width as f32) as usize).min(img.width - 1);
+    let y = ((v * img.height as f32) as usize).min(img.height - 1);
+    img.get(x, y)
+}
+
+/// Bilinear lat-long lookup in direction `d` (wraps in `u`, clamps in `v`).
+pub fn latlong_bilinear(img: &Image, d: Vec3) -> Vec3 {
+    let (u, v) = dir_to_latlong(d);
+    let x = u * img.width as f32 - 0.5;
+    let y = (v * img.height as f32 - 0.5).clamp(0.0, (img.height - 1) as f32);
+    let x0 = x.floor();
+    let y0 = y.floor();
+    let (fx, fy) = (x - x0, y - y0);
+    let w = img.width as isize;
+    let xi0 = (x0 as isize).rem_euclid(w) as usize;
+    let xi1 = (x0 as isize + 1).rem_euclid(w) as usize;
+    let yi0 = y0 as usize;
+    let yi1 = (yi0 + 1).min(img.height - 1);
+    let top = img.get(xi0, yi0) * (1.0 - fx) + img.get(xi1, yi0) * fx;
+    let bot = img.get(xi0, yi1) * (1.0 - fx) + img.get(xi1, yi1) * fx;
+    top * (1.0 - fy) + bot * fy
+}
+
+/// Bilinear lookup within the face that `d` falls in (clamped at face edges).
+pub fn cube_bilinear(src: &CubeMap, d: Vec3) -> Vec3 {
+    let n = src.size;
+    let (f, u, v) = dir_to_face_uv(d);
+    let x = (u * n as f32 - 0.5).clamp(0.0, (n - 1) as f32);
+    let y = (v * n as f32 - 0.5).clamp(0.0, (n - 1) as f32);
+    let (x0, y0) = (x.floor() as usize, y.floor() as usize);
+    let (x1, y1) = ((x0 + 1).min(n - 1), (y0 + 1).min(n - 1));
+    let (fx, fy) = (x - x0 as f32, y - y0 as f32);
+    let top = src.texel(f, x0, y0) * (1.0 - fx) + src.texel(f, x1, y0) * fx;
+    let bot = src.texel(f, x0, y1) * (1.0 - fx) + src.texel(f, x1, y1) * fx;
+    top * (1.0 - fy) + bot * fy
+}
+
+/// Integral of a lat-long image's radiance over the sphere (f64), for energy checks.
+pub fn latlong_integral(img: &Image) -> glam::DVec3 {
+    let (w, h) = (img.width, img.height);
+    let mut s = glam::DVec3::ZERO;
+    for y in 0..h {
+        let t0 = std::f64::consts::PI * y as f64 / h as f64;
+        let t1 = std::f64::consts::PI * (y + 1) as f64 / h as f64;
+        let omega = (t0.cos() - t1.cos()) * 2.0 * std::f64::consts::PI / w as f64;
+        for x in 0..w {
+            s += img.get(x, y).as_dvec3() * omega;
+        }
+    }
+    s
+}

@@ -1,0 +1,17 @@
+//! # envis
+//!
+//! Real-time, unbiased importance sampling of dynamic HDR environment maps, after Lu, Pacanowski
+//! & Granier, "Real-Time Importance Sampling of Dynamic Environment Maps" (Eurographics 2013).
+//!
+//! Data flows one way: environment map ([`envmap`]) -> per-face distributions and the light-sample
+//! pool ([`sampling`]) -> per-pixel face weighting and MIS shading ([`render`]). This core needs
+//! no Bevy and no GPU; it is the oracle that the GPU pipeline is tested against.
+
+pub mod bench;
+pub mod envmap;
+pub mod error;
+pub mod render;
+pub mod sampling;
+pub mod stats;
+
+pub use error::{Error, Result};

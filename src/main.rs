@@ -1,0 +1,300 @@
+//! `envis` command line. The names of `render` and `reference` and their options are a contract
+//! (outside checks call them): keep them stable.
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use envis::envmap::load::{load_env, EnvSource, LoadedEnv};
+use envis::error::{Error, Result};
+use envis::render::{self, output, reference, Settings, Strategy};
+use envis::sampling::{Counts, Heuristic, Material};
+use std::path::PathBuf;
+
+#[derive(Parser)]
+#[command(name = "envis", version, about = "Real-time, unbiased importance sampling of dynamic HDR environment maps")]
+struct Cli {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Render a scene with Monte Carlo light + BRDF sampling and write a linear float32 EXR.
+    Render(RenderArgs),
+    /// Write the converged reference image (exact quadrature over every cube texel, f64).
+    Reference(ReferenceArgs),
+    /// Write an environment as an unfolded horizontal cube cross (EXR, or PNG preview).
+    Cross(CrossArgs),
+    /// Benchmarks (ratios against baselines run in the same process).
+    Bench(envis::bench::BenchArgs),
+}
+
+#[derive(Args, Clone)]
+struct SceneArgs {
+    /// Environment: an .exr/.hdr file (2:1 lat-long or 4:3/3:4 cube cross), or builtin:sky[:HOURS].
+    #[arg(long, default_value = "builtin:sky")]
+    env: String,
+    /// Cube face size in texels.
+    #[arg(long, default_value_t = 64)]
+    face_size: usize,
+    /// Scene (only `sphere` for now).
+    #[arg(long, default_value = "sphere")]
+    scene: String,
+    /// Image width and height in pixels.
+    #[arg(long, default_value_t = 256)]
+    size: usize,
+    #[arg(long, value_enum, default_value_t = BrdfArg::Diffuse)]
+    brdf: BrdfArg,
+    /// Albedo (diffuse albedo, or specular tint of phong / ggx).
+    #[arg(long, default_value_t = 0.8)]
+    albedo: f32,
+    /// Phong exponent.
+    #[arg(long, default_value_t = 150.0)]
+    exponent: f32,
+    /// GGX roughness alpha.
+    #[arg(long, default_value_t = 0.2)]
+    alpha: f32,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum BrdfArg {
+    Diffuse,
+    Phong,
+    Ggx,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum StrategyArg {
+    Paper,
+    Global,
+    Light,
+    Brdf,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum CountsArg {
+    Fractional,
+    Integer,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum MisArg {
+    Balance,
+    Power,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum BackendArg {
+    Cpu,
+    Gpu,
+}
+
+#[derive(Args)]
+struct RenderArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    /// N_L, light samples per pixel.
+    #[arg(long, default_value_t = 32)]
+    light_samples: usize,
+    /// N_B, BRDF samples per pixel.
+    #[arg(long, default_value_t = 32)]
+    brdf_samples: usize,
+    #[arg(long, value_enum, default_value_t = StrategyArg::Paper)]
+    strategy: StrategyArg,
+    #[arg(long, value_enum, default_value_t = CountsArg::Fractional)]
+    counts: CountsArg,
+    #[arg(long, value_enum, default_value_t = MisArg::Balance)]
+    mis: MisArg,
+    #[arg(long, default_value_t = 0)]
+    seed: u32,
+    /// M, pool samples per face (default: N_L).
+    #[arg(long, default_value_t = 0)]
+    pool: usize,
+    /// Start each pixel at a random offset into the pool (decorrelates pixels).
+    #[arg(long)]
+    pixel_offset: bool,
+    #[arg(long, value_enum, default_value_t = BackendArg::Cpu)]
+    backend: BackendArg,
+    /// Output image (linear RGB float32 EXR).
+    #[arg(long)]
+    out: PathBuf,
+    /// Write statistics (timings, samples, red/green/yellow/wasted) as JSON.
+    #[arg(long)]
+    stats: Option<PathBuf>,
+    /// Also write a tone-mapped sRGB PNG preview.
+    #[arg(long)]
+    png: Option<PathBuf>,
+}
+
+#[derive(Args)]
+struct ReferenceArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    /// Quadrature refinement factor (sub-texel points scale with it).
+    #[arg(long, default_value_t = 1.0)]
+    refine: f64,
+    #[arg(long)]
+    out: PathBuf,
+    #[arg(long)]
+    stats: Option<PathBuf>,
+    #[arg(long)]
+    png: Option<PathBuf>,
+}
+
+#[derive(Args)]
+struct CrossArgs {
+    #[arg(long, default_value = "builtin:sky")]
+    env: String,
+    #[arg(long, default_value_t = 64)]
+    face_size: usize,
+    /// Output: .exr (linear) or .png (tone-mapped preview).
+    #[arg(long)]
+    out: PathBuf,
+    /// Exposure for the PNG preview.
+    #[arg(long, default_value_t = 1.0)]
+    exposure: f32,
+}
+
+fn material(a: &SceneArgs) -> Result<Material> {
+    if !(a.albedo.is_finite() && a.albedo >= 0.0) {
+        return Err(Error::invalid(format!("--albedo {} must be finite and >= 0", a.albedo)));
+    }
+    Ok(match a.brdf {
+        BrdfArg::Diffuse => Material::diffuse(a.albedo),
+        BrdfArg::Phong => {
+            if !(a.exponent.is_finite() && a.exponent >= 0.0) {
+                return Err(Error::invalid(format!("--exponent {} must be finite and >= 0", a.exponent)));
+            }
+            Material::phong(a.albedo, a.exponent)
+        }
+        BrdfArg::Ggx => {
+            if !(a.alpha.is_finite() && a.alpha > 0.0 && a.alpha <= 1.0) {
+                return Err(Error::invalid(format!("--alpha {} must be in (0, 1]", a.alpha)));
+            }
+            Material::ggx(a.albedo, a.alpha)
+        }
+    })
+}
+
+fn setup(a: &SceneArgs) -> Result<(LoadedEnv, Vec<Option<render::GPixel>>, Material)> {
+    if a.scene != "sphere" {
+        return Err(Error::invalid(format!("unknown scene '{}' (expected: sphere)", a.scene)));
+    }
+    if a.size == 0 || a.size > 16384 {
+        return Err(Error::invalid(format!("--size {} out of range 1..=16384", a.size)));
+    }
+    let mat = material(a)?;
+    let src: EnvSource = a.env.parse()?;
+    let env = load_env(&src, a.face_size)?;
+    if env.report.total() > 0 {
+        eprintln!("envis: {}: {}", a.env, env.report);
+    }
+    Ok((env, render::sphere_gbuffer(a.size, a.size, mat), mat))
+}
+
+fn check_exr_path(p: &std::path::Path) -> Result<()> {
+    match p.extension().and_then(|e| e.to_str()) {
+        Some(e) if e.eq_ignore_ascii_case("exr") => Ok(()),
+        _ => Err(Error::invalid(format!("--out {}: output must be an .exr file", p.display()))),
+    }
+}
+
+fn write_json(path: &std::path::Path, v: &impl serde::Serialize) -> Result<()> {
+    let s = serde_json::to_string_pretty(v).expect("stats serialise");
+    std::fs::write(path, s + "\n").map_err(|e| Error::file(path, format!("cannot write: {e}")))
+}
+
+fn run(cli: Cli) -> Result<()> {
+    match cli.cmd {
+        Cmd::Render(r) => {
+            check_exr_path(&r.out)?;
+            if let BackendArg::Gpu = r.backend {
+                return Err(Error::invalid("--backend gpu is not available yet (the GPU pipeline is tracked in its own issue); use --backend cpu"));
+            }
+            let settings = Settings {
+                light_samples: r.light_samples,
+                brdf_samples: r.brdf_samples,
+                pool_size: r.pool,
+                strategy: match r.strategy {
+                    StrategyArg::Paper => Strategy::Paper,
+                    StrategyArg::Global => Strategy::Global,
+                    StrategyArg::Light => Strategy::Light,
+                    StrategyArg::Brdf => Strategy::Brdf,
+                },
+                counts: match r.counts {
+                    CountsArg::Fractional => Counts::Fractional,
+                    CountsArg::Integer => Counts::Integer,
+                },
+                mis: match r.mis {
+                    MisArg::Balance => Heuristic::Balance,
+                    MisArg::Power => Heuristic::Power,
+                },
+                seed: r.seed,
+                pixel_offset: r.pixel_offset,
+            };
+            settings.validate()?;
+            let (env, gbuf, _) = setup(&r.scene)?;
+            let mut out = render::render(&env.cube, &gbuf, r.scene.size, r.scene.size, &settings)?;
+            out.stats.clamped_texels = env.report;
+            output::write_exr(&r.out, &out.image)?;
+            if let Some(p) = &r.png {
+                output::write_png(p, &out.image, 1.0)?;
+            }
+            if let Some(p) = &r.stats {
+                write_json(p, &out.stats)?;
+            }
+            Ok(())
+        }
+        Cmd::Reference(r) => {
+            check_exr_path(&r.out)?;
+            if !(r.refine.is_finite() && r.refine > 0.0) {
+                return Err(Error::invalid("--refine must be > 0"));
+            }
+            let (env, gbuf, mat) = setup(&r.scene)?;
+            let t = std::time::Instant::now();
+            let (img, _) = reference::reference_image(&env.cube, &gbuf, r.scene.size, r.scene.size, r.refine);
+            let ms = t.elapsed().as_secs_f64() * 1e3;
+            output::write_exr(&r.out, &img)?;
+            if let Some(p) = &r.png {
+                output::write_png(p, &img, 1.0)?;
+            }
+            if let Some(p) = &r.stats {
+                let k = reference::subdivision(r.scene.size, &mat, r.refine);
+                write_json(p, &serde_json::json!({ "reference_ms": ms, "subtexel_points_per_axis": k, "clamped_texels": env.report }))?;
+            }
+            Ok(())
+        }
+        Cmd::Cross(c) => {
+            let env = load_env(&c.env.parse()?, c.face_size)?;
+            if env.report.total() > 0 {
+                eprintln!("envis: {}: {}", c.env, env.report);
+            }
+            let img = envis::envmap::cube_to_cross(&env.cube);
+            match c.out.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref() {
+                Some("exr") => output::write_exr(&c.out, &img),
+                Some("png") => output::write_png(&c.out, &img, c.exposure),
+                _ => Err(Error::invalid(format!("--out {}: expected .exr or .png", c.out.display()))),
+            }
+        }
+        Cmd::Bench(b) => envis::bench::run(b),
+    }
+}
+
+fn main() {
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            use clap::error::ErrorKind;
+            if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand) {
+                e.exit();
+            }
+            // One line: clap's first line names the problem.
+            let text = e.render().to_string();
+            let first = text.lines().find(|l| !l.trim().is_empty()).unwrap_or("invalid arguments");
+            eprintln!("envis: {}", first.trim_start_matches("error: "));
+            std::process::exit(2);
+        }
+    };
+    if let Err(e) = run(cli) {
+        eprintln!("envis: error: {e}");
+        std::process::exit(1);
+    }
+}

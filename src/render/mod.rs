@@ -1,0 +1,324 @@
+//! The CPU renderer (the oracle for the GPU pipeline): per-frame distribution + pool build, then
+//! deferred shading of a G-buffer with one of four estimators, in parallel and deterministic for a
+//! given seed (every pixel has its own random stream).
+
+pub mod output;
+pub mod reference;
+pub mod scene;
+
+use crate::envmap::CubeMap;
+use crate::error::{Error, Result};
+use crate::sampling::rng::{hash, Rng};
+use crate::sampling::warp::Frame;
+use crate::sampling::{face_count, face_weights, mis, Counts, CubeDistribution, GlobalDistribution, Heuristic, LightPool};
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+pub use scene::{sphere_gbuffer, GPixel};
+
+/// Which estimator shades the pixels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub enum Strategy {
+    /// The seed's method: per-pixel face weighting (light energy x pseudo form factor) of the
+    /// shared pool, N_L light + N_B BRDF samples combined by MIS.
+    Paper,
+    /// pbrt-style: one lat-long distribution for the whole sphere, N_L samples per pixel, MIS
+    /// with N_B BRDF samples.
+    Global,
+    /// Light only: N_L + N_B pool samples spread over faces by face energy alone (no cosine).
+    Light,
+    /// BRDF only: N_L + N_B BRDF samples.
+    Brdf,
+}
+
+impl Strategy {
+    pub fn name(self) -> &'static str {
+        match self {
+            Strategy::Paper => "paper",
+            Strategy::Global => "global",
+            Strategy::Light => "light",
+            Strategy::Brdf => "brdf",
+        }
+    }
+}
+
+/// Sampling settings of a render.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct Settings {
+    /// N_L.
+    pub light_samples: usize,
+    /// N_B.
+    pub brdf_samples: usize,
+    /// M: pool samples per face (0 = N_L).
+    pub pool_size: usize,
+    pub strategy: Strategy,
+    pub counts: Counts,
+    pub mis: Heuristic,
+    pub seed: u32,
+    /// Start each pixel at a random offset into the pool (decorrelates pixels).
+    pub pixel_offset: bool,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            light_samples: 32,
+            brdf_samples: 32,
+            pool_size: 0,
+            strategy: Strategy::Paper,
+            counts: Counts::Fractional,
+            mis: Heuristic::Balance,
+            seed: 0,
+            pixel_offset: false,
+        }
+    }
+}
+
+impl Settings {
+    /// Refuse settings that cannot produce an estimate.
+    pub fn validate(&self) -> Result<()> {
+        if self.light_samples == 0 && self.brdf_samples == 0 {
+            return Err(Error::invalid("--light-samples and --brdf-samples are both 0: nothing to estimate with"));
+        }
+        if self.light_samples > 1 << 16 || self.brdf_samples > 1 << 16 || self.pool_size > 1 << 20 {
+            return Err(Error::invalid("sample counts above 65536 per pixel (or a pool above 2^20 per face) are refused"));
+        }
+        Ok(())
+    }
+    /// M, the samples per face in the pool.
+    pub fn pool_per_face(&self) -> usize {
+        if self.pool_size > 0 { self.pool_size } else { self.light_samples.max(1) + if self.strategy == Strategy::Light { self.brdf_samples } else { 0 } }
+    }
+}
+
+/// Everything built once per environment frame.
+pub struct FrameData<'a> {
+    pub map: &'a CubeMap,
+    pub dist: CubeDistribution,
+    pub energies: [f64; 6],
+    pub pool: LightPool,
+    pub global: Option<GlobalDistribution>,
+}
+
+impl<'a> FrameData<'a> {
+    pub fn prepare(map: &'a CubeMap, s: &Settings) -> Self {
+        let dist = CubeDistribution::build(map);
+        let energies = dist.energies();
+        let pool = if matches!(s.strategy, Strategy::Paper | Strategy::Light) {
+            LightPool::build(map, &dist, s.pool_per_face(), hash(s.seed ^ 0xA511_E9B3))
+        } else {
+            LightPool { per_face: 0, samples: Vec::new() }
+        };
+        let global = (s.strategy == Strategy::Global).then(|| GlobalDistribution::build(map));
+        FrameData { map, dist, energies, pool, global }
+    }
+}
+
+/// Per-pixel sample accounting (the seed's red / green / yellow).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PixelStats {
+    /// Light samples available to the pixel (6 M for the pool, N_L for `global`).
+    pub available: u32,
+    /// Light samples used with a positive cosine.
+    pub green: u32,
+    /// Light samples used with a non-positive cosine (wasted).
+    pub yellow: u32,
+    /// BRDF samples drawn.
+    pub brdf: u32,
+}
+
+impl PixelStats {
+    pub fn red(&self) -> u32 {
+        self.available.saturating_sub(self.green + self.yellow)
+    }
+}
+
+/// One pixel's estimate of `L(p, o) = integral of f(o, w) <n, w>+ L(w) dw`.
+pub fn shade_pixel(fd: &FrameData, s: &Settings, px: &GPixel, pixel_index: u32) -> (Vec3, PixelStats) {
+    let mut st = PixelStats::default();
+    let n = px.n.normalize_or_zero();
+    let o = px.o.normalize_or_zero();
+    if n == Vec3::ZERO || o == Vec3::ZERO || n.dot(o) <= 0.0 || px.material.is_black() {
+        return (Vec3::ZERO, st);
+    }
+    let frame = Frame::new(n);
+    let mat = &px.material;
+    let mut rng = Rng::new(s.seed, pixel_index);
+    let mut sum = Vec3::ZERO;
+    let (nl, nb) = match s.strategy {
+        Strategy::Paper | Strategy::Global => (s.light_samples, s.brdf_samples),
+        Strategy::Light => (s.light_samples + s.brdf_samples, 0),
+        Strategy::Brdf => (0, s.light_samples + s.brdf_samples),
+    };
+    let nb_f = nb as f32;
+    // Light-sample density on each face (N_f, clamped to the pool): `n_L(w) = density[f] p_f(w)`.
+    let mut density = [0.0f32; 6];
+
+    match s.strategy {
+        Strategy::Paper | Strategy::Light => {
+            let m = fd.pool.per_face;
+            st.available = (6 * m) as u32;
+            let fw = face_weights(n, &fd.energies, s.strategy == Strategy::Paper);
+            let offset = if s.pixel_offset && m > 0 { rng.next_u32() as usize % m } else { 0 };
+            for f in 0..6 {
+                let c = face_count(fw.mu[f] * nl as f32, m, s.counts);
+                density[f] = c.density;
+                for k in 0..c.taken {
+                    let ls = fd.pool.get(f, (offset + k) % m);
+                    if ls.pdf <= 0.0 {
+                        continue;
+                    }
+                    let cos = n.dot(ls.dir);
+                    if cos <= 0.0 {
+                        st.yellow += 1;
+                        continue;
+                    }
+                    st.green += 1;
+                    let weight = if k + 1 == c.taken { c.last_weight } else { 1.0 };
+                    let n_l = c.density * ls.pdf;
+                    let n_b = if nb > 0 { nb_f * mat.pdf(&frame, o, ls.dir) } else { 0.0 };
+                    let w = mis::weight(s.mis, n_l, n_b);
+                    sum += mat.eval(&frame, o, ls.dir) * ls.radiance * (weight * cos * w / n_l);
+                }
+            }
+        }
+        Strategy::Global => {
+            let g = fd.global.as_ref().expect("global distribution built for Strategy::Global");
+            st.available = nl as u32;
+            for _ in 0..nl {
+                let u = Vec2::new(rng.next_f32(), rng.next_f32());
+                let Some((d, p)) = g.sample(u) else { continue };
+                let cos = n.dot(d);
+                if cos <= 0.0 {
+                    st.yellow += 1;
+                    continue;
+                }
+                st.green += 1;
+                let n_l = nl as f32 * p;
+                let n_b = if nb > 0 { nb_f * mat.pdf(&frame, o, d) } else { 0.0 };
+                let w = mis::weight(s.mis, n_l, n_b);
+                sum += mat.eval(&frame, o, d) * fd.map.lookup(d) * (cos * w / n_l);
+            }
+        }
+        Strategy::Brdf => {}
+    }
+
+    for _ in 0..nb {
+        st.brdf += 1;
+        let u = Vec2::new(rng.next_f32(), rng.next_f32());
+        let Some((d, p)) = mat.sample(&frame, o, u) else { continue };
+        let cos = n.dot(d);
+        if cos <= 0.0 {
+            continue;
+        }
+        let n_b = nb_f * p;
+        let n_l = match s.strategy {
+            Strategy::Paper => {
+                let (f, pf) = fd.dist.face_pdf(d);
+                density[f] * pf
+            }
+            Strategy::Global => nl as f32 * fd.global.as_ref().map_or(0.0, |g| g.pdf(d)),
+            _ => 0.0,
+        };
+        let w = mis::weight(s.mis, n_b, n_l);
+        sum += mat.eval(&frame, o, d) * fd.map.lookup(d) * (cos * w / n_b);
+    }
+    (sum, st)
+}
+
+/// Statistics of a render, written by `--stats`.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct RenderStats {
+    pub width: usize,
+    pub height: usize,
+    pub strategy: String,
+    pub counts: String,
+    pub mis: String,
+    pub light_samples: usize,
+    pub brdf_samples: usize,
+    pub pool_per_face: usize,
+    pub seed: u32,
+    pub pixel_offset: bool,
+    /// Distribution (CDF tables, face energies) + light-sample pool build, milliseconds.
+    pub build_ms: f64,
+    /// Shading of all pixels, milliseconds.
+    pub shade_ms: f64,
+    /// Pixels with geometry.
+    pub shaded_pixels: u64,
+    /// Light samples used + BRDF samples drawn, over all pixels.
+    pub samples_evaluated: u64,
+    /// Samples evaluated per second of shading.
+    pub samples_per_second: f64,
+    /// Mean over shaded pixels of the fraction of available light samples discarded by face weighting.
+    pub red: f64,
+    /// ... used with a positive cosine.
+    pub green: f64,
+    /// ... used with a non-positive cosine.
+    pub yellow: f64,
+    /// Mean over shaded pixels of yellow / (green + yellow).
+    pub wasted: f64,
+    /// NaN / Inf / negative texels clamped when loading the map.
+    pub clamped_texels: crate::envmap::SanitizeReport,
+}
+
+/// A rendered image and its statistics.
+pub struct Rendered {
+    pub image: crate::envmap::Image,
+    pub stats: RenderStats,
+}
+
+/// Render a G-buffer of `width x height` pixels (row-major, `None` = no geometry).
+pub fn render(map: &CubeMap, gbuf: &[Option<GPixel>], width: usize, height: usize, s: &Settings) -> Result<Rendered> {
+    s.validate()?;
+    assert_eq!(gbuf.len(), width * height);
+    let t0 = std::time::Instant::now();
+    let fd = FrameData::prepare(map, s);
+    let build_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let t1 = std::time::Instant::now();
+    let out: Vec<(Vec3, Option<PixelStats>)> = gbuf
+        .par_iter()
+        .enumerate()
+        .map(|(i, px)| match px {
+            Some(p) => {
+                let (c, st) = shade_pixel(&fd, s, p, i as u32);
+                (c, Some(st))
+            }
+            None => (Vec3::ZERO, None),
+        })
+        .collect();
+    let shade_ms = t1.elapsed().as_secs_f64() * 1e3;
+
+    let mut stats = RenderStats {
+        width,
+        height,
+        strategy: s.strategy.name().into(),
+        counts: format!("{:?}", s.counts).to_lowercase(),
+        mis: format!("{:?}", s.mis).to_lowercase(),
+        light_samples: s.light_samples,
+        brdf_samples: s.brdf_samples,
+        pool_per_face: fd.pool.per_face,
+        seed: s.seed,
+        pixel_offset: s.pixel_offset,
+        build_ms,
+        shade_ms,
+        ..Default::default()
+    };
+    let (mut red, mut green, mut yellow, mut wasted) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+    for st in out.iter().filter_map(|(_, st)| st.as_ref()) {
+        stats.shaded_pixels += 1;
+        stats.samples_evaluated += (st.green + st.yellow + st.brdf) as u64;
+        if st.available > 0 {
+            let a = st.available as f64;
+            red += st.red() as f64 / a;
+            green += st.green as f64 / a;
+            yellow += st.yellow as f64 / a;
+        }
+        if st.green + st.yellow > 0 {
+            wasted += st.yellow as f64 / (st.green + st.yellow) as f64;
+        }
+    }
+    let np = stats.shaded_pixels.max(1) as f64;
+    (stats.red, stats.green, stats.yellow, stats.wasted) = (red / np, green / np, yellow / np, wasted / np);
+    stats.samples_per_second = stats.samples_evaluated as f64 / (shade_ms / 1e3).max(1e-9);
+    let image = crate::envmap::Image { width, height, data: out.into_iter().map(|(c, _)| c).collect() };
+    Ok(Rendered { image, stats })
+}

@@ -1,0 +1,150 @@
+//! Materials: a Lambert lobe plus an optional glossy lobe (normalised Phong / Lafortune, or GGX
+//! with F = 1), each with `eval` / `sample` / `pdf`. Mixtures choose a lobe by the lobes'
+//! luminance weights; their pdf is the weighted sum (one-sample model).
+//!
+//! All directions are world-space unit vectors pointing away from the surface; `o` is the view
+//! direction. Back-facing views (`<n, o> <= 0`) reflect nothing.
+
+use super::warp::*;
+use crate::envmap::luminance;
+use glam::{Vec2, Vec3};
+use std::f32::consts::{FRAC_1_PI, PI};
+
+/// The glossy lobe of a material.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub enum Lobe {
+    None,
+    /// Normalised Phong around the mirror direction: `f = ks (e+2)/(2 pi) max(0, <r, i>)^e`.
+    Phong { exponent: f32 },
+    /// GGX microfacet, perfect conductor (F = 1), height-correlated Smith masking.
+    Ggx { alpha: f32 },
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct Material {
+    /// Diffuse albedo.
+    pub kd: Vec3,
+    /// Specular albedo (tint) of the glossy lobe.
+    pub ks: Vec3,
+    pub lobe: Lobe,
+}
+
+/// Smallest Phong exponent / GGX roughness used for evaluation; inputs are clamped into range.
+pub const MIN_ALPHA: f32 = 1e-4;
+pub const MAX_EXPONENT: f32 = 1e6;
+
+impl Material {
+    pub fn diffuse(albedo: f32) -> Self {
+        Material { kd: Vec3::splat(albedo), ks: Vec3::ZERO, lobe: Lobe::None }
+    }
+    pub fn phong(albedo: f32, exponent: f32) -> Self {
+        Material { kd: Vec3::ZERO, ks: Vec3::splat(albedo), lobe: Lobe::Phong { exponent: exponent.clamp(0.0, MAX_EXPONENT) } }
+    }
+    pub fn ggx(albedo: f32, alpha: f32) -> Self {
+        Material { kd: Vec3::ZERO, ks: Vec3::splat(albedo), lobe: Lobe::Ggx { alpha: alpha.clamp(MIN_ALPHA, 1.0) } }
+    }
+
+    /// Probability of choosing the diffuse lobe when sampling.
+    #[inline]
+    pub fn diffuse_weight(&self) -> f32 {
+        if self.lobe == Lobe::None {
+            return 1.0;
+        }
+        let (d, s) = (luminance(self.kd), luminance(self.ks));
+        if d + s <= 0.0 { 0.0 } else { d / (d + s) }
+    }
+
+    /// True when the BRDF is zero everywhere (albedo 0).
+    pub fn is_black(&self) -> bool {
+        self.kd.max_element() <= 0.0 && (self.lobe == Lobe::None || self.ks.max_element() <= 0.0)
+    }
+
+    /// BRDF value `f(o, i)` (without the cosine).
+    #[inline]
+    pub fn eval(&self, f: &Frame, o: Vec3, i: Vec3) -> Vec3 {
+        let (ol, il) = (f.to_local(o), f.to_local(i));
+        if ol.z <= 0.0 || il.z <= 0.0 {
+            return Vec3::ZERO;
+        }
+        let mut v = self.kd * FRAC_1_PI;
+        match self.lobe {
+            Lobe::None => {}
+            Lobe::Phong { exponent: e } => {
+                let r = Vec3::new(-ol.x, -ol.y, ol.z);
+                let c = r.dot(il);
+                if c > 0.0 {
+                    v += self.ks * ((e + 2.0) * 0.5 * FRAC_1_PI * c.powf(e));
+                }
+            }
+            Lobe::Ggx { alpha } => {
+                let m = (ol + il).normalize_or_zero();
+                // f = D G2 / (4 o.z i.z) = D / (2 (i.z s(o.z) + o.z s(i.z)))
+                let den = 2.0 * (il.z * ggx_s(ol.z, alpha) + ol.z * ggx_s(il.z, alpha));
+                if den > 0.0 {
+                    v += self.ks * (ggx_d(m, alpha) / den);
+                }
+            }
+        }
+        v
+    }
+
+    /// Solid-angle pdf of [`Self::sample`] choosing `i`.
+    #[inline]
+    pub fn pdf(&self, f: &Frame, o: Vec3, i: Vec3) -> f32 {
+        let (ol, il) = (f.to_local(o), f.to_local(i));
+        if ol.z <= 0.0 {
+            return 0.0;
+        }
+        let wd = self.diffuse_weight();
+        let mut p = wd * cosine_hemisphere_pdf(il);
+        if wd < 1.0 {
+            let ps = match self.lobe {
+                Lobe::None => 0.0,
+                Lobe::Phong { exponent: e } => phong_lobe_pdf(Frame::new(Vec3::new(-ol.x, -ol.y, ol.z)).to_local(il), e),
+                Lobe::Ggx { alpha } => ggx_vndf_reflect_pdf(ol, il, alpha),
+            };
+            p += (1.0 - wd) * ps;
+        }
+        p
+    }
+
+    /// Sample a direction from `u` (`u.x` also chooses the lobe and is re-stretched), returning
+    /// the direction and its pdf, or `None` when the sample is invalid (below the surface, or a
+    /// back-facing view).
+    #[inline]
+    pub fn sample(&self, f: &Frame, o: Vec3, u: Vec2) -> Option<(Vec3, f32)> {
+        let ol = f.to_local(o);
+        if ol.z <= 0.0 {
+            return None;
+        }
+        let wd = self.diffuse_weight();
+        let il = if u.x < wd {
+            sample_cosine_hemisphere(Vec2::new((u.x / wd).min(1.0 - f32::EPSILON / 2.0), u.y))
+        } else {
+            let ux = ((u.x - wd) / (1.0 - wd)).clamp(0.0, 1.0 - f32::EPSILON / 2.0);
+            match self.lobe {
+                Lobe::None => return None,
+                Lobe::Phong { exponent: e } => {
+                    let r = Frame::new(Vec3::new(-ol.x, -ol.y, ol.z));
+                    r.to_world(sample_phong_lobe(Vec2::new(ux, u.y), e))
+                }
+                Lobe::Ggx { alpha } => reflect(ol, sample_ggx_vndf(ol, alpha, Vec2::new(ux, u.y))),
+            }
+        };
+        if il.z <= 0.0 {
+            return None;
+        }
+        let i = f.to_world(il).normalize();
+        let p = self.pdf(f, o, i);
+        if p > 0.0 && p.is_finite() { Some((i, p)) } else { None }
+    }
+
+    /// Angular width (radians) of the narrowest lobe, for quadrature refinement in the reference.
+    pub fn lobe_width(&self) -> f32 {
+        match self.lobe {
+            Lobe::None => PI / 2.0,
+            Lobe::Phong { exponent } => (1.0 / (exponent + 1.0).sqrt()).min(PI / 2.0),
+            Lobe::Ggx { alpha } => alpha.min(PI / 2.0),
+        }
+    }
+}

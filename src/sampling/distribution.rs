@@ -1,0 +1,193 @@
+//! Tabulated distributions of light intensity, built every frame from the current cube map.
+//!
+//! Per face: texel weight `w(c, r) = Y(c, r) * Omega(c, r)` (luminance x texel solid angle);
+//! marginal CDF over columns `u` and, per column, a conditional CDF over rows `v` (the seed's
+//! CDF(u) and CDF(v|u)). Sums are accumulated in f64 and stored normalised in f32, so a single
+//! bright texel among millions is still found with the right probability. Inside the chosen texel
+//! the direction is uniform in face coordinates; the returned pdf is per unit *solid angle*:
+//! `p(w) = P(texel) / A_texel * (1 + a^2 + b^2)^(3/2)` with `A_texel = (2/N)^2` (cube-face Jacobian).
+//!
+//! Degenerate input has defined behaviour: a zero column is never chosen, a zero face reports
+//! `energy() == 0` and is never asked to sample (its pdf is 0 everywhere), an all-zero map gives
+//! six empty faces.
+
+use crate::envmap::{dir_to_face_ab, face_ab_to_vec, luminance, texel_solid_angle, CubeMap};
+use glam::{Vec2, Vec3};
+
+/// Piecewise-constant 1D distribution on `[0, 1)` with `n` bins.
+#[derive(Clone, Debug)]
+pub struct Distribution1D {
+    /// Bin weights (non-negative).
+    pub func: Vec<f32>,
+    /// `n + 1` normalised CDF values, `cdf[0] = 0`, `cdf[n] = 1` (uniform when the total is 0).
+    pub cdf: Vec<f32>,
+    /// Sum of the weights (f64-accumulated).
+    pub total: f64,
+}
+
+impl Distribution1D {
+    pub fn new(func: Vec<f32>) -> Self {
+        let n = func.len();
+        assert!(n > 0);
+        let mut prefix = Vec::with_capacity(n + 1);
+        let mut acc = 0.0f64;
+        prefix.push(0.0);
+        for &f in &func {
+            debug_assert!(f >= 0.0 && f.is_finite());
+            acc += f as f64;
+            prefix.push(acc);
+        }
+        let cdf = if acc > 0.0 {
+            prefix.iter().map(|&p| (p / acc) as f32).collect::<Vec<_>>()
+        } else {
+            (0..=n).map(|i| i as f32 / n as f32).collect()
+        };
+        let mut cdf = cdf;
+        cdf[n] = 1.0;
+        Distribution1D { func, cdf, total: acc }
+    }
+
+    pub fn len(&self) -> usize {
+        self.func.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.total <= 0.0
+    }
+
+    /// Discrete probability of bin `i`: `func[i] / total` (0 for an empty distribution).
+    #[inline]
+    pub fn bin_pmf(&self, i: usize) -> f32 {
+        if self.total > 0.0 { (self.func[i] as f64 / self.total) as f32 } else { 0.0 }
+    }
+
+    /// Sample: bin `i` with `cdf[i] <= u < cdf[i+1]` (zero-width bins are never returned for
+    /// `u < 1`), and the remapped offset `(u - cdf[i]) / (cdf[i+1] - cdf[i])` in `[0, 1)`.
+    #[inline]
+    pub fn sample(&self, u: f32) -> (usize, f32) {
+        let n = self.func.len();
+        // Largest i in [0, n-1] with cdf[i] <= u.
+        let i = self.cdf[..n].partition_point(|&c| c <= u).saturating_sub(1);
+        let w = self.cdf[i + 1] - self.cdf[i];
+        let du = if w > 0.0 { ((u - self.cdf[i]) / w).clamp(0.0, 1.0 - f32::EPSILON / 2.0) } else { 0.0 };
+        (i, du)
+    }
+
+    /// Invert: the `u` that [`Self::sample`] maps to bin `i` and offset `du`.
+    #[inline]
+    pub fn invert(&self, i: usize, du: f32) -> f32 {
+        self.cdf[i] + du * (self.cdf[i + 1] - self.cdf[i])
+    }
+}
+
+/// The tabulated distribution of one cube face.
+#[derive(Clone, Debug)]
+pub struct FaceDistribution {
+    pub size: usize,
+    /// Marginal over columns (weights = column sums).
+    pub marginal: Distribution1D,
+    /// One conditional over rows per column.
+    pub conditional: Vec<Distribution1D>,
+    /// `I_f`: sum of luminance x solid angle over the face (f64-accumulated).
+    pub energy: f64,
+}
+
+/// One sample drawn from a face: direction, face coordinates and solid-angle pdf.
+#[derive(Clone, Copy, Debug)]
+pub struct FaceSample {
+    pub dir: Vec3,
+    pub col: usize,
+    pub row: usize,
+    pub pdf: f32,
+}
+
+impl FaceDistribution {
+    /// Build from texel weights `w[row * n + col]` (already luminance x solid angle).
+    pub fn from_weights(n: usize, w: &[f32]) -> Self {
+        let conditional: Vec<Distribution1D> =
+            (0..n).map(|c| Distribution1D::new((0..n).map(|r| w[r * n + c]).collect())).collect();
+        let marginal = Distribution1D::new(conditional.iter().map(|d| d.total as f32).collect());
+        let energy = conditional.iter().map(|d| d.total).sum();
+        FaceDistribution { size: n, marginal, conditional, energy }
+    }
+
+    /// Discrete probability of texel `(col, row)`.
+    #[inline]
+    pub fn texel_pmf(&self, col: usize, row: usize) -> f32 {
+        self.marginal.bin_pmf(col) * self.conditional[col].bin_pmf(row)
+    }
+
+    /// `u -> (col, du)` via CDF(u), then `v -> (row, dv)` via CDF(v|u); uniform in face coordinates
+    /// inside the texel. Returns `None` on an empty face.
+    #[inline]
+    pub fn sample(&self, face: usize, u: Vec2) -> Option<FaceSample> {
+        if self.energy <= 0.0 {
+            return None;
+        }
+        let n = self.size;
+        let (col, du) = self.marginal.sample(u.x);
+        let (row, dv) = self.conditional[col].sample(u.y);
+        let h = 2.0 / n as f32;
+        let a = -1.0 + (col as f32 + du) * h;
+        let b = -1.0 + (row as f32 + dv) * h;
+        let pdf = self.pdf_ab(col, row, a, b);
+        Some(FaceSample { dir: face_ab_to_vec(face, a, b).normalize(), col, row, pdf })
+    }
+
+    /// Solid-angle pdf at face coordinates `(a, b)` in texel `(col, row)`:
+    /// `P(texel) / (2/N)^2 * (1 + a^2 + b^2)^(3/2)`.
+    #[inline]
+    pub fn pdf_ab(&self, col: usize, row: usize, a: f32, b: f32) -> f32 {
+        let n = self.size as f32;
+        let q = 1.0 + a * a + b * b;
+        self.texel_pmf(col, row) * (n * n * 0.25) * q * q.sqrt()
+    }
+
+    /// Invert: the `u` that [`Self::sample`] maps to face coordinates `(a, b)`.
+    pub fn invert(&self, a: f32, b: f32) -> Vec2 {
+        let n = self.size;
+        let x = ((a + 1.0) * 0.5 * n as f32).clamp(0.0, n as f32 - 1e-3);
+        let y = ((b + 1.0) * 0.5 * n as f32).clamp(0.0, n as f32 - 1e-3);
+        let (col, row) = (x as usize, y as usize);
+        Vec2::new(self.marginal.invert(col, x - col as f32), self.conditional[col].invert(row, y - row as f32))
+    }
+}
+
+/// The six face distributions of one frame plus the face energies `I_f`.
+#[derive(Clone, Debug)]
+pub struct CubeDistribution {
+    pub size: usize,
+    pub faces: Vec<FaceDistribution>,
+}
+
+/// Texel weights `Y * Omega` of a cube map (`6 * N * N`, same layout as the map).
+pub fn texel_weights(map: &CubeMap) -> Vec<f32> {
+    use rayon::prelude::*;
+    let n = map.size;
+    let omega: Vec<f32> = (0..n * n).map(|i| texel_solid_angle(i % n, i / n, n) as f32).collect();
+    map.data.par_iter().enumerate().map(|(i, &c)| luminance(c).max(0.0) * omega[i % (n * n)]).collect()
+}
+
+impl CubeDistribution {
+    pub fn build(map: &CubeMap) -> Self {
+        use rayon::prelude::*;
+        let n = map.size;
+        let w = texel_weights(map);
+        let faces = (0..6).into_par_iter().map(|f| FaceDistribution::from_weights(n, &w[f * n * n..(f + 1) * n * n])).collect();
+        CubeDistribution { size: n, faces }
+    }
+
+    /// Face energies `I_f`.
+    pub fn energies(&self) -> [f64; 6] {
+        std::array::from_fn(|f| self.faces[f].energy)
+    }
+
+    /// Per-face solid-angle pdf `p_f(w)` of direction `d` (0 on an empty face), and its face.
+    #[inline]
+    pub fn face_pdf(&self, d: Vec3) -> (usize, f32) {
+        let (f, a, b) = dir_to_face_ab(d);
+        let n = self.size;
+        let col = (((a + 1.0) * 0.5 * n as f32) as usize).min(n - 1);
+        let row = (((b + 1.0) * 0.5 * n as f32) as usize).min(n - 1);
+        (f, self.faces[f].pdf_ab(col, row, a, b))
+    }
+}

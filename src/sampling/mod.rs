@@ -1,0 +1,19 @@
+//! Sampling: per-face tabulated distributions, the per-frame light-sample pool, per-pixel face
+//! weighting and counts, BRDF warps and materials, MIS, and the global (pbrt-style) baseline.
+//! Each routine keeps its pdf beside it; f32 at run time, f64 in the reference.
+
+pub mod brdf;
+pub mod distribution;
+pub mod faceweights;
+pub mod global;
+pub mod mis;
+pub mod pool;
+pub mod rng;
+pub mod warp;
+
+pub use brdf::{Lobe, Material};
+pub use distribution::{CubeDistribution, Distribution1D, FaceDistribution};
+pub use faceweights::{face_count, face_weights, Counts, FaceWeights};
+pub use global::GlobalDistribution;
+pub use mis::Heuristic;
+pub use pool::{LightPool, PoolSample};

@@ -1,0 +1,112 @@
+//! Random numbers that a WGSL shader can reproduce exactly: u32 arithmetic only.
+//!
+//! - [`hash`]: the PCG-RXS-M-XS 32-bit output permutation applied to an LCG step (a good
+//!   stateless integer hash).
+//! - [`Rng`]: a tiny stateful generator (one u32 of state, same permutation) for per-pixel streams.
+//! - [`permute`]: a random permutation of `0..n` evaluated one element at a time (a bijective hash
+//!   on the next power of two plus cycle walking), so the stratified pool can be shuffled in
+//!   parallel.
+
+/// `x -> PCG-RXS-M-XS(747796405 x + 2891336453)`.
+#[inline]
+pub fn hash(x: u32) -> u32 {
+    let state = x.wrapping_mul(747796405).wrapping_add(2891336453);
+    let word = ((state >> ((state >> 28) + 4)) ^ state).wrapping_mul(277803737);
+    (word >> 22) ^ word
+}
+
+/// Hash of several words (order matters).
+#[inline]
+pub fn hash_combine(words: &[u32]) -> u32 {
+    let mut h = 0x9e37_79b9u32;
+    for &w in words {
+        h = hash(h ^ w);
+    }
+    h
+}
+
+/// Uniform float in `[0, 1)` from the top 24 bits of `x` (exactly representable, never 1).
+#[inline]
+pub fn to_unit(x: u32) -> f32 {
+    (x >> 8) as f32 * (1.0 / 16_777_216.0)
+}
+
+/// Per-pixel stream: `state <- LCG(state)`, output = PCG-RXS-M-XS permutation of the new state.
+#[derive(Clone, Debug)]
+pub struct Rng {
+    state: u32,
+}
+
+impl Rng {
+    pub fn new(seed: u32, stream: u32) -> Self {
+        Rng { state: hash_combine(&[seed, stream]) }
+    }
+    #[inline]
+    pub fn next_u32(&mut self) -> u32 {
+        self.state = self.state.wrapping_mul(747796405).wrapping_add(2891336453);
+        let s = self.state;
+        let word = ((s >> ((s >> 28) + 4)) ^ s).wrapping_mul(277803737);
+        (word >> 22) ^ word
+    }
+    #[inline]
+    pub fn next_f32(&mut self) -> f32 {
+        to_unit(self.next_u32())
+    }
+}
+
+/// Element `i` of a pseudo-random permutation of `0..n` chosen by `seed` (`i < n`).
+/// Bijective mixing on `k = ceil(log2 n)` bits (xor, odd multiply, xorshift-right, all mod 2^k),
+/// repeated until the value falls below `n` (cycle walking keeps it a bijection on `0..n`).
+pub fn permute(i: u32, n: u32, seed: u32) -> u32 {
+    debug_assert!(i < n);
+    if n <= 1 {
+        return 0;
+    }
+    let bits = 32 - (n - 1).leading_zeros();
+    let mask = if bits >= 32 { u32::MAX } else { (1u32 << bits) - 1 };
+    let s1 = hash(seed);
+    let s2 = hash(s1);
+    let mut x = i;
+    loop {
+        x ^= s1 & mask;
+        x = x.wrapping_mul(0x9E37_79B1 | 1) & mask;
+        x ^= (x & mask) >> (bits / 2 + 1).min(31);
+        x = x.wrapping_add(s2) & mask;
+        x = x.wrapping_mul(0x85EB_CA6B | 1) & mask;
+        x ^= (x & mask) >> (bits / 3 + 1).min(31);
+        if x < n {
+            return x;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn permute_is_a_bijection() {
+        for n in [1u32, 2, 3, 7, 16, 33, 100, 1000] {
+            for seed in [0u32, 1, 12345] {
+                let mut seen = vec![false; n as usize];
+                for i in 0..n {
+                    let p = permute(i, n, seed) as usize;
+                    assert!(!seen[p], "n={n} seed={seed}: {p} twice");
+                    seen[p] = true;
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn unit_floats_in_range() {
+        let mut r = Rng::new(7, 3);
+        let mut mean = 0.0f64;
+        for _ in 0..100_000 {
+            let x = r.next_f32();
+            assert!((0.0..1.0).contains(&x));
+            mean += x as f64;
+        }
+        assert!((mean / 1e5 - 0.5).abs() < 0.005);
+    }
+}
