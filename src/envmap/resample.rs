@@ -1,7 +1,10 @@
 //! Lat-long -> cube and cube -> cube resampling that preserves energy (the integral of radiance
-//! over solid angle): each target texel is the solid-angle-weighted mean of `s x s` sub-points of
-//! its footprint. When the target is coarser than the source the sub-points use nearest lookups
-//! and `s` covers every source texel (area / box filter); when it is finer they use bilinear lookups.
+//! over solid angle).
+//! - Lat-long shrinking (area / box filter): every source texel is split into `k x k` sub-rects of
+//!   exact solid angle and its energy `L dOmega` is splatted into the cube texel each sub-rect's
+//!   centre falls in; cube texel = energy / its exact solid angle. No source texel is ever skipped
+//!   (small texels near the poles included), and the total energy is preserved to rounding.
+//! - Growing: each target texel is the solid-angle-weighted mean of `s x s` bilinear sub-points.
 
 use super::{dir_to_face_uv, dir_to_latlong, face_ab_to_vec, CubeMap, Image};
 use glam::Vec3;
@@ -39,11 +42,48 @@ pub fn latlong_to_cube(img: &Image, size: usize) -> CubeMap {
     // Source texels (along the equator) per target texel: (2 pi / W) vs (pi / 2 / N).
     let ratio = img.width as f32 / (4.0 * size as f32);
     if ratio > 1.0 {
-        let s = ((2.0 * ratio).ceil() as usize).clamp(2, 32);
-        cube_from_fetch(size, s, |d| latlong_nearest(img, d))
+        // Sub-rects small enough that even the smallest cube texels (at face corners, ~0.44x the
+        // centre's side) receive several.
+        let k = ((4.0 / ratio).ceil() as usize).clamp(2, 8);
+        latlong_splat(img, size, k)
     } else {
         cube_from_fetch(size, 2, |d| latlong_bilinear(img, d))
     }
+}
+
+/// Area-filtered lat-long -> cube by splatting `k x k` exact-solid-angle sub-rects per source texel.
+pub fn latlong_splat(img: &Image, size: usize, k: usize) -> CubeMap {
+    use glam::DVec3;
+    use std::f64::consts::PI;
+    let (w, h) = (img.width, img.height);
+    let n = size;
+    let mut energy = vec![DVec3::ZERO; 6 * n * n];
+    let dphi = 2.0 * PI / (w * k) as f64;
+    for y in 0..h {
+        for sy in 0..k {
+            let t0 = PI * (y as f64 + sy as f64 / k as f64) / h as f64;
+            let t1 = PI * (y as f64 + (sy + 1) as f64 / k as f64) / h as f64;
+            let domega = (t0.cos() - t1.cos()) * dphi;
+            let v = ((y as f64 + (sy as f64 + 0.5) / k as f64) / h as f64) as f32;
+            for x in 0..w {
+                let c = img.get(x, y);
+                if c == Vec3::ZERO {
+                    continue;
+                }
+                for sx in 0..k {
+                    let u = ((x as f64 + (sx as f64 + 0.5) / k as f64) / w as f64) as f32;
+                    let (f, u2, v2) = dir_to_face_uv(super::latlong_to_dir(u, v));
+                    let (col, row) = super::uv_to_texel(u2, v2, n);
+                    energy[(f * n + row) * n + col] += c.as_dvec3() * domega;
+                }
+            }
+        }
+    }
+    let mut cube = CubeMap::new(n);
+    for (i, t) in cube.data.iter_mut().enumerate() {
+        *t = (energy[i] / super::texel_solid_angle(i % n, (i / n) % n, n)).as_vec3();
+    }
+    cube
 }
 
 /// Resample a cube map to another face size.
