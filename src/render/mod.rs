@@ -6,7 +6,7 @@ pub mod output;
 pub mod reference;
 pub mod scene;
 
-use crate::envmap::CubeMap;
+use crate::envmap::{dir_to_face_ab, uv_to_texel, CubeMap};
 use crate::error::{Error, Result};
 use crate::sampling::rng::{hash, Rng};
 use crate::sampling::warp::Frame;
@@ -97,6 +97,9 @@ pub struct FrameData<'a> {
     pub energies: [f64; 6],
     pub pool: LightPool,
     pub global: Option<GlobalDistribution>,
+    /// Per cube texel, radiance and `pdf_area` interleaved (`(r, g, b, p)`), so a BRDF-sampled
+    /// direction costs one memory access for both its radiance and its light density.
+    pub texels: Vec<glam::Vec4>,
 }
 
 impl<'a> FrameData<'a> {
@@ -109,7 +112,9 @@ impl<'a> FrameData<'a> {
             LightPool { per_face: 0, samples: Vec::new() }
         };
         let global = (s.strategy == Strategy::Global).then(|| GlobalDistribution::build(map));
-        FrameData { map, dist, energies, pool, global }
+        let nn = map.size * map.size;
+        let texels = map.data.iter().enumerate().map(|(i, c)| c.extend(dist.faces[i / nn].pdf_area[i % nn])).collect();
+        FrameData { map, dist, energies, pool, global, texels }
     }
 }
 
@@ -141,6 +146,7 @@ pub fn shade_pixel(fd: &FrameData, s: &Settings, px: &GPixel, pixel_index: u32) 
         return (Vec3::ZERO, st);
     }
     let frame = Frame::new(n);
+    let ol = frame.to_local(o);
     let mat = &px.material;
     let mut rng = Rng::new(s.seed, pixel_index);
     let mut sum = Vec3::ZERO;
@@ -150,6 +156,7 @@ pub fn shade_pixel(fd: &FrameData, s: &Settings, px: &GPixel, pixel_index: u32) 
         Strategy::Brdf => (0, s.light_samples + s.brdf_samples),
     };
     let nb_f = nb as f32;
+    let size = fd.map.size;
     // Light-sample density on each face (N_f, clamped to the pool): `n_L(w) = density[f] p_f(w)`.
     let mut density = [0.0f32; 6];
 
@@ -174,10 +181,10 @@ pub fn shade_pixel(fd: &FrameData, s: &Settings, px: &GPixel, pixel_index: u32) 
                     }
                     st.green += 1;
                     let weight = if k + 1 == c.taken { c.last_weight } else { 1.0 };
+                    let il = frame.to_local(ls.dir);
                     let n_l = c.density * ls.pdf;
-                    let n_b = if nb > 0 { nb_f * mat.pdf(&frame, o, ls.dir) } else { 0.0 };
-                    let w = mis::weight(s.mis, n_l, n_b);
-                    sum += mat.eval(&frame, o, ls.dir) * ls.radiance * (weight * cos * w / n_l);
+                    let n_b = if nb > 0 { nb_f * mat.pdf_local(ol, il) } else { 0.0 };
+                    sum += mat.eval_local(ol, il) * ls.radiance * (weight * cos * mis::weight_over_density(s.mis, n_l, n_b));
                 }
             }
         }
@@ -193,10 +200,10 @@ pub fn shade_pixel(fd: &FrameData, s: &Settings, px: &GPixel, pixel_index: u32) 
                     continue;
                 }
                 st.green += 1;
+                let il = frame.to_local(d);
                 let n_l = nl as f32 * p;
-                let n_b = if nb > 0 { nb_f * mat.pdf(&frame, o, d) } else { 0.0 };
-                let w = mis::weight(s.mis, n_l, n_b);
-                sum += mat.eval(&frame, o, d) * fd.map.lookup(d) * (cos * w / n_l);
+                let n_b = if nb > 0 { nb_f * mat.pdf_local(ol, il) } else { 0.0 };
+                sum += mat.eval_local(ol, il) * fd.map.lookup(d) * (cos * mis::weight_over_density(s.mis, n_l, n_b));
             }
         }
         Strategy::Brdf => {}
@@ -205,22 +212,23 @@ pub fn shade_pixel(fd: &FrameData, s: &Settings, px: &GPixel, pixel_index: u32) 
     for _ in 0..nb {
         st.brdf += 1;
         let u = Vec2::new(rng.next_f32(), rng.next_f32());
-        let Some((d, p)) = mat.sample(&frame, o, u) else { continue };
-        let cos = n.dot(d);
-        if cos <= 0.0 {
-            continue;
-        }
+        let Some((il, p)) = mat.sample_local(ol, u) else { continue };
+        let cos = il.z;
+        let d = frame.to_world(il);
         let n_b = nb_f * p;
+        // One face/texel lookup gives both the radiance and the light density of `d`.
+        let (f, a, b) = dir_to_face_ab(d);
+        let (col, row) = uv_to_texel(0.5 * (a + 1.0), 0.5 * (b + 1.0), size);
+        let t = fd.texels[(f * size + row) * size + col];
         let n_l = match s.strategy {
             Strategy::Paper => {
-                let (f, pf) = fd.dist.face_pdf(d);
-                density[f] * pf
+                let q = 1.0 + a * a + b * b;
+                density[f] * t.w * q * q.sqrt()
             }
             Strategy::Global => nl as f32 * fd.global.as_ref().map_or(0.0, |g| g.pdf(d)),
             _ => 0.0,
         };
-        let w = mis::weight(s.mis, n_b, n_l);
-        sum += mat.eval(&frame, o, d) * fd.map.lookup(d) * (cos * w / n_b);
+        sum += mat.eval_local(ol, il) * t.truncate() * (cos * mis::weight_over_density(s.mis, n_b, n_l));
     }
     (sum, st)
 }

@@ -62,7 +62,26 @@ impl Material {
     /// BRDF value `f(o, i)` (without the cosine).
     #[inline]
     pub fn eval(&self, f: &Frame, o: Vec3, i: Vec3) -> Vec3 {
-        let (ol, il) = (f.to_local(o), f.to_local(i));
+        self.eval_local(f.to_local(o), f.to_local(i))
+    }
+
+    /// Solid-angle pdf of [`Self::sample`] choosing `i`.
+    #[inline]
+    pub fn pdf(&self, f: &Frame, o: Vec3, i: Vec3) -> f32 {
+        self.pdf_local(f.to_local(o), f.to_local(i))
+    }
+
+    /// Sample a direction from `u` (`u.x` also chooses the lobe and is re-stretched), returning
+    /// the world direction and its pdf, or `None` when the sample is invalid (below the surface,
+    /// or a back-facing view).
+    #[inline]
+    pub fn sample(&self, f: &Frame, o: Vec3, u: Vec2) -> Option<(Vec3, f32)> {
+        self.sample_local(f.to_local(o), u).map(|(il, p)| (f.to_world(il).normalize(), p))
+    }
+
+    /// [`Self::eval`] in the shading frame (z = normal).
+    #[inline]
+    pub fn eval_local(&self, ol: Vec3, il: Vec3) -> Vec3 {
         if ol.z <= 0.0 || il.z <= 0.0 {
             return Vec3::ZERO;
         }
@@ -70,8 +89,8 @@ impl Material {
         match self.lobe {
             Lobe::None => {}
             Lobe::Phong { exponent: e } => {
-                let r = Vec3::new(-ol.x, -ol.y, ol.z);
-                let c = r.dot(il);
+                // <r, i> with r = (-o.x, -o.y, o.z), the mirror direction.
+                let c = il.z * ol.z - il.x * ol.x - il.y * ol.y;
                 if c > 0.0 {
                     v += self.ks * ((e + 2.0) * 0.5 * FRAC_1_PI * c.powf(e));
                 }
@@ -88,10 +107,9 @@ impl Material {
         v
     }
 
-    /// Solid-angle pdf of [`Self::sample`] choosing `i`.
+    /// [`Self::pdf`] in the shading frame.
     #[inline]
-    pub fn pdf(&self, f: &Frame, o: Vec3, i: Vec3) -> f32 {
-        let (ol, il) = (f.to_local(o), f.to_local(i));
+    pub fn pdf_local(&self, ol: Vec3, il: Vec3) -> f32 {
         if ol.z <= 0.0 {
             return 0.0;
         }
@@ -100,7 +118,10 @@ impl Material {
         if wd < 1.0 {
             let ps = match self.lobe {
                 Lobe::None => 0.0,
-                Lobe::Phong { exponent: e } => phong_lobe_pdf(Frame::new(Vec3::new(-ol.x, -ol.y, ol.z)).to_local(il), e),
+                Lobe::Phong { exponent: e } => {
+                    let c = il.z * ol.z - il.x * ol.x - il.y * ol.y;
+                    if c > 0.0 { (e + 1.0) * 0.5 * FRAC_1_PI * c.powf(e) } else { 0.0 }
+                }
                 Lobe::Ggx { alpha } => ggx_vndf_reflect_pdf(ol, il, alpha),
             };
             p += (1.0 - wd) * ps;
@@ -108,12 +129,9 @@ impl Material {
         p
     }
 
-    /// Sample a direction from `u` (`u.x` also chooses the lobe and is re-stretched), returning
-    /// the direction and its pdf, or `None` when the sample is invalid (below the surface, or a
-    /// back-facing view).
+    /// [`Self::sample`] in the shading frame: `(i_local, pdf)`.
     #[inline]
-    pub fn sample(&self, f: &Frame, o: Vec3, u: Vec2) -> Option<(Vec3, f32)> {
-        let ol = f.to_local(o);
+    pub fn sample_local(&self, ol: Vec3, u: Vec2) -> Option<(Vec3, f32)> {
         if ol.z <= 0.0 {
             return None;
         }
@@ -134,9 +152,8 @@ impl Material {
         if il.z <= 0.0 {
             return None;
         }
-        let i = f.to_world(il).normalize();
-        let p = self.pdf(f, o, i);
-        if p > 0.0 && p.is_finite() { Some((i, p)) } else { None }
+        let p = self.pdf_local(ol, il);
+        if p > 0.0 && p.is_finite() { Some((il, p)) } else { None }
     }
 
     /// Angular width (radians) of the narrowest lobe, for quadrature refinement in the reference.

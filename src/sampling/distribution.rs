@@ -89,6 +89,9 @@ pub struct FaceDistribution {
     pub conditional: Vec<Distribution1D>,
     /// `I_f`: sum of luminance x solid angle over the face (f64-accumulated).
     pub energy: f64,
+    /// Per texel (row-major), `P(texel) * (N/2)^2`: the pdf per unit face area, so that
+    /// `p(w) = pdf_area[t] * (1 + a^2 + b^2)^(3/2)` needs no division at shading time.
+    pub pdf_area: Vec<f32>,
 }
 
 /// One sample drawn from a face: direction, face coordinates and solid-angle pdf.
@@ -106,8 +109,10 @@ impl FaceDistribution {
         let conditional: Vec<Distribution1D> =
             (0..n).map(|c| Distribution1D::new((0..n).map(|r| w[r * n + c]).collect())).collect();
         let marginal = Distribution1D::new(conditional.iter().map(|d| d.total as f32).collect());
-        let energy = conditional.iter().map(|d| d.total).sum();
-        FaceDistribution { size: n, marginal, conditional, energy }
+        let energy: f64 = conditional.iter().map(|d| d.total).sum();
+        let scale = if energy > 0.0 { (n * n) as f64 * 0.25 / energy } else { 0.0 };
+        let pdf_area = w.iter().map(|&x| (x as f64 * scale) as f32).collect();
+        FaceDistribution { size: n, marginal, conditional, energy, pdf_area }
     }
 
     /// Discrete probability of texel `(col, row)`.
@@ -137,9 +142,8 @@ impl FaceDistribution {
     /// `P(texel) / (2/N)^2 * (1 + a^2 + b^2)^(3/2)`.
     #[inline]
     pub fn pdf_ab(&self, col: usize, row: usize, a: f32, b: f32) -> f32 {
-        let n = self.size as f32;
         let q = 1.0 + a * a + b * b;
-        self.texel_pmf(col, row) * (n * n * 0.25) * q * q.sqrt()
+        self.pdf_area[row * self.size + col] * q * q.sqrt()
     }
 
     /// Invert: the `u` that [`Self::sample`] maps to face coordinates `(a, b)`.
@@ -184,10 +188,17 @@ impl CubeDistribution {
     /// Per-face solid-angle pdf `p_f(w)` of direction `d` (0 on an empty face), and its face.
     #[inline]
     pub fn face_pdf(&self, d: Vec3) -> (usize, f32) {
+        let (f, _, p) = self.locate(d);
+        (f, p)
+    }
+
+    /// Face, texel index into the cube map's `data`, and per-face solid-angle pdf of direction
+    /// `d`: one face/texel lookup serves both the pdf and the radiance.
+    #[inline]
+    pub fn locate(&self, d: Vec3) -> (usize, usize, f32) {
         let (f, a, b) = dir_to_face_ab(d);
         let n = self.size;
-        let col = (((a + 1.0) * 0.5 * n as f32) as usize).min(n - 1);
-        let row = (((b + 1.0) * 0.5 * n as f32) as usize).min(n - 1);
-        (f, self.faces[f].pdf_ab(col, row, a, b))
+        let (col, row) = crate::envmap::uv_to_texel(0.5 * (a + 1.0), 0.5 * (b + 1.0), n);
+        (f, (f * n + row) * n + col, self.faces[f].pdf_ab(col, row, a, b))
     }
 }

@@ -32,9 +32,33 @@ pub fn weight(h: Heuristic, na: f32, nb: f32) -> f32 {
     }
 }
 
+/// `weight(h, na, nb) / na` with one division: balance `1 / (na + nb)`, power `na / (na^2 + nb^2)`.
+/// This is the factor a sample of technique `a` (effective density `na > 0`) is multiplied by.
+#[inline]
+pub fn weight_over_density(h: Heuristic, na: f32, nb: f32) -> f32 {
+    match h {
+        Heuristic::Balance => 1.0 / (na + nb),
+        Heuristic::Power => {
+            let m = na.max(nb);
+            let (a, b) = (na / m, nb / m);
+            a / (m * (a * a + b * b))
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    #[test]
+    fn weight_over_density_matches() {
+        for h in [Heuristic::Balance, Heuristic::Power] {
+            for &(a, b) in &[(1.0f32, 2.0f32), (3.0, 0.0), (1e-20, 1e20), (5e3, 2.0)] {
+                let x = weight_over_density(h, a, b);
+                let y = weight(h, a, b) / a;
+                assert!((x - y).abs() <= 1e-6 * y.abs().max(1e-30), "{h:?} {a} {b}: {x} vs {y}");
+            }
+        }
+    }
     #[test]
     fn weights_partition_unity() {
         for h in [Heuristic::Balance, Heuristic::Power] {

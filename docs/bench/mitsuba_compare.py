@@ -1,0 +1,69 @@
+#!/usr/bin/env python3
+"""Samples per second of `envis render` (CPU) vs Mitsuba 3's `direct` integrator, in one run.
+
+Same scene (unit sphere, orthographic camera on +Z covering [-1,1]^2, diffuse albedo 0.8),
+same lat-long map (Mitsuba 3's convention is envis's), same sample counts (32 emitter/light +
+32 BSDF samples per pixel, one camera sample per pixel), same machine, same process tree.
+Samples/s = (pixels on the sphere) x (N_L + N_B) / shading seconds for both.
+
+Needs: `pip install mitsuba` (variant llvm_ad_rgb) and Debian `libllvm19`; a release build of
+envis (`cargo build --release`). Usage:
+    python3 docs/bench/mitsuba_compare.py [--env ../shared/data/hdri/sky.exr] [--size 256] [--repeat 5]
+"""
+import argparse, json, os, subprocess, sys, tempfile, time
+
+ap = argparse.ArgumentParser()
+ap.add_argument("--env", default=os.path.join(os.path.dirname(__file__), "../../../shared/data/hdri/sky.exr"))
+ap.add_argument("--size", type=int, default=256)
+ap.add_argument("--face-size", type=int, default=64)
+ap.add_argument("--repeat", type=int, default=5)
+ap.add_argument("--envis", default=os.environ.get("ENVIS", "target/release/envis"))
+a = ap.parse_args()
+
+import mitsuba as mi
+import drjit as dr
+mi.set_variant("llvm_ad_rgb")
+
+W = a.size
+on_sphere = sum(1 for j in range(W) for i in range(W)
+                if (-1 + 2 * (i + .5) / W) ** 2 + (1 - 2 * (j + .5) / W) ** 2 < 1)
+samples = on_sphere * 64
+
+scene = mi.load_dict({
+    "type": "scene",
+    "integrator": {"type": "direct", "emitter_samples": 32, "bsdf_samples": 32},
+    "sensor": {
+        "type": "orthographic",
+        "to_world": mi.ScalarTransform4f().look_at(origin=[0, 0, 5], target=[0, 0, 0], up=[0, 1, 0]),
+        "film": {"type": "hdrfilm", "width": W, "height": W, "rfilter": {"type": "box"}},
+        "sampler": {"type": "independent", "sample_count": 1},
+    },
+    "sphere": {"type": "sphere", "radius": 1.0, "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": 0.8}}},
+    "env": {"type": "envmap", "filename": os.path.abspath(a.env)},
+})
+
+def mitsuba_once(seed):
+    t = time.perf_counter()
+    img = mi.render(scene, seed=seed)
+    dr.eval(img)
+    dr.sync_thread()
+    return time.perf_counter() - t
+
+first = mitsuba_once(0)  # includes JIT compilation
+mts = sorted(mitsuba_once(s) for s in range(1, a.repeat + 1))[a.repeat // 2]
+
+envis_sps = []
+with tempfile.TemporaryDirectory() as d:
+    for s in range(a.repeat):
+        st = os.path.join(d, "s.json")
+        subprocess.run([a.envis, "render", "--env", a.env, "--face-size", str(a.face_size), "--scene", "sphere",
+                        "--size", str(W), "--brdf", "diffuse", "--albedo", "0.8", "--light-samples", "32",
+                        "--brdf-samples", "32", "--strategy", "paper", "--counts", "fractional", "--mis", "balance",
+                        "--seed", str(s), "--out", os.path.join(d, "o.exr"), "--stats", st], check=True)
+        js = json.load(open(st))
+        envis_sps.append(samples / (js["shade_ms"] / 1e3))
+envis = sorted(envis_sps)[a.repeat // 2]
+res = {"pixels_on_sphere": on_sphere, "samples": samples, "mitsuba_first_s": first, "mitsuba_s": mts,
+       "mitsuba_samples_per_s": samples / mts, "envis_samples_per_s": envis, "ratio": envis / (samples / mts),
+       "threads": os.cpu_count(), "mitsuba": mi.__version__}
+print(json.dumps(res, indent=2))
