@@ -52,7 +52,7 @@ mod tests {
     #[test]
     fn weight_over_density_matches() {
         for h in [Heuristic::Balance, Heuristic::Power] {
-            for &(a, b) in &[(1.0f32, 2.0f32), (3.0, 0.0), (1e-20, 1e20), (5e3, 2.0)] {
+            for &(a, b) in &[(1.0f32, 2.0f32), (3.0, 0.0), (1e-10, 1e10), (5e3, 2.0)] {
                 let x = weight_over_density(h, a, b);
                 let y = weight(h, a, b) / a;
                 assert!((x - y).abs() <= 1e-6 * y.abs().max(1e-30), "{h:?} {a} {b}: {x} vs {y}");
