@@ -169,8 +169,14 @@ pub fn shade_pixel(fd: &FrameData, s: &Settings, px: &GPixel, pixel_index: u32) 
             for f in 0..6 {
                 let c = face_count(fw.mu[f] * nl as f32, m, s.counts);
                 density[f] = c.density;
+                // Pool index (offset + k) mod m, kept in range without a division per sample.
+                let mut idx = offset;
                 for k in 0..c.taken {
-                    let ls = fd.pool.get(f, (offset + k) % m);
+                    let ls = fd.pool.get(f, idx);
+                    idx += 1;
+                    if idx == m {
+                        idx = 0;
+                    }
                     if ls.pdf <= 0.0 {
                         continue;
                     }
