@@ -150,6 +150,9 @@ fn chi2_sphere(
 
 const P_MIN: f64 = 1e-4;
 
+#[path = "core/stability.rs"]
+mod stability;
+
 // ---------------------------------------------------------------------------------------------
 // Conventions
 

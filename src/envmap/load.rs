@@ -296,11 +296,14 @@ pub fn load_env(src: &EnvSource, face_size: usize) -> Result<LoadedEnv> {
             let mut img = read_image(path)?;
             let layout = detect_layout(img.width, img.height).map_err(|p| Error::file(path, p))?;
             // Clamp before any filtering so no bad value is spread into neighbours.
-            let report = img.sanitize();
-            let cube = match layout {
+            let mut report = img.sanitize();
+            let mut cube = match layout {
                 Layout::LatLong => super::resample::latlong_to_cube(&img, face_size),
                 _ => super::resample::resize_cube(&cross_to_cube(&img, layout), face_size),
             };
+            // Backstop: filtering of clamped data cannot create bad texels, but the distribution
+            // must never see one, so check again (counted with the rest).
+            report.add(cube.sanitize());
             Ok(LoadedEnv { cube, report, layout: Some(layout) })
         }
     }
