@@ -695,6 +695,11 @@ fn bad_files_give_clear_errors() {
     let e = load_env(&EnvSource::File(trunc), 16).unwrap_err().to_string();
     assert!(e.contains("trunc.exr") && !e.contains('\n'), "{e}");
 
+    // Wrong channels (luminance only, written by Mitsuba 3).
+    let y_only = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/corpus/luminance_only_8x4.exr");
+    let e = load_env(&EnvSource::File(y_only), 4).unwrap_err().to_string();
+    assert!(e.contains("luminance_only_8x4.exr") && e.contains("needs R, G and B"), "{e}");
+
     // Wrong aspect ratio.
     let odd = dir.join("odd.exr");
     envis::render::output::write_exr(&odd, &Image::new(50, 30)).unwrap();
