@@ -572,7 +572,12 @@ fn estimators_are_unbiased() {
                 if s.strategy == Strategy::Brdf && *mname != "diffuse" && ename.starts_with("builtin") {
                     continue;
                 }
-                for c in unbiased_checks(map, *mat, *s, k, size, &reference) {
+                // BRDF-only sampling of small bright lights (the sun, studio lamps) is heavy-tailed:
+                // with few seeds most runs miss the lights, so both the mean and its standard
+                // error come out low. Checked with 400 seeds on studio.exr: mean within 0.7 se of
+                // the reference, median 0.83x the mean. It gets 5x the seeds (it is cheap).
+                let seeds = if s.strategy == Strategy::Brdf { 5 * k } else { k };
+                for c in unbiased_checks(map, *mat, *s, seeds, size, &reference) {
                     // 3 standard errors on the image mean; 3.5 on the four quadrants (5 checks per case).
                     let limit = if c.label == "image" { 3.0 } else { 3.5 };
                     worst = worst.max(c.z());

@@ -73,23 +73,36 @@ pub fn face_uv_to_dir(face: usize, u: f32, v: f32) -> Vec3 {
     face_ab_to_vec(face, 2.0 * u - 1.0, 2.0 * v - 1.0).normalize()
 }
 
+/// Per face: (component giving `a`, its sign, component giving `b`, its sign); see the table in
+/// `docs/conventions.md`.
+const FACE_AB: [(usize, f32, usize, f32); 6] = [
+    (2, -1.0, 1, -1.0), // +X: a = -z, b = -y
+    (2, 1.0, 1, -1.0),  // -X: a = +z, b = -y
+    (0, 1.0, 2, 1.0),   // +Y: a = +x, b = +z
+    (0, 1.0, 2, -1.0),  // -Y: a = +x, b = -z
+    (0, 1.0, 1, -1.0),  // +Z: a = +x, b = -y
+    (0, -1.0, 1, -1.0), // -Z: a = -x, b = -y
+];
+
 /// Face and face coordinates `(a, b)` in `[-1, 1]^2` of a (not necessarily unit) direction.
 /// Ties between axes go to X, then Y, then Z. Returns face 0, (0,0) for the zero vector.
+/// Branch-free (boolean arithmetic + a table), because random directions make the branches of a
+/// nested if/else unpredictable.
 #[inline]
 pub fn dir_to_face_ab(d: Vec3) -> (usize, f32, f32) {
-    let (ax, ay, az) = (d.x.abs(), d.y.abs(), d.z.abs());
-    if ax >= ay && ax >= az {
-        if ax == 0.0 {
-            return (0, 0.0, 0.0);
-        }
-        if d.x > 0.0 { (0, -d.z / ax, -d.y / ax) } else { (1, d.z / ax, -d.y / ax) }
-    } else if ay >= az {
-        if d.y > 0.0 { (2, d.x / ay, d.z / ay) } else { (3, d.x / ay, -d.z / ay) }
-    } else if d.z > 0.0 {
-        (4, d.x / az, -d.y / az)
-    } else {
-        (5, -d.x / az, -d.y / az)
+    let v = d.to_array();
+    let (ax, ay, az) = (v[0].abs(), v[1].abs(), v[2].abs());
+    let is_x = (ax >= ay) & (ax >= az);
+    let is_y = !is_x & (ay >= az);
+    let axis = (!is_x) as usize * (1 + (!is_y) as usize);
+    let m = v[axis].abs();
+    if m == 0.0 {
+        return (0, 0.0, 0.0);
     }
+    let face = 2 * axis + (v[axis] < 0.0) as usize;
+    let (ia, sa, ib, sb) = FACE_AB[face];
+    let r = 1.0 / m;
+    (face, sa * v[ia] * r, sb * v[ib] * r)
 }
 
 /// Face and texture coordinates `(u, v)` in `[0, 1]^2` of a direction.

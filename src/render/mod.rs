@@ -215,28 +215,62 @@ pub fn shade_pixel(fd: &FrameData, s: &Settings, px: &GPixel, pixel_index: u32) 
         Strategy::Brdf => {}
     }
 
-    for _ in 0..nb {
-        st.brdf += 1;
-        let u = Vec2::new(rng.next_f32(), rng.next_f32());
-        let Some((il, p)) = mat.sample_local(ol, u) else { continue };
-        let cos = il.z;
-        let d = frame.to_world(il);
-        let n_b = nb_f * p;
-        // One face/texel lookup gives both the radiance and the light density of `d`.
-        let (f, a, b) = dir_to_face_ab(d);
-        let (col, row) = uv_to_texel(0.5 * (a + 1.0), 0.5 * (b + 1.0), size);
-        let t = fd.texels[(f * size + row) * size + col];
-        let n_l = match s.strategy {
-            Strategy::Paper => {
-                let q = 1.0 + a * a + b * b;
-                density[f] * t.w * q * q.sqrt()
-            }
-            Strategy::Global => nl as f32 * fd.global.as_ref().map_or(0.0, |g| g.pdf(d)),
-            _ => 0.0,
-        };
-        sum += mat.eval_local(ol, il) * t.truncate() * (cos * mis::weight_over_density(s.mis, n_b, n_l));
+    // BRDF samples in chunks: pass 1 draws directions and locates their texels (prefetching the
+    // cache lines), pass 2 loads them and shades. The loads are independent, so they overlap
+    // instead of stalling one by one. Same random draws, same summation order as one loop.
+    const CHUNK: usize = 16;
+    struct Pending {
+        il: Vec3,
+        n_b: f32,
+        texel: usize,
+        face: usize,
+        jac: f32,
+        d: Vec3,
+    }
+    let mut pending: [Pending; CHUNK] = std::array::from_fn(|_| Pending { il: Vec3::ZERO, n_b: 0.0, texel: 0, face: 0, jac: 0.0, d: Vec3::ZERO });
+    let mut left = nb;
+    while left > 0 {
+        let count = left.min(CHUNK);
+        left -= count;
+        let mut valid = 0;
+        for _ in 0..count {
+            st.brdf += 1;
+            let u = Vec2::new(rng.next_f32(), rng.next_f32());
+            let Some((il, p)) = mat.sample_local(ol, u) else { continue };
+            let d = frame.to_world(il);
+            let (f, a, b) = dir_to_face_ab(d);
+            let (col, row) = uv_to_texel(0.5 * (a + 1.0), 0.5 * (b + 1.0), size);
+            let texel = (f * size + row) * size + col;
+            prefetch(&fd.texels[texel]);
+            let q = 1.0 + a * a + b * b;
+            pending[valid] = Pending { il, n_b: nb_f * p, texel, face: f, jac: q * q.sqrt(), d };
+            valid += 1;
+        }
+        for e in &pending[..valid] {
+            // One texel gives both the radiance and the light density of the direction.
+            let t = fd.texels[e.texel];
+            let n_l = match s.strategy {
+                Strategy::Paper => density[e.face] * t.w * e.jac,
+                Strategy::Global => nl as f32 * fd.global.as_ref().map_or(0.0, |g| g.pdf(e.d)),
+                _ => 0.0,
+            };
+            sum += mat.eval_local(ol, e.il) * t.truncate() * (e.il.z * mis::weight_over_density(s.mis, e.n_b, n_l));
+        }
     }
     (sum, st)
+}
+
+/// Hint the CPU to start loading `x`'s cache line (no effect on results; a no-op off x86-64).
+#[inline(always)]
+fn prefetch<T>(x: &T) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: prefetching is a hint; it never faults and reads nothing observable. The pointer
+    // comes from a live reference.
+    unsafe {
+        std::arch::x86_64::_mm_prefetch(x as *const T as *const i8, std::arch::x86_64::_MM_HINT_T0)
+    };
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = x;
 }
 
 /// Statistics of a render, written by `--stats`.

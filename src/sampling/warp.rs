@@ -48,11 +48,34 @@ pub fn square_to_disk_concentric(u: Vec2) -> Vec2 {
     r * Vec2::new(theta.cos(), theta.sin())
 }
 
-/// Cosine-weighted hemisphere: disk point lifted to `z = sqrt(1 - r^2)`; pdf = `cos / pi`.
+/// `(sin x, cos x)` for `x` in `[-pi, pi]`, branch-free: fold to `[-pi/2, pi/2]` with
+/// `sin(x) = sin(pi - x)`, `cos(x) = -cos(pi - x)`, then Taylor polynomials of degree 11 / 12
+/// (absolute error < 1e-7 there, below f32 rounding of the result).
+#[inline]
+pub fn sin_cos_fast(x: f32) -> (f32, f32) {
+    use std::f32::consts::{FRAC_PI_2, PI};
+    let fold = x.abs() > FRAC_PI_2;
+    let y = if fold { PI.copysign(x) - x } else { x };
+    let y2 = y * y;
+    let s = y * (1.0 + y2 * (-1.0 / 6.0 + y2 * (1.0 / 120.0 + y2 * (-1.0 / 5040.0 + y2 * (1.0 / 362_880.0 + y2 * (-1.0 / 39_916_800.0))))));
+    let c = 1.0 + y2 * (-0.5 + y2 * (1.0 / 24.0 + y2 * (-1.0 / 720.0 + y2 * (1.0 / 40_320.0 + y2 * (-1.0 / 3_628_800.0 + y2 * (1.0 / 479_001_600.0))))));
+    (s, if fold { -c } else { c })
+}
+
+/// Cosine-weighted hemisphere (Malley): uniform disk point in polar form,
+/// `r = sqrt(u1)`, `phi = 2 pi u2 - pi`, lifted to `z = sqrt(1 - r^2)`; pdf = `cos / pi`.
+/// Branch-free (the concentric map's branch is unpredictable); inverse: [`invert_cosine_hemisphere`].
 #[inline]
 pub fn sample_cosine_hemisphere(u: Vec2) -> Vec3 {
-    let d = square_to_disk_concentric(u);
-    Vec3::new(d.x, d.y, (1.0 - d.length_squared()).max(0.0).sqrt())
+    let r = u.x.sqrt();
+    let (s, c) = sin_cos_fast(2.0 * PI * u.y - PI);
+    Vec3::new(r * c, r * s, (1.0 - u.x).max(0.0).sqrt())
+}
+/// Inverse of [`sample_cosine_hemisphere`].
+#[inline]
+pub fn invert_cosine_hemisphere(v: Vec3) -> Vec2 {
+    let phi = v.y.atan2(v.x); // in [-pi, pi]
+    Vec2::new((v.x * v.x + v.y * v.y).min(1.0), ((phi + PI) / (2.0 * PI)).min(1.0 - f32::EPSILON / 2.0))
 }
 #[inline]
 pub fn cosine_hemisphere_pdf(v: Vec3) -> f32 {
@@ -138,4 +161,31 @@ pub fn ggx_vndf_reflect_pdf(o: Vec3, i: Vec3, alpha: f32) -> f32 {
 #[inline]
 pub fn reflect(o: Vec3, m: Vec3) -> Vec3 {
     2.0 * o.dot(m) * m - o
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sin_cos_fast_is_accurate() {
+        let mut worst = 0.0f64;
+        for i in 0..=100_000 {
+            let x = -PI + 2.0 * PI * i as f32 / 100_000.0;
+            let (s, c) = sin_cos_fast(x);
+            let (xs, xc) = (x as f64).sin_cos();
+            worst = worst.max((s as f64 - xs).abs()).max((c as f64 - xc).abs());
+        }
+        assert!(worst < 3e-7, "worst error {worst}");
+    }
+
+    #[test]
+    fn cosine_warp_round_trips() {
+        for &(a, b) in &[(0.1f32, 0.2f32), (0.5, 0.5), (0.9, 0.01), (0.33, 0.77)] {
+            let v = sample_cosine_hemisphere(Vec2::new(a, b));
+            assert!((v.length() - 1.0).abs() < 1e-6);
+            let u = invert_cosine_hemisphere(v);
+            assert!((u.x - a).abs() < 1e-5 && (u.y - b).abs() < 1e-5, "({a},{b}) -> {u}");
+        }
+    }
 }
