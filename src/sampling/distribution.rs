@@ -163,11 +163,26 @@ pub struct CubeDistribution {
     pub faces: Vec<FaceDistribution>,
 }
 
+/// Exact texel solid angles of one face of `n x n` texels (row-major), computed once per size and
+/// shared: they depend only on `n`, and four `atan2` per texel would otherwise dominate the build.
+pub fn face_solid_angles(n: usize) -> std::sync::Arc<Vec<f32>> {
+    use std::collections::HashMap;
+    use std::sync::{Arc, Mutex, OnceLock};
+    static CACHE: OnceLock<Mutex<HashMap<usize, Arc<Vec<f32>>>>> = OnceLock::new();
+    let cache = CACHE.get_or_init(|| Mutex::new(HashMap::new()));
+    if let Some(t) = cache.lock().unwrap().get(&n) {
+        return t.clone();
+    }
+    let t = Arc::new((0..n * n).map(|i| texel_solid_angle(i % n, i / n, n) as f32).collect::<Vec<f32>>());
+    cache.lock().unwrap().insert(n, t.clone());
+    t
+}
+
 /// Texel weights `Y * Omega` of a cube map (`6 * N * N`, same layout as the map).
 pub fn texel_weights(map: &CubeMap) -> Vec<f32> {
     use rayon::prelude::*;
     let n = map.size;
-    let omega: Vec<f32> = (0..n * n).map(|i| texel_solid_angle(i % n, i / n, n) as f32).collect();
+    let omega = face_solid_angles(n);
     map.data.par_iter().enumerate().map(|(i, &c)| luminance(c).max(0.0) * omega[i % (n * n)]).collect()
 }
 
