@@ -282,6 +282,23 @@ fn face_distribution_chi2_texel_domain() {
 }
 
 #[test]
+fn face_distribution_invert_round_trips() {
+    let map = structured_cube(8);
+    let dist = CubeDistribution::build(&map);
+    let mut r = Rng::new(21, 0);
+    for f in 0..6 {
+        for _ in 0..1000 {
+            let u = rng_vec2(&mut r);
+            let s = dist.faces[f].sample(f, u).unwrap();
+            let (g, a, b) = dir_to_face_ab(s.dir);
+            assert_eq!(g, f);
+            let back = dist.faces[f].invert(a, b);
+            assert!((back - u).abs().max_element() < 1e-3, "face {f}: {u} -> {back}");
+        }
+    }
+}
+
+#[test]
 fn face_distribution_solid_angle_pdf_chi2() {
     // Histogram of sampled directions in 24x24 bins of face coordinates; expected counts from the
     // returned *solid-angle* pdf times exact sub-rect solid angles (8x8 per bin): this only fits

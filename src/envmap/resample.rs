@@ -100,14 +100,6 @@ pub fn resize_cube(src: &CubeMap, size: usize) -> CubeMap {
     }
 }
 
-/// Nearest lat-long texel in direction `d`.
-pub fn latlong_nearest(img: &Image, d: Vec3) -> Vec3 {
-    let (u, v) = dir_to_latlong(d);
-    let x = ((u * img.width as f32) as usize).min(img.width - 1);
-    let y = ((v * img.height as f32) as usize).min(img.height - 1);
-    img.get(x, y)
-}
-
 /// Bilinear lat-long lookup in direction `d` (wraps in `u`, clamps in `v`).
 pub fn latlong_bilinear(img: &Image, d: Vec3) -> Vec3 {
     let (u, v) = dir_to_latlong(d);

@@ -33,21 +33,6 @@ impl Frame {
     }
 }
 
-/// Concentric map of the square to the unit disk (Shirley-Chiu).
-#[inline]
-pub fn square_to_disk_concentric(u: Vec2) -> Vec2 {
-    let o = 2.0 * u - Vec2::ONE;
-    if o.x == 0.0 && o.y == 0.0 {
-        return Vec2::ZERO;
-    }
-    let (r, theta) = if o.x.abs() > o.y.abs() {
-        (o.x, PI / 4.0 * (o.y / o.x))
-    } else {
-        (o.y, PI / 2.0 - PI / 4.0 * (o.x / o.y))
-    };
-    r * Vec2::new(theta.cos(), theta.sin())
-}
-
 /// `(sin x, cos x)` for `x` in `[-pi, pi]`, branch-free: fold to `[-pi/2, pi/2]` with
 /// `sin(x) = sin(pi - x)`, `cos(x) = -cos(pi - x)`, then Taylor polynomials of degree 11 / 12
 /// (absolute error < 1e-7 there, below f32 rounding of the result).
@@ -177,6 +162,17 @@ mod tests {
             worst = worst.max((s as f64 - xs).abs()).max((c as f64 - xc).abs());
         }
         assert!(worst < 3e-7, "worst error {worst}");
+    }
+
+    #[test]
+    fn phong_warp_round_trips() {
+        for e in [0.0f32, 10.0, 150.0] {
+            for &(a, b) in &[(0.1f32, 0.2f32), (0.5, 0.5), (0.9, 0.01), (0.33, 0.77)] {
+                let v = sample_phong_lobe(Vec2::new(a, b), e);
+                let u = invert_phong_lobe(v, e);
+                assert!((u.x - a).abs() < 1e-4 && (u.y - b).abs() < 1e-5, "e={e} ({a},{b}) -> {u}");
+            }
+        }
     }
 
     #[test]
