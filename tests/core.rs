@@ -750,6 +750,29 @@ fn bad_files_give_clear_errors() {
     assert!((env.cube.data[0].x - 64.5 / 128.0).abs() < 1e-3);
 }
 
+#[test]
+fn bench_accuracy_quick_smoke() {
+    // The quick sweep runs and writes well-formed CSV / JSON / Markdown (no timing asserted).
+    let dir = tempdir();
+    let r = envis_cmd(&["bench", "--suite", "accuracy", "--quick", "--out", dir.to_str().unwrap()]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let cfg = envis::bench::accuracy::Config::new(true, None).unwrap();
+    let n = envis::bench::accuracy::point_count(&cfg);
+    let csv = std::fs::read_to_string(dir.join("accuracy.csv")).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(lines.len(), n + 1, "one header + one row per point");
+    for l in &lines[1..] {
+        let cols: Vec<&str> = l.split(',').collect();
+        assert_eq!(cols.len(), 11, "{l}");
+        let relmse: f64 = cols[6].parse().unwrap();
+        assert!(relmse.is_finite() && relmse >= 0.0, "{l}");
+    }
+    let js: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("accuracy.json")).unwrap()).unwrap();
+    assert_eq!(js["points"].as_array().unwrap().len(), n);
+    let md = std::fs::read_to_string(dir.join("accuracy-vs-time.md")).unwrap();
+    assert!(md.contains("## diffuse") && md.contains("Pareto front") && md.contains("envis bench --suite accuracy --quick"), "{md}");
+}
+
 fn envis_cmd(args: &[&str]) -> std::process::Output {
     std::process::Command::new(env!("CARGO_BIN_EXE_envis")).args(args).output().unwrap()
 }

@@ -9,6 +9,10 @@
 //! Each figure is the median of `--repeat` runs. Results go to `DIR/bench-speed.json`.
 //!
 //! Suite `offset`: the effect of the per-pixel random start offset into the pool (`DIR/bench-offset.json`).
+//!
+//! Suite `accuracy`: error vs time over strategies, budgets, materials and maps (see [`accuracy`]).
+
+pub mod accuracy;
 
 use crate::envmap::{load::load_env, luminance, CubeMap};
 use crate::error::{Error, Result};
@@ -43,6 +47,12 @@ pub struct BenchArgs {
     /// Output directory (default: current directory).
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Accuracy suite: also sweep every .exr/.hdr map in this folder.
+    #[arg(long)]
+    pub maps: Option<PathBuf>,
+    /// Accuracy suite: a small sweep (a smoke test, under a minute).
+    #[arg(long)]
+    pub quick: bool,
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -62,8 +72,40 @@ pub fn run(a: BenchArgs) -> Result<()> {
     match a.suite.as_str() {
         "speed" => speed(a, dir),
         "offset" => offset(a, dir),
-        other => Err(Error::invalid(format!("unknown bench suite '{other}' (available: speed, offset)"))),
+        "accuracy" => accuracy_suite(a, dir),
+        other => Err(Error::invalid(format!("unknown bench suite '{other}' (available: speed, offset, accuracy)"))),
     }
+}
+
+/// Suite `accuracy`: writes `accuracy.csv`, `accuracy.json` and `accuracy-vs-time.md` to `dir`.
+fn accuracy_suite(a: BenchArgs, dir: PathBuf) -> Result<()> {
+    let cfg = accuracy::Config::new(a.quick, a.maps.as_deref())?;
+    let start = Instant::now();
+    let total = accuracy::point_count(&cfg);
+    eprintln!("envis bench accuracy: {} environments x {} materials, {total} points", cfg.envs.len(), cfg.materials.len());
+    let points = accuracy::sweep(&cfg, |done, total, p| {
+        if done % 20 == 0 || done == total {
+            eprintln!("  [{done:>5}/{total}] {:.0} s  {} / {} / {} N={}: relMSE {:.3e}", start.elapsed().as_secs_f64(), p.env, p.material, p.strategy, p.budget, p.relmse);
+        }
+    })?;
+    let mut command = String::from("envis bench --suite accuracy");
+    if a.quick {
+        command.push_str(" --quick");
+    }
+    if let Some(m) = &a.maps {
+        command.push_str(&format!(" --maps {}", m.display()));
+    }
+    let write = |name: &str, text: String| -> Result<()> {
+        let p = dir.join(name);
+        std::fs::write(&p, text).map_err(|e| Error::file(&p, format!("cannot write: {e}")))
+    };
+    write("accuracy.csv", accuracy::csv(&points))?;
+    write("accuracy.json", serde_json::to_string_pretty(&serde_json::json!({ "command": command, "points": points })).unwrap() + "\n")?;
+    let mut md = accuracy::report(&cfg, &points, &command);
+    md.push_str(&format!("Sweep time: {:.0} s.\n", start.elapsed().as_secs_f64()));
+    write("accuracy-vs-time.md", md)?;
+    eprintln!("wrote accuracy.csv, accuracy.json, accuracy-vs-time.md to {} in {:.0} s", dir.display(), start.elapsed().as_secs_f64());
+    Ok(())
 }
 
 /// Suite `offset`: what the per-pixel random start offset into the pool does. For a pool of

@@ -1,0 +1,293 @@
+//! `envis bench --suite accuracy`: what accuracy costs in time (CPU backend).
+//!
+//! Sweep: strategies {paper-fractional, paper-integer, global (power MIS), light, brdf} x total
+//! sample budgets N = N_L + N_B (4..512; paper and global also at light fractions 1/4 and 3/4) x
+//! materials {diffuse, Phong 150, GGX 0.3, GGX 0.05} x environments (built-in sky at 8h, 12h, 17h,
+//! plus every .exr/.hdr in `--maps DIR`). Each point: relMSE and RMSE of the sphere against the
+//! f64 reference (mean over seeds), build and shade time, wasted-sample fraction.
+//! Output: `accuracy.csv`, `accuracy.json` and `accuracy-vs-time.md` (tables, Pareto fronts, the
+//! exact command) in the output directory.
+
+use crate::envmap::load::{load_env, EnvSource};
+use crate::error::{Error, Result};
+use crate::render::{self, reference, Settings, Strategy};
+use crate::sampling::{Counts, Heuristic, Material};
+use glam::DVec3;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// One measured point of the sweep.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Point {
+    pub env: String,
+    pub material: String,
+    pub strategy: String,
+    pub light_samples: usize,
+    pub brdf_samples: usize,
+    pub budget: usize,
+    pub relmse: f64,
+    pub rmse: f64,
+    pub build_ms: f64,
+    pub shade_ms: f64,
+    pub wasted: f64,
+}
+
+/// Sweep configuration.
+pub struct Config {
+    pub envs: Vec<String>,
+    pub materials: Vec<(String, Material)>,
+    pub budgets: Vec<usize>,
+    pub size: usize,
+    pub face_size: usize,
+    pub seeds: u32,
+}
+
+impl Config {
+    pub fn new(quick: bool, maps: Option<&Path>) -> Result<Self> {
+        let mut envs: Vec<String> =
+            if quick { vec!["builtin:sky:10".into()] } else { ["builtin:sky:8", "builtin:sky:12", "builtin:sky:17"].iter().map(|s| s.to_string()).collect() };
+        if let Some(dir) = maps {
+            let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+                .map_err(|e| Error::file(dir, format!("cannot list: {e}")))?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| p.extension().is_some_and(|e| e == "exr" || e == "hdr"))
+                .collect();
+            files.sort();
+            if quick {
+                files.truncate(1);
+            }
+            envs.extend(files.iter().map(|p| p.display().to_string()));
+        }
+        let materials = if quick {
+            vec![("diffuse".into(), Material::diffuse(0.8)), ("ggx 0.3".into(), Material::ggx(0.8, 0.3))]
+        } else {
+            vec![
+                ("diffuse".into(), Material::diffuse(0.8)),
+                ("phong 150".into(), Material::phong(0.8, 150.0)),
+                ("ggx 0.3".into(), Material::ggx(0.8, 0.3)),
+                ("ggx 0.05".into(), Material::ggx(0.8, 0.05)),
+            ]
+        };
+        let budgets = if quick { vec![4, 16, 64] } else { vec![4, 8, 16, 32, 64, 128, 256, 512] };
+        Ok(Config {
+            envs,
+            materials,
+            budgets,
+            size: if quick { 16 } else { 32 },
+            face_size: if quick { 16 } else { 32 },
+            seeds: if quick { 1 } else { 2 },
+        })
+    }
+}
+
+/// The (label, settings) pairs swept at total budget `n`.
+fn strategies(n: usize) -> Vec<(String, Settings)> {
+    let half = Settings { light_samples: n / 2, brdf_samples: n - n / 2, ..Default::default() };
+    let mut v = vec![
+        ("paper-fractional".to_string(), half),
+        ("paper-integer".to_string(), Settings { counts: Counts::Integer, ..half }),
+        ("global".to_string(), Settings { strategy: Strategy::Global, mis: Heuristic::Power, ..half }),
+        ("light".to_string(), Settings { strategy: Strategy::Light, ..half }),
+        ("brdf".to_string(), Settings { strategy: Strategy::Brdf, ..half }),
+    ];
+    if n >= 8 {
+        for (tag, nl) in [("L1/4", n / 4), ("L3/4", 3 * n / 4)] {
+            let s = Settings { light_samples: nl, brdf_samples: n - nl, ..Default::default() };
+            v.push((format!("paper-fractional {tag}"), s));
+            v.push((format!("global {tag}"), Settings { strategy: Strategy::Global, mis: Heuristic::Power, ..s }));
+        }
+    }
+    v
+}
+
+fn lum(c: DVec3) -> f64 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+}
+
+/// Number of points [`sweep`] will measure.
+pub fn point_count(cfg: &Config) -> usize {
+    cfg.envs.len() * cfg.materials.len() * cfg.budgets.iter().map(|&n| strategies(n).len()).sum::<usize>()
+}
+
+/// Run the sweep, calling `progress(done, total, point)` after each point.
+pub fn sweep(cfg: &Config, mut progress: impl FnMut(usize, usize, &Point)) -> Result<Vec<Point>> {
+    let total = point_count(cfg);
+    let mut points = Vec::with_capacity(total);
+    for env_name in &cfg.envs {
+        let src: EnvSource = env_name.parse()?;
+        let env = load_env(&src, cfg.face_size)?;
+        for (mname, mat) in &cfg.materials {
+            let gbuf = render::sphere_gbuffer(cfg.size, cfg.size, *mat);
+            let (_, refimg) = reference::reference_image(&env.cube, &gbuf, cfg.size, cfg.size, 1.0);
+            let idx: Vec<usize> = (0..gbuf.len()).filter(|&i| gbuf[i].is_some()).collect();
+            for &n in &cfg.budgets {
+                for (label, s) in strategies(n) {
+                    let (mut relmse, mut mse, mut build, mut shade, mut wasted) = (0.0, 0.0, 0.0, 0.0, 0.0);
+                    for seed in 0..cfg.seeds {
+                        let out = render::render(&env.cube, &gbuf, cfg.size, cfg.size, &Settings { seed, ..s })?;
+                        for &i in &idx {
+                            let (x, r) = (lum(out.image.data[i].as_dvec3()), lum(refimg[i]));
+                            relmse += (x - r) * (x - r) / (r * r + 1e-2);
+                            mse += (x - r) * (x - r);
+                        }
+                        build += out.stats.build_ms;
+                        shade += out.stats.shade_ms;
+                        wasted += out.stats.wasted;
+                    }
+                    let k = cfg.seeds as f64;
+                    let np = (idx.len() as f64 * k).max(1.0);
+                    // The samples each technique actually draws (the baselines spend all N on one).
+                    let (nl, nb) = match s.strategy {
+                        Strategy::Light => (n, 0),
+                        Strategy::Brdf => (0, n),
+                        _ => (s.light_samples, s.brdf_samples),
+                    };
+                    let p = Point {
+                        env: env_name.clone(),
+                        material: mname.clone(),
+                        strategy: label,
+                        light_samples: nl,
+                        brdf_samples: nb,
+                        budget: n,
+                        relmse: relmse / np,
+                        rmse: (mse / np).sqrt(),
+                        build_ms: build / k,
+                        shade_ms: shade / k,
+                        wasted: wasted / k,
+                    };
+                    progress(points.len() + 1, total, &p);
+                    points.push(p);
+                }
+            }
+        }
+    }
+    Ok(points)
+}
+
+/// Indices of the points not dominated in (time, relMSE): in order of time, each with a lower
+/// error than every faster point.
+pub fn pareto_front(pts: &[Point]) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..pts.len()).collect();
+    order.sort_by(|&a, &b| (pts[a].build_ms + pts[a].shade_ms).total_cmp(&(pts[b].build_ms + pts[b].shade_ms)));
+    let mut best = f64::INFINITY;
+    order
+        .into_iter()
+        .filter(|&i| {
+            let better = pts[i].relmse < best;
+            best = best.min(pts[i].relmse);
+            better
+        })
+        .collect()
+}
+
+fn geomean(xs: impl Iterator<Item = f64>) -> f64 {
+    let (mut s, mut n) = (0.0, 0.0);
+    for x in xs {
+        s += x.max(1e-30).ln();
+        n += 1.0;
+    }
+    if n > 0.0 { (s / n).exp() } else { f64::NAN }
+}
+
+fn mean(xs: impl Iterator<Item = f64>) -> f64 {
+    let (mut s, mut n) = (0.0, 0.0);
+    for x in xs {
+        s += x;
+        n += 1.0;
+    }
+    if n > 0.0 { s / n } else { f64::NAN }
+}
+
+/// Points of one material pooled over environments (geometric means), one per (strategy, N).
+fn pooled(pts: &[Point], material: &str) -> Vec<Point> {
+    let keys: std::collections::BTreeSet<(String, usize)> = pts.iter().filter(|p| p.material == material).map(|p| (p.strategy.clone(), p.budget)).collect();
+    keys.into_iter()
+        .map(|(s, n)| {
+            let sel: Vec<&Point> = pts.iter().filter(|p| p.material == material && p.strategy == s && p.budget == n).collect();
+            Point {
+                env: "geomean".into(),
+                material: material.into(),
+                strategy: s,
+                light_samples: sel[0].light_samples,
+                brdf_samples: sel[0].brdf_samples,
+                budget: n,
+                relmse: geomean(sel.iter().map(|p| p.relmse)),
+                rmse: geomean(sel.iter().map(|p| p.rmse)),
+                build_ms: geomean(sel.iter().map(|p| p.build_ms)),
+                shade_ms: geomean(sel.iter().map(|p| p.shade_ms)),
+                wasted: mean(sel.iter().map(|p| p.wasted)),
+            }
+        })
+        .collect()
+}
+
+/// The generated report: tables per material, the paper-vs-global comparison, Pareto fronts.
+pub fn report(cfg: &Config, pts: &[Point], command: &str) -> String {
+    let mut md = String::new();
+    let _ = writeln!(md, "# Accuracy vs time\n\nGenerated by `{command}`.\n");
+    let _ = writeln!(
+        md,
+        "Sphere {s}x{s}, cube faces {f}^2, {k} seed(s) per point, CPU backend, {t} threads. relMSE is the mean over pixels of (x-r)^2/(r^2+0.01) on luminance, against the f64 reference. Time is build + shade in milliseconds. Environments: {e}.\n",
+        s = cfg.size,
+        f = cfg.face_size,
+        k = cfg.seeds,
+        t = rayon::current_num_threads(),
+        e = cfg.envs.join(", ")
+    );
+    let main = ["paper-fractional", "paper-integer", "global", "light", "brdf"];
+    for (mname, _) in &cfg.materials {
+        let pool = pooled(pts, mname);
+        let _ = writeln!(md, "## {mname}\n\nGeometric mean over environments of relMSE (time in ms). N_L = N_B = N/2 where both are used:\n");
+        let _ = writeln!(md, "| N | {} |\n|---:|{}", main.join(" | "), "---:|".repeat(main.len()));
+        for &n in &cfg.budgets {
+            let _ = write!(md, "| {n} |");
+            for s in main {
+                match pool.iter().find(|p| p.strategy == s && p.budget == n) {
+                    Some(p) => {
+                        let _ = write!(md, " {:.3e} ({:.2}) |", p.relmse, p.build_ms + p.shade_ms);
+                    }
+                    None => md.push_str(" — |"),
+                }
+            }
+            md.push('\n');
+        }
+        let (mut wins, mut cases) = (0, 0);
+        for env in &cfg.envs {
+            for &n in &cfg.budgets {
+                let get = |s: &str| pts.iter().find(|p| &p.env == env && &p.material == mname && p.strategy == s && p.budget == n).map(|p| p.relmse);
+                if let (Some(a), Some(b)) = (get("paper-fractional"), get("global")) {
+                    cases += 1;
+                    wins += (a < b) as usize;
+                }
+            }
+        }
+        let wasted = |s: &str| 100.0 * mean(pts.iter().filter(|p| &p.material == mname && p.strategy == s).map(|p| p.wasted));
+        let _ = writeln!(
+            md,
+            "\npaper-fractional has lower relMSE than global in **{wins} of {cases}** (environment, N) cases at equal samples. Mean wasted (negative-cosine) light-sample fraction: paper-fractional {:.1}%, global {:.1}%, light {:.1}%.\n",
+            wasted("paper-fractional"),
+            wasted("global"),
+            wasted("light")
+        );
+        let _ = writeln!(md, "Pareto front (error vs time, pooled over environments):\n\n| strategy | N_L + N_B | time (ms) | relMSE |\n|---|---:|---:|---:|");
+        for i in pareto_front(&pool) {
+            let p = &pool[i];
+            let _ = writeln!(md, "| {} | {} + {} | {:.2} | {:.3e} |", p.strategy, p.light_samples, p.brdf_samples, p.build_ms + p.shade_ms, p.relmse);
+        }
+        md.push('\n');
+    }
+    md
+}
+
+/// CSV of all points (one header line).
+pub fn csv(pts: &[Point]) -> String {
+    let mut s = String::from("env,material,strategy,light_samples,brdf_samples,budget,relmse,rmse,build_ms,shade_ms,wasted\n");
+    for p in pts {
+        let _ = writeln!(
+            s,
+            "\"{}\",\"{}\",\"{}\",{},{},{},{:.6e},{:.6e},{:.4},{:.4},{:.4}",
+            p.env, p.material, p.strategy, p.light_samples, p.brdf_samples, p.budget, p.relmse, p.rmse, p.build_ms, p.shade_ms, p.wasted
+        );
+    }
+    s
+}
