@@ -773,6 +773,23 @@ fn bench_accuracy_quick_smoke() {
     assert!(md.contains("## diffuse") && md.contains("Pareto front") && md.contains("envis bench --suite accuracy --quick"), "{md}");
 }
 
+#[test]
+fn bench_popping_quick_smoke() {
+    let dir = tempdir();
+    let r = envis_cmd(&["bench", "--suite", "popping", "--quick", "--size", "16", "--face-size", "8", "--light-samples", "4", "--brdf-samples", "0", "--out", dir.to_str().unwrap()]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let js: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("popping.json")).unwrap()).unwrap();
+    let rows = js["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 2);
+    for row in rows {
+        let c = row["change_over_reference"].as_f64().unwrap();
+        assert!(c.is_finite() && c > 0.0, "{row}");
+    }
+    for m in ["fractional", "integer"] {
+        assert!(dir.join(format!("popping-strip-{m}.png")).exists());
+    }
+}
+
 fn envis_cmd(args: &[&str]) -> std::process::Output {
     std::process::Command::new(env!("CARGO_BIN_EXE_envis")).args(args).output().unwrap()
 }
