@@ -771,6 +771,11 @@ fn bench_accuracy_quick_smoke() {
     assert_eq!(js["points"].as_array().unwrap().len(), n);
     let md = std::fs::read_to_string(dir.join("accuracy-vs-time.md")).unwrap();
     assert!(md.contains("## diffuse") && md.contains("Pareto front") && md.contains("envis bench --suite accuracy --quick"), "{md}");
+    for (m, _) in &cfg.materials {
+        let svg = std::fs::read_to_string(dir.join(envis::bench::accuracy::plot_name(m))).unwrap();
+        assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>") && svg.matches("<polyline").count() >= 6, "{m}");
+        assert!(!svg.contains("NaN") && !svg.contains("inf"), "{m}: non-finite coordinates");
+    }
 }
 
 #[test]

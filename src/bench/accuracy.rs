@@ -291,3 +291,53 @@ pub fn csv(pts: &[Point]) -> String {
     }
     s
 }
+
+/// An error-vs-time plot (log-log) of one material as standalone SVG: one polyline per main
+/// strategy through its budgets (geometric means over environments), the Pareto front dashed.
+pub fn svg_plot(pts: &[Point], material: &str) -> String {
+    let pool = pooled(pts, material);
+    let main = [("paper-fractional", "#d62728"), ("paper-integer", "#ff9896"), ("global", "#1f77b4"), ("light", "#2ca02c"), ("brdf", "#9467bd")];
+    let (w, h, ml, mr, mt, mb) = (640.0, 440.0, 70.0, 170.0, 40.0, 50.0);
+    let t = |p: &Point| (p.build_ms + p.shade_ms).max(1e-6).log10();
+    let e = |p: &Point| p.relmse.max(1e-12).log10();
+    let (tx0, tx1) = (pool.iter().map(t).fold(f64::INFINITY, f64::min).floor(), pool.iter().map(t).fold(f64::NEG_INFINITY, f64::max).ceil());
+    let (ey0, ey1) = (pool.iter().map(e).fold(f64::INFINITY, f64::min).floor(), pool.iter().map(e).fold(f64::NEG_INFINITY, f64::max).ceil());
+    let sx = |x: f64| ml + (x - tx0) / (tx1 - tx0).max(1e-9) * (w - ml - mr);
+    let sy = |y: f64| mt + (ey1 - y) / (ey1 - ey0).max(1e-9) * (h - mt - mb);
+    let mut s = String::new();
+    let _ = writeln!(s, r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" font-family="sans-serif" font-size="12">"#);
+    let _ = writeln!(s, r#"<rect width="100%" height="100%" fill="white"/>"#);
+    let _ = writeln!(s, r#"<text x="{}" y="22" font-size="15" text-anchor="middle">{material}: relMSE vs time (geometric mean over environments)</text>"#, (w - mr + ml) / 2.0);
+    for d in (tx0 as i64)..=(tx1 as i64) {
+        let x = sx(d as f64);
+        let _ = writeln!(s, r##"<line x1="{x:.1}" y1="{mt}" x2="{x:.1}" y2="{}" stroke="#ddd"/><text x="{x:.1}" y="{}" text-anchor="middle">1e{d}</text>"##, h - mb, h - mb + 16.0);
+    }
+    for d in (ey0 as i64)..=(ey1 as i64) {
+        let y = sy(d as f64);
+        let _ = writeln!(s, r##"<line x1="{ml}" y1="{y:.1}" x2="{}" y2="{y:.1}" stroke="#ddd"/><text x="{}" y="{:.1}" text-anchor="end">1e{d}</text>"##, w - mr, ml - 6.0, y + 4.0);
+    }
+    let _ = writeln!(s, r#"<text x="{}" y="{}" text-anchor="middle">time per frame, ms (build + shade, CPU)</text>"#, (w - mr + ml) / 2.0, h - 12.0);
+    let _ = writeln!(s, r#"<text x="16" y="{}" transform="rotate(-90 16 {})" text-anchor="middle">relMSE</text>"#, (h - mb + mt) / 2.0, (h - mb + mt) / 2.0);
+    for (k, (name, color)) in main.iter().enumerate() {
+        let mut line: Vec<&Point> = pool.iter().filter(|p| p.strategy == *name).collect();
+        line.sort_by_key(|p| p.budget);
+        let path: Vec<String> = line.iter().map(|p| format!("{:.1},{:.1}", sx(t(p)), sy(e(p)))).collect();
+        let _ = writeln!(s, r#"<polyline points="{}" fill="none" stroke="{color}" stroke-width="2"/>"#, path.join(" "));
+        for p in &line {
+            let _ = writeln!(s, r#"<circle cx="{:.1}" cy="{:.1}" r="3" fill="{color}"><title>{name} N={}: {:.3e} in {:.2} ms</title></circle>"#, sx(t(p)), sy(e(p)), p.budget, p.relmse, p.build_ms + p.shade_ms);
+        }
+        let ly = mt + 10.0 + 18.0 * k as f64;
+        let _ = writeln!(s, r#"<line x1="{}" y1="{ly}" x2="{}" y2="{ly}" stroke="{color}" stroke-width="2"/><text x="{}" y="{}">{name}</text>"#, w - mr + 10.0, w - mr + 30.0, w - mr + 35.0, ly + 4.0);
+    }
+    let front: Vec<String> = pareto_front(&pool).into_iter().map(|i| format!("{:.1},{:.1}", sx(t(&pool[i])), sy(e(&pool[i])))).collect();
+    let _ = writeln!(s, r#"<polyline points="{}" fill="none" stroke="black" stroke-width="1" stroke-dasharray="4 3"/>"#, front.join(" "));
+    let ly = mt + 10.0 + 18.0 * main.len() as f64;
+    let _ = writeln!(s, r#"<line x1="{}" y1="{ly}" x2="{}" y2="{ly}" stroke="black" stroke-dasharray="4 3"/><text x="{}" y="{}">Pareto front (all)</text>"#, w - mr + 10.0, w - mr + 30.0, w - mr + 35.0, ly + 4.0);
+    s.push_str("</svg>\n");
+    s
+}
+
+/// File name of a material's plot: `accuracy-<material>.svg` with spaces and dots made dashes.
+pub fn plot_name(material: &str) -> String {
+    format!("accuracy-{}.svg", material.replace([' ', '.'], "-"))
+}

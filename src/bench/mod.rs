@@ -161,6 +161,12 @@ fn accuracy_suite(a: BenchArgs, dir: PathBuf) -> Result<()> {
     write("accuracy.csv", accuracy::csv(&points))?;
     write("accuracy.json", serde_json::to_string_pretty(&serde_json::json!({ "command": command, "points": points })).unwrap() + "\n")?;
     let mut md = accuracy::report(&cfg, &points, &command);
+    md.push_str("## Plots\n\n");
+    for (mname, _) in &cfg.materials {
+        let name = accuracy::plot_name(mname);
+        write(&name, accuracy::svg_plot(&points, mname))?;
+        md.push_str(&format!("![{mname}]({name})\n\n"));
+    }
     md.push_str(&format!("Sweep time: {:.0} s.\n", start.elapsed().as_secs_f64()));
     write("accuracy-vs-time.md", md)?;
     eprintln!("wrote accuracy.csv, accuracy.json, accuracy-vs-time.md to {} in {:.0} s", dir.display(), start.elapsed().as_secs_f64());
