@@ -10,6 +10,12 @@ use crate::envmap::luminance;
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, PI};
 
+/// `<r, i>` in the shading frame, with `r = (-o.x, -o.y, o.z)` the mirror direction of `o`.
+#[inline]
+fn mirror_cos(ol: Vec3, il: Vec3) -> f32 {
+    il.z * ol.z - il.x * ol.x - il.y * ol.y
+}
+
 /// The glossy lobe of a material.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub enum Lobe {
@@ -89,8 +95,7 @@ impl Material {
         match self.lobe {
             Lobe::None => {}
             Lobe::Phong { exponent: e } => {
-                // <r, i> with r = (-o.x, -o.y, o.z), the mirror direction.
-                let c = il.z * ol.z - il.x * ol.x - il.y * ol.y;
+                let c = mirror_cos(ol, il);
                 if c > 0.0 {
                     v += self.ks * ((e + 2.0) * 0.5 * FRAC_1_PI * c.powf(e));
                 }
@@ -118,10 +123,7 @@ impl Material {
         if wd < 1.0 {
             let ps = match self.lobe {
                 Lobe::None => 0.0,
-                Lobe::Phong { exponent: e } => {
-                    let c = il.z * ol.z - il.x * ol.x - il.y * ol.y;
-                    if c > 0.0 { (e + 1.0) * 0.5 * FRAC_1_PI * c.powf(e) } else { 0.0 }
-                }
+                Lobe::Phong { exponent: e } => phong_lobe_pdf(mirror_cos(ol, il), e),
                 Lobe::Ggx { alpha } => ggx_vndf_reflect_pdf(ol, il, alpha),
             };
             p += (1.0 - wd) * ps;

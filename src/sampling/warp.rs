@@ -76,9 +76,10 @@ pub fn sample_phong_lobe(u: Vec2, e: f32) -> Vec3 {
     let (sp, cp) = (2.0 * PI * u.y).sin_cos();
     Vec3::new(s * cp, s * sp, c)
 }
+/// pdf of [`sample_phong_lobe`] given `cos_a`, the cosine between the direction and the lobe axis.
 #[inline]
-pub fn phong_lobe_pdf(v: Vec3, e: f32) -> f32 {
-    if v.z <= 0.0 { 0.0 } else { (e + 1.0) * 0.5 * FRAC_1_PI * v.z.powf(e) }
+pub fn phong_lobe_pdf(cos_a: f32, e: f32) -> f32 {
+    if cos_a <= 0.0 { 0.0 } else { (e + 1.0) * 0.5 * FRAC_1_PI * cos_a.powf(e) }
 }
 /// Inverse of [`sample_phong_lobe`].
 #[inline]
