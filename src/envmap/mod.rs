@@ -120,6 +120,34 @@ pub fn uv_to_texel(u: f32, v: f32, n: usize) -> (usize, usize) {
     (c, r)
 }
 
+/// The texel a direction falls in on faces of `n x n` texels: face, face coordinates `(a, b)`,
+/// column and row (nearest lookup). The one place direction -> texel is decided, so the radiance
+/// lookup, the light pdf and the shading loop always agree on the texel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TexelHit {
+    pub face: usize,
+    pub a: f32,
+    pub b: f32,
+    pub col: usize,
+    pub row: usize,
+}
+
+impl TexelHit {
+    /// Index into a cube map's `data` (or any table in the same layout).
+    #[inline]
+    pub fn index(&self, n: usize) -> usize {
+        (self.face * n + self.row) * n + self.col
+    }
+}
+
+/// [`TexelHit`] of direction `d` on faces of `n x n` texels.
+#[inline]
+pub fn dir_to_texel(d: Vec3, n: usize) -> TexelHit {
+    let (face, a, b) = dir_to_face_ab(d);
+    let (col, row) = uv_to_texel(0.5 * (a + 1.0), 0.5 * (b + 1.0), n);
+    TexelHit { face, a, b, col, row }
+}
+
 /// Lat-long (Mitsuba 3) direction of `(u, v)`: `d = (sin t sin p, cos t, -sin t cos p)`.
 #[inline]
 pub fn latlong_to_dir(u: f32, v: f32) -> Vec3 {
@@ -295,19 +323,10 @@ impl CubeMap {
         self.data[self.index(face, col, row)]
     }
 
-    /// Face, column and row of the texel that a direction falls in.
-    #[inline]
-    pub fn texel_of(&self, d: Vec3) -> (usize, usize, usize) {
-        let (f, u, v) = dir_to_face_uv(d);
-        let (c, r) = uv_to_texel(u, v, self.size);
-        (f, c, r)
-    }
-
     /// Radiance in direction `d` (nearest texel).
     #[inline]
     pub fn lookup(&self, d: Vec3) -> Vec3 {
-        let (f, c, r) = self.texel_of(d);
-        self.texel(f, c, r)
+        self.data[dir_to_texel(d, self.size).index(self.size)]
     }
 
     /// Clamp NaN/Inf/negative texels to zero and count them.

@@ -6,7 +6,7 @@ pub mod output;
 pub mod reference;
 pub mod scene;
 
-use crate::envmap::{dir_to_face_ab, uv_to_texel, CubeMap};
+use crate::envmap::{dir_to_texel, CubeMap};
 use crate::error::{Error, Result};
 use crate::sampling::rng::{hash, Rng};
 use crate::sampling::warp::Frame;
@@ -238,12 +238,11 @@ pub fn shade_pixel(fd: &FrameData, s: &Settings, px: &GPixel, pixel_index: u32) 
             let u = Vec2::new(rng.next_f32(), rng.next_f32());
             let Some((il, p)) = mat.sample_local(ol, u) else { continue };
             let d = frame.to_world(il);
-            let (f, a, b) = dir_to_face_ab(d);
-            let (col, row) = uv_to_texel(0.5 * (a + 1.0), 0.5 * (b + 1.0), size);
-            let texel = (f * size + row) * size + col;
+            let hit = dir_to_texel(d, size);
+            let texel = hit.index(size);
             prefetch(&fd.texels[texel]);
-            let q = 1.0 + a * a + b * b;
-            pending[valid] = Pending { il, n_b: nb_f * p, texel, face: f, jac: q * q.sqrt(), d };
+            let q = 1.0 + hit.a * hit.a + hit.b * hit.b;
+            pending[valid] = Pending { il, n_b: nb_f * p, texel, face: hit.face, jac: q * q.sqrt(), d };
             valid += 1;
         }
         for e in &pending[..valid] {

@@ -11,7 +11,7 @@
 //! `energy() == 0` and is never asked to sample (its pdf is 0 everywhere), an all-zero map gives
 //! six empty faces.
 
-use crate::envmap::{dir_to_face_ab, face_ab_to_vec, luminance, texel_solid_angle, CubeMap};
+use crate::envmap::{face_ab_to_vec, luminance, texel_solid_angle, CubeMap};
 use glam::{Vec2, Vec3};
 
 /// Piecewise-constant 1D distribution on `[0, 1)` with `n` bins.
@@ -211,9 +211,7 @@ impl CubeDistribution {
     /// `d`: one face/texel lookup serves both the pdf and the radiance.
     #[inline]
     pub fn locate(&self, d: Vec3) -> (usize, usize, f32) {
-        let (f, a, b) = dir_to_face_ab(d);
-        let n = self.size;
-        let (col, row) = crate::envmap::uv_to_texel(0.5 * (a + 1.0), 0.5 * (b + 1.0), n);
-        (f, (f * n + row) * n + col, self.faces[f].pdf_ab(col, row, a, b))
+        let t = crate::envmap::dir_to_texel(d, self.size);
+        (t.face, t.index(self.size), self.faces[t.face].pdf_ab(t.col, t.row, t.a, t.b))
     }
 }
