@@ -531,7 +531,7 @@ fn unbiased_checks(map: &CubeMap, mat: Material, s: Settings, k: u32, size: usiz
         ("bottom-left".into(), Box::new(move |x, y| x < size / 2 && y >= size / 2)),
         ("bottom-right".into(), Box::new(move |x, y| x >= size / 2 && y >= size / 2)),
     ];
-    let lum = |c: DVec3| 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;
+    let lum = luminance_f64;
     let region_mean = |f: &dyn Fn(usize) -> f64, sel: &dyn Fn(usize, usize) -> bool| {
         let (mut s, mut n) = (0.0, 0.0);
         for y in 0..size {

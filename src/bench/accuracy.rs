@@ -9,10 +9,10 @@
 //! exact command) in the output directory.
 
 use crate::envmap::load::{load_env, EnvSource};
+use crate::envmap::luminance_f64;
 use crate::error::{Error, Result};
 use crate::render::{self, reference, Settings, Strategy};
 use crate::sampling::{Counts, Heuristic, Material};
-use glam::DVec3;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -100,10 +100,6 @@ fn strategies(n: usize) -> Vec<(String, Settings)> {
     v
 }
 
-fn lum(c: DVec3) -> f64 {
-    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
-}
-
 /// Number of points [`sweep`] will measure.
 pub fn point_count(cfg: &Config) -> usize {
     cfg.envs.len() * cfg.materials.len() * cfg.budgets.iter().map(|&n| strategies(n).len()).sum::<usize>()
@@ -126,7 +122,7 @@ pub fn sweep(cfg: &Config, mut progress: impl FnMut(usize, usize, &Point)) -> Re
                     for seed in 0..cfg.seeds {
                         let out = render::render(&env.cube, &gbuf, cfg.size, cfg.size, &Settings { seed, ..s })?;
                         for &i in &idx {
-                            let (x, r) = (lum(out.image.data[i].as_dvec3()), lum(refimg[i]));
+                            let (x, r) = (luminance_f64(out.image.data[i].as_dvec3()), luminance_f64(refimg[i]));
                             relmse += (x - r) * (x - r) / (r * r + 1e-2);
                             mse += (x - r) * (x - r);
                         }

@@ -94,7 +94,7 @@ fn popping(a: BenchArgs, dir: PathBuf) -> Result<()> {
     let lum = |c: glam::Vec3| crate::envmap::luminance(c) as f64;
     let hours = |t: usize| 9.0 + 2.0 * t as f32 / (frames - 1) as f32;
     let maps: Vec<crate::envmap::CubeMap> = (0..frames).map(|t| crate::envmap::sky::sky_cube(face, hours(t))).collect();
-    let refs: Vec<Vec<f64>> = maps.iter().map(|m| crate::render::reference::reference_image(m, &gbuf, size, size, 1.0).1.iter().map(|c| 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z).collect()).collect();
+    let refs: Vec<Vec<f64>> = maps.iter().map(|m| crate::render::reference::reference_image(m, &gbuf, size, size, 1.0).1.iter().map(|&c| crate::envmap::luminance_f64(c)).collect()).collect();
     let ref_change: f64 = (1..frames).map(|t| idx.iter().map(|&i| (refs[t][i] - refs[t - 1][i]).abs()).sum::<f64>()).sum::<f64>();
     let mut rows = Vec::new();
     for (name, counts) in [("fractional", crate::sampling::Counts::Fractional), ("integer", crate::sampling::Counts::Integer)] {
@@ -185,7 +185,7 @@ fn offset(a: BenchArgs, dir: PathBuf) -> Result<()> {
     for (mname, mat) in [("diffuse", Material::diffuse(0.8)), ("ggx 0.2", Material::ggx(0.8, 0.2))] {
         let gbuf = render::sphere_gbuffer(size, size, mat);
         let (_, reference) = crate::render::reference::reference_image(&env.cube, &gbuf, size, size, 1.0);
-        let lum = |c: glam::DVec3| 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;
+        let lum = crate::envmap::luminance_f64;
         let idx: Vec<usize> = (0..gbuf.len()).filter(|&i| gbuf[i].is_some()).collect();
         let ref_mean = idx.iter().map(|&i| lum(reference[i])).sum::<f64>() / idx.len() as f64;
         for pool_mult in [1usize, 4] {

@@ -12,13 +12,9 @@ fn shade_seeds(map: &CubeMap, px: &GPixel, s: Settings, k: u32) -> Vec<f64> {
             let fd = envis::render::FrameData::prepare(map, &s);
             let (c, _) = envis::render::shade_pixel(&fd, &s, px, seed);
             assert!(c.is_finite() && c.min_element() >= 0.0, "pixel value {c} for {px:?}");
-            (0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z) as f64
+            luminance_f64(c.as_dvec3())
         })
         .collect()
-}
-
-fn lum64(c: DVec3) -> f64 {
-    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
 }
 
 /// Mean of `k` seeds within `z` standard errors of the reference (or both ~0).
@@ -57,7 +53,7 @@ fn hard_single_bright_texel_centre_edge_corner() {
         assert!((hits as f64 - 20_000.0 * p).abs() < 5.0 * sd, "{label}: {hits} hits, expected {}", 20_000.0 * p);
         // Unbiased renders of a normal facing the texel.
         let px = GPixel { n: face_uv_to_dir(4, (col as f32 + 0.5) / n as f32, (row as f32 + 0.5) / n as f32), o: Vec3::Z, material: Material::diffuse(0.8) };
-        let reference = lum64(reference_pixel(&map, &px, 1.0));
+        let reference = luminance_f64(reference_pixel(&map, &px, 1.0));
         for (name, s) in [("paper", Settings { light_samples: 4, brdf_samples: 4, ..Default::default() }), ("paper light-only", Settings { light_samples: 4, brdf_samples: 0, ..Default::default() })] {
             assert_unbiased(&format!("{label} {name}"), &shade_seeds(&map, &px, s, 64), reference, 3.5);
         }
@@ -77,7 +73,7 @@ fn hard_dynamic_range_1e_minus6_to_1e6() {
         assert!(dist.faces[f].pdf_area.iter().all(|&p| p > 0.0 && p.is_finite()), "face {f}: a texel of 1e-6 must keep a positive pdf");
     }
     let px = GPixel { n: Vec3::new(0.3, 0.5, 0.8).normalize(), o: Vec3::new(0.0, 0.2, 1.0).normalize(), material: Material::ggx(0.8, 0.3) };
-    let reference = lum64(reference_pixel(&map, &px, 1.0));
+    let reference = luminance_f64(reference_pixel(&map, &px, 1.0));
     assert_unbiased("dynamic range", &shade_seeds(&map, &px, Settings { light_samples: 8, brdf_samples: 8, ..Default::default() }, 128), reference, 3.5);
 }
 
@@ -163,7 +159,7 @@ fn hard_normals_axes_diagonals_corners_grazing_backfacing_nonunit() {
         let o = (n + 0.6 * Frame::new(n).t).normalize();
         for mat in [Material::diffuse(0.8), Material::ggx(0.8, 0.3)] {
             let px = GPixel { n, o, material: mat };
-            let reference = lum64(reference_pixel(&map, &px, 1.0));
+            let reference = luminance_f64(reference_pixel(&map, &px, 1.0));
             let xs = shade_seeds(&map, &px, Settings { light_samples: 8, brdf_samples: 8, ..Default::default() }, 96);
             assert_unbiased(&format!("normal {k} {n} {mat:?}"), &xs, reference, 3.5);
             // Non-unit normals and views give the same estimate as unit ones.
@@ -230,7 +226,7 @@ fn hard_tiny_mu_and_pool_requests() {
         map.data[4 * n * n + i] = Vec3::splat(1e-12); // +Z
     }
     let px = GPixel { n: Vec3::new(0.0, 1.0, 1.0).normalize(), o: Vec3::new(0.0, 1.0, 1.0).normalize(), material: Material::diffuse(1.0) };
-    let reference = lum64(reference_pixel(&map, &px, 1.0));
+    let reference = luminance_f64(reference_pixel(&map, &px, 1.0));
     for s in [
         Settings { light_samples: 3, brdf_samples: 0, ..Default::default() },
         Settings { light_samples: 64, brdf_samples: 0, pool_size: 8, ..Default::default() }, // N_f > M: clamped
