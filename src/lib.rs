@@ -10,6 +10,8 @@
 pub mod bench;
 pub mod envmap;
 pub mod error;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 pub mod render;
 pub mod sampling;
 pub mod stats;

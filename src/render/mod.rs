@@ -90,6 +90,11 @@ impl Settings {
     }
 }
 
+/// The light pool's seed for a render seed (shared with the GPU backend, so both draw one pool).
+pub fn pool_seed(seed: u32) -> u32 {
+    hash(seed ^ 0xA511_E9B3)
+}
+
 /// Everything built once per environment frame.
 pub struct FrameData<'a> {
     pub map: &'a CubeMap,
@@ -107,7 +112,7 @@ impl<'a> FrameData<'a> {
         let dist = CubeDistribution::build(map);
         let energies = dist.energies();
         let pool = if matches!(s.strategy, Strategy::Paper | Strategy::Light) {
-            LightPool::build(map, &dist, s.pool_per_face(), hash(s.seed ^ 0xA511_E9B3))
+            LightPool::build(map, &dist, s.pool_per_face(), pool_seed(s.seed))
         } else {
             LightPool { per_face: 0, samples: Vec::new() }
         };
@@ -307,6 +312,47 @@ pub struct RenderStats {
     pub clamped_texels: crate::envmap::SanitizeReport,
 }
 
+impl RenderStats {
+    /// Statistics header of a render with settings `s` (timings and counts still empty).
+    pub fn for_settings(width: usize, height: usize, s: &Settings, pool_per_face: usize) -> Self {
+        RenderStats {
+            width,
+            height,
+            strategy: s.strategy.name().into(),
+            counts: format!("{:?}", s.counts).to_lowercase(),
+            mis: format!("{:?}", s.mis).to_lowercase(),
+            light_samples: s.light_samples,
+            brdf_samples: s.brdf_samples,
+            pool_per_face,
+            seed: s.seed,
+            pixel_offset: s.pixel_offset,
+            ..Default::default()
+        }
+    }
+
+    /// Fill the sample counts and red / green / yellow fractions from per-pixel statistics
+    /// (`None` = no geometry); `shade_ms` must be set.
+    pub fn accumulate(&mut self, per_pixel: &[Option<PixelStats>]) {
+        let (mut red, mut green, mut yellow, mut wasted) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+        for st in per_pixel.iter().flatten() {
+            self.shaded_pixels += 1;
+            self.samples_evaluated += (st.green + st.yellow + st.brdf) as u64;
+            if st.available > 0 {
+                let a = st.available as f64;
+                red += st.red() as f64 / a;
+                green += st.green as f64 / a;
+                yellow += st.yellow as f64 / a;
+            }
+            if st.green + st.yellow > 0 {
+                wasted += st.yellow as f64 / (st.green + st.yellow) as f64;
+            }
+        }
+        let np = self.shaded_pixels.max(1) as f64;
+        (self.red, self.green, self.yellow, self.wasted) = (red / np, green / np, yellow / np, wasted / np);
+        self.samples_per_second = self.samples_evaluated as f64 / (self.shade_ms / 1e3).max(1e-9);
+    }
+}
+
 /// A rendered image and its statistics.
 pub struct Rendered {
     pub image: crate::envmap::Image,
@@ -334,38 +380,11 @@ pub fn render(map: &CubeMap, gbuf: &[Option<GPixel>], width: usize, height: usiz
         .collect();
     let shade_ms = t1.elapsed().as_secs_f64() * 1e3;
 
-    let mut stats = RenderStats {
-        width,
-        height,
-        strategy: s.strategy.name().into(),
-        counts: format!("{:?}", s.counts).to_lowercase(),
-        mis: format!("{:?}", s.mis).to_lowercase(),
-        light_samples: s.light_samples,
-        brdf_samples: s.brdf_samples,
-        pool_per_face: fd.pool.per_face,
-        seed: s.seed,
-        pixel_offset: s.pixel_offset,
-        build_ms,
-        shade_ms,
-        ..Default::default()
-    };
-    let (mut red, mut green, mut yellow, mut wasted) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
-    for st in out.iter().filter_map(|(_, st)| st.as_ref()) {
-        stats.shaded_pixels += 1;
-        stats.samples_evaluated += (st.green + st.yellow + st.brdf) as u64;
-        if st.available > 0 {
-            let a = st.available as f64;
-            red += st.red() as f64 / a;
-            green += st.green as f64 / a;
-            yellow += st.yellow as f64 / a;
-        }
-        if st.green + st.yellow > 0 {
-            wasted += st.yellow as f64 / (st.green + st.yellow) as f64;
-        }
-    }
-    let np = stats.shaded_pixels.max(1) as f64;
-    (stats.red, stats.green, stats.yellow, stats.wasted) = (red / np, green / np, yellow / np, wasted / np);
-    stats.samples_per_second = stats.samples_evaluated as f64 / (shade_ms / 1e3).max(1e-9);
+    let mut stats = RenderStats::for_settings(width, height, s, fd.pool.per_face);
+    stats.build_ms = build_ms;
+    stats.shade_ms = shade_ms;
+    let per_pixel: Vec<Option<PixelStats>> = out.iter().map(|(_, st)| *st).collect();
+    stats.accumulate(&per_pixel);
     let image = crate::envmap::Image { width, height, data: out.into_iter().map(|(c, _)| c).collect() };
     Ok(Rendered { image, stats })
 }

@@ -1,0 +1,234 @@
+// envis — per-frame distribution build and light-sample pool (twin of src/sampling/distribution.rs
+// and src/sampling/pool.rs). Five dispatches, in this order, all on data that stays on the GPU:
+//   texel_weights   one thread per texel: sanitise (count problems), w = Y * Omega
+//   column_cdfs     one workgroup per (face, column): CDF(v|u) by a workgroup prefix sum
+//   marginal_cdfs   one workgroup per face: CDF(u) over the column totals, face energy I_f
+//   pdf_table       one thread per texel: pdf per unit face area, P(texel) (N/2)^2
+//   build_pool      one thread per pool sample: stratified point -> texel -> direction, radiance, pdf
+// Sums are hierarchical (a serial run of ceil(N/256) texels per thread, then a 256-wide scan), so the
+// rounding error grows like log N, not N: a lone bright texel among 2048^2 keeps its probability.
+
+struct Params {
+    // Face size N.
+    n: u32,
+    // Pool samples per face M.
+    m: u32,
+    // Pool seed (already hashed: the CPU twin's hash(seed ^ 0xA511E9B3)).
+    seed: u32,
+    _pad: u32,
+}
+
+// Per texel (r, g, b, pdf_area): radiance in, sanitised radiance and the pdf table out.
+@group(0) @binding(0) var<storage, read_write> texels: array<vec4<f32>>;
+// Per texel of one face (n x n, shared by the six faces): exact texel solid angle.
+@group(0) @binding(1) var<storage, read> solid_angle: array<f32>;
+// Per texel: w = Y * Omega.
+@group(0) @binding(2) var<storage, read_write> weights: array<f32>;
+// Per (face, column): n + 1 CDF values of rows, cdf[0] = 0, cdf[n] = 1.
+@group(0) @binding(3) var<storage, read_write> cond_cdf: array<f32>;
+// Totals: [0, 8) face energies I_f (6 used), then per (face, column) the column total at 8 + f n + c.
+// (One buffer for both keeps the layout within 8 storage buffers per stage, WebGPU's default.)
+@group(0) @binding(4) var<storage, read_write> totals: array<f32>;
+// Per face: n + 1 CDF values of columns.
+@group(0) @binding(5) var<storage, read_write> marg_cdf: array<f32>;
+// Pool: per sample two vec4: (dir, pdf), (radiance, 0). Face-major: sample i of face f at f M + i.
+@group(0) @binding(6) var<storage, read_write> pool: array<vec4<f32>>;
+// Sanitise counters: NaN, Inf, negative, huge.
+@group(0) @binding(7) var<storage, read_write> problems: array<atomic<u32>, 4>;
+@group(0) @binding(8) var<uniform> params: Params;
+
+const TOTALS_COLUMNS: u32 = 8u;
+
+const WG: u32 = 256u;
+var<workgroup> partial: array<f32, 256>;
+
+@compute @workgroup_size(256)
+fn texel_weights(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>, @builtin(local_invocation_index) t: u32) {
+    let i = (wg.x + wg.y * nwg.x) * WG + t;
+    let nn = params.n * params.n;
+    if (i >= 6u * nn) {
+        return;
+    }
+    let raw = texels[i].xyz;
+    let problem = texel_problem(raw);
+    var c = raw;
+    if (problem != 0u) {
+        atomicAdd(&problems[problem - 1u], 1u);
+        c = vec3(sanitize_channel(raw.x), sanitize_channel(raw.y), sanitize_channel(raw.z));
+        texels[i] = vec4(c, 0.0);
+    }
+    weights[i] = max(luminance(c), 0.0) * solid_angle[i % nn];
+}
+
+// Inclusive scan of partial[] across the workgroup (Hillis-Steele); returns the exclusive prefix of
+// thread t. Call from uniform control flow.
+fn scan_partials(t: u32, s: f32) -> f32 {
+    partial[t] = s;
+    workgroupBarrier();
+    for (var off = 1u; off < WG; off = off << 1u) {
+        var v = partial[t];
+        if (t >= off) {
+            v += partial[t - off];
+        }
+        workgroupBarrier();
+        partial[t] = v;
+        workgroupBarrier();
+    }
+    return partial[t] - s;
+}
+
+@compute @workgroup_size(256)
+fn column_cdfs(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>, @builtin(local_invocation_index) t: u32) {
+    let n = params.n;
+    let col_id = wg.x + wg.y * nwg.x; // f * n + c
+    if (col_id >= 6u * n) {
+        return;
+    }
+    let f = col_id / n;
+    let c = col_id % n;
+    let k = (n + WG - 1u) / WG;
+    let start = min(t * k, n);
+    let end = min(start + k, n);
+    var s = 0.0;
+    for (var r = start; r < end; r++) {
+        s += weights[(f * n + r) * n + c];
+    }
+    var acc = scan_partials(t, s);
+    let total = partial[WG - 1u];
+    let base = col_id * (n + 1u);
+    if (t == 0u) {
+        cond_cdf[base] = 0.0;
+        totals[TOTALS_COLUMNS + col_id] = total;
+    }
+    for (var r = start; r < end; r++) {
+        acc += weights[(f * n + r) * n + c];
+        var v = select(f32(r + 1u) / f32(n), acc / total, total > 0.0);
+        if (r + 1u == n) {
+            v = 1.0;
+        }
+        cond_cdf[base + r + 1u] = v;
+    }
+}
+
+@compute @workgroup_size(256)
+fn marginal_cdfs(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) t: u32) {
+    let n = params.n;
+    let f = wg.x;
+    let k = (n + WG - 1u) / WG;
+    let start = min(t * k, n);
+    let end = min(start + k, n);
+    var s = 0.0;
+    for (var c = start; c < end; c++) {
+        s += totals[TOTALS_COLUMNS + f * n + c];
+    }
+    var acc = scan_partials(t, s);
+    let total = partial[WG - 1u];
+    let base = f * (n + 1u);
+    if (t == 0u) {
+        marg_cdf[base] = 0.0;
+        totals[f] = total;
+    }
+    for (var c = start; c < end; c++) {
+        acc += totals[TOTALS_COLUMNS + f * n + c];
+        var v = select(f32(c + 1u) / f32(n), acc / total, total > 0.0);
+        if (c + 1u == n) {
+            v = 1.0;
+        }
+        marg_cdf[base + c + 1u] = v;
+    }
+}
+
+@compute @workgroup_size(256)
+fn pdf_table(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>, @builtin(local_invocation_index) t: u32) {
+    let i = (wg.x + wg.y * nwg.x) * WG + t;
+    let nn = params.n * params.n;
+    if (i >= 6u * nn) {
+        return;
+    }
+    let e = totals[i / nn];
+    let scale = select(0.0, f32(nn) * 0.25 / e, e > 0.0);
+    texels[i].w = weights[i] * scale;
+}
+
+// Distribution1D::sample on cdf[base .. base + n + 1]: the largest bin i with cdf[i] <= u, and the
+// offset (u - cdf[i]) / (cdf[i+1] - cdf[i]) in [0, 1). Returns (i, du) with i as f32 bits.
+struct BinSample {
+    i: u32,
+    du: f32,
+}
+fn sample_cdf_cond(base: u32, n: u32, u: f32) -> BinSample {
+    // Count of cdf[0..n) values <= u (cdf[0] = 0 <= u always), by binary search.
+    var lo = 0u;
+    var len = n;
+    while (len > 0u) {
+        let half = len / 2u;
+        if (cond_cdf[base + lo + half] <= u) {
+            lo = lo + half + 1u;
+            len = len - half - 1u;
+        } else {
+            len = half;
+        }
+    }
+    let i = max(lo, 1u) - 1u;
+    let c0 = cond_cdf[base + i];
+    let w = cond_cdf[base + i + 1u] - c0;
+    let du = select(0.0, clamp((u - c0) / w, 0.0, ONE_MINUS_EPS), w > 0.0);
+    return BinSample(i, du);
+}
+fn sample_cdf_marg(base: u32, n: u32, u: f32) -> BinSample {
+    var lo = 0u;
+    var len = n;
+    while (len > 0u) {
+        let half = len / 2u;
+        if (marg_cdf[base + lo + half] <= u) {
+            lo = lo + half + 1u;
+            len = len - half - 1u;
+        } else {
+            len = half;
+        }
+    }
+    let i = max(lo, 1u) - 1u;
+    let c0 = marg_cdf[base + i];
+    let w = marg_cdf[base + i + 1u] - c0;
+    let du = select(0.0, clamp((u - c0) / w, 0.0, ONE_MINUS_EPS), w > 0.0);
+    return BinSample(i, du);
+}
+
+// sampling::pool::pool_point: Latin hypercube with hash permutations, (p + xi) / M kept below 1.
+fn pool_point(seed: u32, face: u32, i: u32, m: u32) -> vec2<f32> {
+    let pu = permute(i, m, hash3(seed, face, 0x5eed0001u));
+    let pv = permute(i, m, hash3(seed, face, 0x5eed0002u));
+    let ju = to_unit(hash4(seed, face, i, 1u));
+    let jv = to_unit(hash4(seed, face, i, 2u));
+    let u = min((f32(pu) + ju) / f32(m), ONE_MINUS_EPS);
+    let v = min((f32(pv) + jv) / f32(m), ONE_MINUS_EPS);
+    return vec2(u, v);
+}
+
+@compute @workgroup_size(64)
+fn build_pool(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let k = linear_id(gid, nwg, 64u);
+    let m = params.m;
+    let n = params.n;
+    if (k >= 6u * m) {
+        return;
+    }
+    let f = k / m;
+    let i = k % m;
+    if (totals[f] <= 0.0) {
+        pool[2u * k] = vec4(0.0);
+        pool[2u * k + 1u] = vec4(0.0);
+        return;
+    }
+    let p = pool_point(params.seed, f, i, m);
+    let cs = sample_cdf_marg(f * (n + 1u), n, p.x);
+    let rs = sample_cdf_cond((f * n + cs.i) * (n + 1u), n, p.y);
+    let h = 2.0 / f32(n);
+    let a = -1.0 + (f32(cs.i) + cs.du) * h;
+    let b = -1.0 + (f32(rs.i) + rs.du) * h;
+    let texel = texels[(f * n + rs.i) * n + cs.i];
+    let q = 1.0 + a * a + b * b;
+    let pdf = texel.w * q * sqrt(q);
+    pool[2u * k] = vec4(normalize(face_ab_to_vec(f, a, b)), pdf);
+    pool[2u * k + 1u] = vec4(texel.xyz, 0.0);
+}

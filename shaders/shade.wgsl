@@ -1,0 +1,150 @@
+// envis — per-pixel face-weighted MIS shading (twin of render::shade_pixel). Needs common.wgsl and
+// sampling.wgsl before it. Reads the frame's texel table (radiance + pdf per face area), the light
+// pool and the face energies written by distribution.wgsl; nothing is read back to the CPU.
+
+struct ShadeParams {
+    // Face size N and pool samples per face M.
+    n: u32,
+    m: u32,
+    // Light and BRDF samples this strategy draws (already remapped as render::shade_pixel does).
+    nl: u32,
+    nb: u32,
+    // 0 paper (cosine face weights), 1 light (energy only), 2 brdf only.
+    strategy: u32,
+    counts: u32,
+    mis: u32,
+    seed: u32,
+    pixel_offset: u32,
+    pixel_count: u32,
+    _pad0: u32,
+    _pad1: u32,
+}
+const STRATEGY_PAPER: u32 = 0u;
+const STRATEGY_LIGHT: u32 = 1u;
+const STRATEGY_BRDF: u32 = 2u;
+
+// One G-buffer texel: normal (w = 1 where there is geometry), view direction, kd (w = lobe kind),
+// ks (w = Phong exponent or GGX alpha).
+struct GPixel {
+    n: vec4<f32>,
+    o: vec4<f32>,
+    kd: vec4<f32>,
+    ks: vec4<f32>,
+}
+
+@group(0) @binding(0) var<storage, read> texels: array<vec4<f32>>;
+@group(0) @binding(1) var<storage, read> pool: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> face_energy: array<f32>;
+@group(0) @binding(3) var<storage, read> gbuf: array<GPixel>;
+// Per pixel: (r, g, b, 1 where shaded).
+@group(0) @binding(4) var<storage, read_write> out_color: array<vec4<f32>>;
+// Per pixel: (available, green, yellow, brdf) sample counts (the seed's red / green / yellow).
+@group(0) @binding(5) var<storage, read_write> out_stats: array<vec4<u32>>;
+@group(0) @binding(6) var<uniform> sp: ShadeParams;
+
+struct Shaded {
+    color: vec3<f32>,
+    stats: vec4<u32>,
+}
+
+fn shade(px: GPixel, pixel_index: u32) -> Shaded {
+    var res = Shaded(vec3(0.0), vec4(0u));
+    let mat = Material(px.kd.xyz, px.ks.xyz, u32(px.kd.w), px.ks.w);
+    let n = normalize_or_zero(px.n.xyz);
+    let o = normalize_or_zero(px.o.xyz);
+    if (all(n == vec3(0.0)) || all(o == vec3(0.0)) || dot(n, o) <= 0.0 || is_black(mat)) {
+        return res;
+    }
+    let fr = frame_new(n);
+    let ol = to_local(fr, o);
+    var rng = rng_new(sp.seed, pixel_index);
+    var sum = vec3(0.0);
+    let nl = sp.nl;
+    let nb = sp.nb;
+    let nb_f = f32(nb);
+    let size = sp.n;
+    let m = sp.m;
+    var density: array<f32, 6>;
+
+    if (sp.strategy != STRATEGY_BRDF) {
+        res.stats.x = 6u * m;
+        var energy: array<f32, 6>;
+        for (var f = 0u; f < 6u; f++) {
+            energy[f] = face_energy[f];
+        }
+        let mu = face_weights(n, energy, sp.strategy == STRATEGY_PAPER);
+        var offset = 0u;
+        if (sp.pixel_offset != 0u && m > 0u) {
+            offset = rng_next_u32(&rng) % m;
+        }
+        for (var f = 0u; f < 6u; f++) {
+            let c = face_count(mu[f] * f32(nl), m, sp.counts);
+            density[f] = c.density;
+            var idx = offset;
+            for (var k = 0u; k < c.taken; k++) {
+                let s = f * m + idx;
+                idx += 1u;
+                if (idx == m) {
+                    idx = 0u;
+                }
+                let dp = pool[2u * s];
+                if (dp.w <= 0.0) {
+                    continue;
+                }
+                let cosv = dot(n, dp.xyz);
+                if (cosv <= 0.0) {
+                    res.stats.z += 1u;
+                    continue;
+                }
+                res.stats.y += 1u;
+                let weight = select(1.0, c.last_weight, k + 1u == c.taken);
+                let il = to_local(fr, dp.xyz);
+                let n_l = c.density * dp.w;
+                var n_b = 0.0;
+                if (nb > 0u) {
+                    n_b = nb_f * brdf_pdf(mat, ol, il);
+                }
+                sum += brdf_eval(mat, ol, il) * pool[2u * s + 1u].xyz * (weight * cosv * mis_weight_over_density(sp.mis, n_l, n_b));
+            }
+        }
+    }
+
+    for (var j = 0u; j < nb; j++) {
+        res.stats.w += 1u;
+        let u1 = rng_next_f32(&rng);
+        let u2 = rng_next_f32(&rng);
+        let bs = brdf_sample(mat, ol, vec2(u1, u2));
+        if (bs.w <= 0.0) {
+            continue;
+        }
+        let il = bs.xyz;
+        let d = to_world(fr, il);
+        let hit = dir_to_texel(d, size);
+        let t = texels[(hit.face * size + hit.row) * size + hit.col];
+        let q = 1.0 + hit.a * hit.a + hit.b * hit.b;
+        var n_l = 0.0;
+        if (sp.strategy == STRATEGY_PAPER) {
+            n_l = density[hit.face] * t.w * (q * sqrt(q));
+        }
+        sum += brdf_eval(mat, ol, il) * t.xyz * (il.z * mis_weight_over_density(sp.mis, nb_f * bs.w, n_l));
+    }
+    res.color = sum;
+    return res;
+}
+
+@compute @workgroup_size(64)
+fn shade_gbuffer(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let i = linear_id(gid, nwg, 64u);
+    if (i >= sp.pixel_count) {
+        return;
+    }
+    let px = gbuf[i];
+    if (px.n.w == 0.0) {
+        out_color[i] = vec4(0.0);
+        out_stats[i] = vec4(0u);
+        return;
+    }
+    let r = shade(px, i);
+    out_color[i] = vec4(r.color, 1.0);
+    out_stats[i] = r.stats;
+}

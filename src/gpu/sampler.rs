@@ -1,0 +1,272 @@
+//! The per-frame distribution build and light-sample pool on the GPU (`shaders/distribution.wgsl`),
+//! twin of [`crate::sampling::CubeDistribution::build`] and [`crate::sampling::LightPool::build`].
+
+use super::{dispatch_size, shaders, GpuContext};
+use crate::envmap::{CubeMap, SanitizeReport};
+use crate::error::{Error, Result};
+use crate::sampling::distribution::{face_solid_angles, Distribution1D, FaceDistribution};
+use crate::sampling::{CubeDistribution, LightPool, PoolSample};
+use glam::Vec3;
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Params {
+    n: u32,
+    m: u32,
+    seed: u32,
+    _pad: u32,
+}
+
+/// Offset of the column totals in the `totals` buffer (face energies come first).
+pub const TOTALS_COLUMNS: usize = 8;
+
+/// GPU buffers and pipelines of the per-frame build for faces of `n x n` texels and `m` pool
+/// samples per face. Re-create it when `n` or `m` change; re-upload and re-encode every frame.
+pub struct EnvSampler {
+    pub n: usize,
+    pub m: usize,
+    /// Per texel `(r, g, b, pdf_area)`: radiance in, sanitised radiance + pdf table out.
+    pub texels: wgpu::Buffer,
+    pub weights: wgpu::Buffer,
+    pub cond_cdf: wgpu::Buffer,
+    /// Face energies at `[0, 6)`, column totals from [`TOTALS_COLUMNS`].
+    pub totals: wgpu::Buffer,
+    pub marg_cdf: wgpu::Buffer,
+    /// Two `vec4` per sample: `(dir, pdf)`, `(radiance, 0)`.
+    pub pool: wgpu::Buffer,
+    pub problems: wgpu::Buffer,
+    params: wgpu::Buffer,
+    bind_group: wgpu::BindGroup,
+    pipelines: [wgpu::ComputePipeline; 5],
+    timer: Option<super::shading::PassTimer>,
+}
+
+fn storage(device: &wgpu::Device, label: &str, size: u64) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: size.max(16),
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+/// Refuse a buffer the device cannot bind, naming it, before allocating anything.
+pub fn check_binding(limits: &wgpu::Limits, what: &str, bytes: u64) -> Result<()> {
+    let max = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
+    if bytes > max {
+        return Err(Error::invalid(format!("GPU: {what} needs {bytes} bytes, above this device's storage-binding limit of {max} bytes")));
+    }
+    Ok(())
+}
+
+impl EnvSampler {
+    pub fn new(ctx: &GpuContext, n: usize, m: usize) -> Result<Self> {
+        Self::with_device(&ctx.device, &ctx.queue, n, m, ctx.timestamps)
+    }
+
+    /// Build on any device (the Bevy render world passes its own).
+    pub fn with_device(device: &wgpu::Device, queue: &wgpu::Queue, n: usize, m: usize, timestamps: bool) -> Result<Self> {
+        if n == 0 || m == 0 {
+            return Err(Error::invalid("GPU sampler: face size and pool size must be positive"));
+        }
+        let texel_count = 6 * n * n;
+        let limits = device.limits();
+        check_binding(&limits, "the texel table (6 N^2 x 16 bytes)", texel_count as u64 * 16)?;
+        check_binding(&limits, "the conditional CDFs", (6 * n * (n + 1)) as u64 * 4)?;
+        check_binding(&limits, "the light pool", (6 * m) as u64 * 32)?;
+        let texels = storage(device, "envis texels", texel_count as u64 * 16);
+        let solid_angle = storage(device, "envis solid angles", (n * n) as u64 * 4);
+        let weights = storage(device, "envis weights", texel_count as u64 * 4);
+        let cond_cdf = storage(device, "envis cond cdf", (6 * n * (n + 1)) as u64 * 4);
+        let totals = storage(device, "envis totals", (TOTALS_COLUMNS + 6 * n) as u64 * 4);
+        let marg_cdf = storage(device, "envis marg cdf", (6 * (n + 1)) as u64 * 4);
+        let pool = storage(device, "envis pool", (6 * m) as u64 * 32);
+        let problems = storage(device, "envis sanitise counters", 16);
+        let params = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("envis build params"),
+            size: 16,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        queue.write_buffer(&solid_angle, 0, bytemuck::cast_slice(face_solid_angles(n).as_slice()));
+
+        let st = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Storage { read_only }, has_dynamic_offset: false, min_binding_size: None },
+            count: None,
+        };
+        let mut entries: Vec<wgpu::BindGroupLayoutEntry> = (0..8).map(|b| st(b, b == 1)).collect();
+        entries.push(wgpu::BindGroupLayoutEntry {
+            binding: 8,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
+            count: None,
+        });
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("envis build layout"), entries: &entries });
+        let bufs = [&texels, &solid_angle, &weights, &cond_cdf, &totals, &marg_cdf, &pool, &problems, &params];
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("envis build bind group"),
+            layout: &layout,
+            entries: &bufs.iter().enumerate().map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() }).collect::<Vec<_>>(),
+        });
+        let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("envis build"), bind_group_layouts: &[Some(&layout)], immediate_size: 0 });
+        let module = shaders::module(device, "envis distribution.wgsl", &shaders::distribution_source());
+        let pipe = |entry: &str| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: Some(&pl),
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        let pipelines = [pipe("texel_weights"), pipe("column_cdfs"), pipe("marginal_cdfs"), pipe("pdf_table"), pipe("build_pool")];
+        let timer = timestamps.then(|| super::shading::PassTimer::new(device, "envis build timer"));
+        Ok(EnvSampler { n, m, texels, weights, cond_cdf, totals, marg_cdf, pool, problems, params, bind_group, pipelines, timer })
+    }
+
+    /// Upload a frame's radiance (the `w` channel is written by the build).
+    pub fn upload(&self, queue: &wgpu::Queue, map: &CubeMap) {
+        assert_eq!(map.size, self.n, "EnvSampler built for another face size");
+        let data: Vec<[f32; 4]> = map.data.iter().map(|c| [c.x, c.y, c.z, 0.0]).collect();
+        queue.write_buffer(&self.texels, 0, bytemuck::cast_slice(&data));
+    }
+
+    /// Set the pool seed for the next [`Self::encode`] (the CPU twin's `render::pool_seed`).
+    pub fn set_seed(&self, queue: &wgpu::Queue, seed: u32) {
+        let p = Params { n: self.n as u32, m: self.m as u32, seed, _pad: 0 };
+        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
+    }
+
+    /// Record the whole build (sanitise + weights, column CDFs, marginal CDFs, pdf table, pool)
+    /// as one compute pass: five dispatches, no CPU round trip.
+    pub fn encode(&self, enc: &mut wgpu::CommandEncoder) {
+        let n = self.n as u32;
+        let texels = 6 * n * n;
+        enc.clear_buffer(&self.problems, 0, None);
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("envis build"),
+                timestamp_writes: self.timer.as_ref().map(|t| t.writes()),
+            });
+            pass.set_bind_group(0, &self.bind_group, &[]);
+            let grid = |pass: &mut wgpu::ComputePass, p: &wgpu::ComputePipeline, (x, y): (u32, u32)| {
+                pass.set_pipeline(p);
+                pass.dispatch_workgroups(x, y, 1);
+            };
+            grid(&mut pass, &self.pipelines[0], dispatch_size(texels, 256));
+            grid(&mut pass, &self.pipelines[1], dispatch_size(6 * n, 1));
+            grid(&mut pass, &self.pipelines[2], (6, 1));
+            grid(&mut pass, &self.pipelines[3], dispatch_size(texels, 256));
+            grid(&mut pass, &self.pipelines[4], dispatch_size(6 * self.m as u32, 64));
+        }
+        if let Some(t) = &self.timer {
+            t.resolve(enc);
+        }
+    }
+
+    /// Headless: seed, encode, submit.
+    pub fn run(&self, ctx: &GpuContext, seed: u32) -> wgpu::SubmissionIndex {
+        self.set_seed(&ctx.queue, seed);
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        self.encode(&mut enc);
+        ctx.queue.submit([enc.finish()])
+    }
+
+    /// GPU milliseconds of the last build pass (when the device has timestamp queries).
+    pub fn last_gpu_ms(&self, ctx: &GpuContext) -> Option<f64> {
+        self.timer.as_ref().and_then(|t| t.read_ms(ctx))
+    }
+
+    /// Texels clamped by the GPU sanitise pass of the last build.
+    pub fn read_problems(&self, ctx: &GpuContext) -> Result<SanitizeReport> {
+        let c: Vec<u32> = ctx.read(&self.problems, 0, 4)?;
+        Ok(SanitizeReport { nan: c[0] as u64, inf: c[1] as u64, negative: c[2] as u64, huge: c[3] as u64 })
+    }
+
+    /// Read every table back (tests and debugging only; the frame path never does this).
+    pub fn read_tables(&self, ctx: &GpuContext) -> Result<GpuTables> {
+        let (n, m) = (self.n, self.m);
+        let texels: Vec<[f32; 4]> = ctx.read(&self.texels, 0, 6 * n * n)?;
+        let totals: Vec<f32> = ctx.read(&self.totals, 0, TOTALS_COLUMNS + 6 * n)?;
+        let pool: Vec<[f32; 4]> = ctx.read(&self.pool, 0, 12 * m)?;
+        Ok(GpuTables {
+            n,
+            m,
+            weights: ctx.read(&self.weights, 0, 6 * n * n)?,
+            cond_cdf: ctx.read(&self.cond_cdf, 0, 6 * n * (n + 1))?,
+            marg_cdf: ctx.read(&self.marg_cdf, 0, 6 * (n + 1))?,
+            energies: std::array::from_fn(|f| totals[f]),
+            col_totals: totals[TOTALS_COLUMNS..].to_vec(),
+            radiance: texels.iter().map(|t| Vec3::new(t[0], t[1], t[2])).collect(),
+            pdf_area: texels.iter().map(|t| t[3]).collect(),
+            pool: pool
+                .chunks_exact(2)
+                .map(|p| PoolSample { dir: Vec3::new(p[0][0], p[0][1], p[0][2]), pdf: p[0][3], radiance: Vec3::new(p[1][0], p[1][1], p[1][2]) })
+                .collect(),
+        })
+    }
+}
+
+/// Everything the GPU build wrote, on the CPU.
+#[derive(Clone, Debug)]
+pub struct GpuTables {
+    pub n: usize,
+    pub m: usize,
+    pub weights: Vec<f32>,
+    /// Per (face, column) `n + 1` values.
+    pub cond_cdf: Vec<f32>,
+    /// Per face `n + 1` values.
+    pub marg_cdf: Vec<f32>,
+    pub energies: [f32; 6],
+    pub col_totals: Vec<f32>,
+    pub radiance: Vec<Vec3>,
+    pub pdf_area: Vec<f32>,
+    pub pool: Vec<PoolSample>,
+}
+
+impl GpuTables {
+    /// The GPU's tables as a CPU [`CubeDistribution`], so the CPU twin of a later stage (the pool,
+    /// the shading) can be run on exactly the GPU's input and compared stage by stage.
+    pub fn to_distribution(&self) -> CubeDistribution {
+        let n = self.n;
+        let faces = (0..6)
+            .map(|f| {
+                let conditional = (0..n)
+                    .map(|c| {
+                        let col = f * n + c;
+                        Distribution1D {
+                            func: (0..n).map(|r| self.weights[(f * n + r) * n + c]).collect(),
+                            cdf: self.cond_cdf[col * (n + 1)..(col + 1) * (n + 1)].to_vec(),
+                            total: self.col_totals[col] as f64,
+                        }
+                    })
+                    .collect();
+                FaceDistribution {
+                    size: n,
+                    marginal: Distribution1D {
+                        func: self.col_totals[f * n..(f + 1) * n].to_vec(),
+                        cdf: self.marg_cdf[f * (n + 1)..(f + 1) * (n + 1)].to_vec(),
+                        total: self.energies[f] as f64,
+                    },
+                    conditional,
+                    energy: self.energies[f] as f64,
+                    pdf_area: self.pdf_area[f * n * n..(f + 1) * n * n].to_vec(),
+                }
+            })
+            .collect();
+        CubeDistribution { size: n, faces }
+    }
+
+    /// The pool as a CPU [`LightPool`].
+    pub fn to_pool(&self) -> LightPool {
+        LightPool { per_face: self.m, samples: self.pool.clone() }
+    }
+
+    /// The sanitised radiance as a cube map.
+    pub fn to_map(&self) -> CubeMap {
+        CubeMap { size: self.n, data: self.radiance.clone() }
+    }
+}

@@ -1,0 +1,23 @@
+//! The WGSL sources, embedded in the binary. Each module is `common.wgsl` plus its own files
+//! (WGSL has no includes; Bevy's naga_oil imports are not needed for three small modules).
+
+pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
+pub const SAMPLING: &str = include_str!("../../shaders/sampling.wgsl");
+pub const DISTRIBUTION: &str = include_str!("../../shaders/distribution.wgsl");
+pub const SHADE: &str = include_str!("../../shaders/shade.wgsl");
+
+/// Distribution build + pool module.
+pub fn distribution_source() -> String {
+    [COMMON, DISTRIBUTION].concat()
+}
+
+/// Per-pixel shading module (compute entry point `shade_gbuffer`).
+pub fn shade_source() -> String {
+    [COMMON, SAMPLING, SHADE].concat()
+}
+
+/// Compile a module, turning a WGSL error into a readable panic (a shader that does not compile
+/// is a build defect, caught by the tests).
+pub fn module(device: &wgpu::Device, label: &str, source: &str) -> wgpu::ShaderModule {
+    device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some(label), source: wgpu::ShaderSource::Wgsl(source.into()) })
+}

@@ -1,0 +1,210 @@
+//! Per-pixel face-weighted MIS shading on the GPU (`shaders/shade.wgsl`), twin of
+//! [`crate::render::shade_pixel`].
+
+use super::sampler::{check_binding, EnvSampler, TOTALS_COLUMNS};
+use super::{dispatch_size, shaders, GpuContext};
+use crate::error::Result;
+use crate::render::{GPixel, Settings, Strategy};
+use crate::sampling::{Counts, Heuristic, Lobe};
+
+/// A G-buffer texel as the shader reads it: `n.w = 1` where there is geometry, `kd.w` = lobe kind
+/// (0 none, 1 Phong, 2 GGX), `ks.w` = Phong exponent or GGX alpha.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct GpuGPixel {
+    pub n: [f32; 4],
+    pub o: [f32; 4],
+    pub kd: [f32; 4],
+    pub ks: [f32; 4],
+}
+
+impl From<&Option<GPixel>> for GpuGPixel {
+    fn from(p: &Option<GPixel>) -> Self {
+        let Some(p) = p else { return GpuGPixel::default() };
+        let (kind, param) = match p.material.lobe {
+            Lobe::None => (0.0, 0.0),
+            Lobe::Phong { exponent } => (1.0, exponent),
+            Lobe::Ggx { alpha } => (2.0, alpha),
+        };
+        let m = &p.material;
+        GpuGPixel { n: p.n.extend(1.0).into(), o: p.o.extend(0.0).into(), kd: m.kd.extend(kind).into(), ks: m.ks.extend(param).into() }
+    }
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct ShadeParams {
+    pub n: u32,
+    pub m: u32,
+    pub nl: u32,
+    pub nb: u32,
+    pub strategy: u32,
+    pub counts: u32,
+    pub mis: u32,
+    pub seed: u32,
+    pub pixel_offset: u32,
+    pub pixel_count: u32,
+    pub _pad: [u32; 2],
+}
+
+impl ShadeParams {
+    /// The shader's view of [`Settings`] (the same remapping of N_L / N_B per strategy as the CPU).
+    pub fn new(s: &Settings, n: usize, m: usize, pixel_count: usize) -> Self {
+        let (nl, nb, strategy) = match s.strategy {
+            Strategy::Paper => (s.light_samples, s.brdf_samples, 0),
+            Strategy::Light => (s.light_samples + s.brdf_samples, 0, 1),
+            Strategy::Brdf => (0, s.light_samples + s.brdf_samples, 2),
+            Strategy::Global => unreachable!("refused by render_gpu"),
+        };
+        ShadeParams {
+            n: n as u32,
+            m: m as u32,
+            nl: nl as u32,
+            nb: nb as u32,
+            strategy,
+            counts: (s.counts == Counts::Integer) as u32,
+            mis: (s.mis == Heuristic::Power) as u32,
+            seed: s.seed,
+            pixel_offset: s.pixel_offset as u32,
+            pixel_count: pixel_count as u32,
+            _pad: [0; 2],
+        }
+    }
+}
+
+/// Begin/end timestamps of one compute pass, resolved into a readable buffer.
+pub struct PassTimer {
+    set: wgpu::QuerySet,
+    resolve: wgpu::Buffer,
+    readback: wgpu::Buffer,
+}
+
+impl PassTimer {
+    pub fn new(device: &wgpu::Device, label: &str) -> Self {
+        let set = device.create_query_set(&wgpu::QuerySetDescriptor { label: Some(label), ty: wgpu::QueryType::Timestamp, count: 2 });
+        let resolve = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: 16,
+            usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: 16,
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        PassTimer { set, resolve, readback }
+    }
+    pub fn writes(&self) -> wgpu::ComputePassTimestampWrites<'_> {
+        wgpu::ComputePassTimestampWrites { query_set: &self.set, beginning_of_pass_write_index: Some(0), end_of_pass_write_index: Some(1) }
+    }
+    pub fn resolve(&self, enc: &mut wgpu::CommandEncoder) {
+        enc.resolve_query_set(&self.set, 0..2, &self.resolve, 0);
+        enc.copy_buffer_to_buffer(&self.resolve, 0, &self.readback, 0, 16);
+    }
+    /// Milliseconds between the two timestamps of the last resolved pass.
+    pub fn read_ms(&self, ctx: &GpuContext) -> Option<f64> {
+        let t: Vec<u64> = ctx.read(&self.readback, 0, 2).ok()?;
+        (t[1] > t[0]).then(|| (t[1] - t[0]) as f64 * ctx.queue.get_timestamp_period() as f64 * 1e-6)
+    }
+}
+
+/// The shading pipeline (one compute entry point over a G-buffer buffer).
+pub struct Shader {
+    pipeline: wgpu::ComputePipeline,
+    layout: wgpu::BindGroupLayout,
+    params: wgpu::Buffer,
+    timer: Option<PassTimer>,
+}
+
+/// What one shading job returns.
+pub struct ShadeJob {
+    pub color: Vec<[f32; 4]>,
+    /// Per pixel (available, green, yellow, brdf).
+    pub stats: Vec<[u32; 4]>,
+    pub gpu_ms: Option<f64>,
+}
+
+impl Shader {
+    pub fn new(ctx: &GpuContext) -> Self {
+        Self::with_device(&ctx.device, ctx.timestamps)
+    }
+
+    pub fn with_device(device: &wgpu::Device, timestamps: bool) -> Self {
+        let e = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer { ty, has_dynamic_offset: false, min_binding_size: None },
+            count: None,
+        };
+        let ro = wgpu::BufferBindingType::Storage { read_only: true };
+        let rw = wgpu::BufferBindingType::Storage { read_only: false };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("envis shade layout"),
+            entries: &[e(0, ro), e(1, ro), e(2, ro), e(3, ro), e(4, rw), e(5, rw), e(6, wgpu::BufferBindingType::Uniform)],
+        });
+        let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("envis shade"), bind_group_layouts: &[Some(&layout)], immediate_size: 0 });
+        let module = shaders::module(device, "envis shade.wgsl", &shaders::shade_source());
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("shade_gbuffer"),
+            layout: Some(&pl),
+            module: &module,
+            entry_point: Some("shade_gbuffer"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        let params = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("envis shade params"),
+            size: std::mem::size_of::<ShadeParams>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Shader { pipeline, layout, params, timer: timestamps.then(|| PassTimer::new(device, "envis shade timer")) }
+    }
+
+    /// Headless: upload the G-buffer, shade every pixel with the sampler's current frame, read back.
+    pub fn shade(&self, ctx: &GpuContext, sampler: &EnvSampler, pixels: &[GpuGPixel], s: &Settings) -> Result<ShadeJob> {
+        let count = pixels.len();
+        let limits = ctx.device.limits();
+        check_binding(&limits, "the G-buffer", count as u64 * 64)?;
+        let mk = |label: &str, size: u64, usage: wgpu::BufferUsages| ctx.device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size: size.max(16), usage, mapped_at_creation: false });
+        let su = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+        let gbuf = mk("envis gbuffer", count as u64 * 64, su);
+        let color = mk("envis color", count as u64 * 16, su);
+        let stats = mk("envis pixel stats", count as u64 * 16, su);
+        ctx.queue.write_buffer(&gbuf, 0, bytemuck::cast_slice(pixels));
+        ctx.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&ShadeParams::new(s, sampler.n, sampler.m, count)));
+        let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("envis shade bind group"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: sampler.texels.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: sampler.pool.as_entire_binding() },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding { buffer: &sampler.totals, offset: 0, size: wgpu::BufferSize::new(TOTALS_COLUMNS as u64 * 4) }),
+                },
+                wgpu::BindGroupEntry { binding: 3, resource: gbuf.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 4, resource: color.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 5, resource: stats.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 6, resource: self.params.as_entire_binding() },
+            ],
+        });
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("envis shade"), timestamp_writes: self.timer.as_ref().map(|t| t.writes()) });
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &bind, &[]);
+            let (x, y) = dispatch_size(count as u32, 64);
+            pass.dispatch_workgroups(x, y, 1);
+        }
+        if let Some(t) = &self.timer {
+            t.resolve(&mut enc);
+        }
+        let idx = ctx.queue.submit([enc.finish()]);
+        ctx.wait(idx)?;
+        let gpu_ms = self.timer.as_ref().and_then(|t| t.read_ms(ctx));
+        Ok(ShadeJob { color: ctx.read(&color, 0, count)?, stats: ctx.read(&stats, 0, count)?, gpu_ms })
+    }
+}
