@@ -202,13 +202,24 @@ fn write_json(path: &std::path::Path, v: &impl serde::Serialize) -> Result<()> {
     std::fs::write(path, s + "\n").map_err(|e| Error::file(path, format!("cannot write: {e}")))
 }
 
+/// `--backend gpu`: the WGSL stages on a headless wgpu device (the same shaders the Bevy app runs).
+#[cfg(feature = "gpu")]
+fn render_gpu(map: &envis::envmap::CubeMap, gbuf: &[Option<render::GPixel>], size: usize, s: &Settings) -> Result<(render::Rendered, serde_json::Value)> {
+    let ctx = envis::gpu::GpuContext::new()?;
+    let (out, t) = envis::gpu::render_gpu(&ctx, map, gbuf, size, size, s)?;
+    let extra = serde_json::json!({ "backend": "gpu", "device": ctx.info.name, "device_backend": format!("{:?}", ctx.info.backend), "gpu_timings": t });
+    Ok((out, extra))
+}
+
+#[cfg(not(feature = "gpu"))]
+fn render_gpu(_: &envis::envmap::CubeMap, _: &[Option<render::GPixel>], _: usize, _: &Settings) -> Result<(render::Rendered, serde_json::Value)> {
+    Err(Error::invalid("--backend gpu: this envis was built without the `gpu` feature (cargo build --features gpu)"))
+}
+
 fn run(cli: Cli) -> Result<()> {
     match cli.cmd {
         Cmd::Render(r) => {
             check_exr_path(&r.out)?;
-            if let BackendArg::Gpu = r.backend {
-                return Err(Error::invalid("--backend gpu is not available yet (the GPU pipeline is tracked in its own issue); use --backend cpu"));
-            }
             let settings = Settings {
                 light_samples: r.light_samples,
                 brdf_samples: r.brdf_samples,
@@ -232,14 +243,23 @@ fn run(cli: Cli) -> Result<()> {
             };
             settings.validate()?;
             let (env, gbuf, _) = setup(&r.scene)?;
-            let mut out = render::render(&env.cube, &gbuf, r.scene.size, r.scene.size, &settings)?;
-            out.stats.clamped_texels = env.report;
+            let size = r.scene.size;
+            let (mut out, extra) = match r.backend {
+                BackendArg::Cpu => (render::render(&env.cube, &gbuf, size, size, &settings)?, serde_json::json!({ "backend": "cpu" })),
+                BackendArg::Gpu => render_gpu(&env.cube, &gbuf, size, &settings)?,
+            };
+            // What the loader clamped, plus anything the GPU's own sanitise pass found.
+            out.stats.clamped_texels.add(env.report);
             output::write_exr(&r.out, &out.image)?;
             if let Some(p) = &r.png {
                 output::write_png(p, &out.image, 1.0)?;
             }
             if let Some(p) = &r.stats {
-                write_json(p, &out.stats)?;
+                let mut v = serde_json::to_value(&out.stats).expect("stats serialise");
+                if let (Some(o), Some(e)) = (v.as_object_mut(), extra.as_object()) {
+                    o.extend(e.clone());
+                }
+                write_json(p, &v)?;
             }
             Ok(())
         }
