@@ -253,3 +253,6 @@ fn gpu_stream_follows_the_map_every_frame() {
         prev_cpu = Some(cpu);
     }
 }
+
+#[path = "gpu/stability.rs"]
+mod stability;
