@@ -15,5 +15,6 @@ pub mod gpu;
 pub mod render;
 pub mod sampling;
 pub mod stats;
+pub mod stream;
 
 pub use error::{Error, Result};

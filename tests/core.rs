@@ -847,3 +847,6 @@ fn cli_contract() {
         assert!(!err.contains("panicked"), "{args:?}: {err}");
     }
 }
+
+#[path = "core/stream.rs"]
+mod stream;
