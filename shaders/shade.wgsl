@@ -1,6 +1,8 @@
 // envis — per-pixel face-weighted MIS shading (twin of render::shade_pixel). Needs common.wgsl and
-// sampling.wgsl before it. Reads the frame's texel table (radiance + pdf per face area), the light
-// pool and the face energies written by distribution.wgsl; nothing is read back to the CPU.
+// sampling.wgsl before it, and a module that declares the resources `shade` reads (the frame's
+// texel table `texels`, the light `pool`, `face_energy`, and the uniform `sp`): shade_compute.wgsl
+// (headless backend, tests) or lighting.wgsl (the Bevy deferred lighting pass). All of them are
+// written by distribution.wgsl on the GPU; nothing is read back to the CPU.
 
 struct ShadeParams {
     // Face size N and pool samples per face M.
@@ -31,16 +33,6 @@ struct GPixel {
     kd: vec4<f32>,
     ks: vec4<f32>,
 }
-
-@group(0) @binding(0) var<storage, read> texels: array<vec4<f32>>;
-@group(0) @binding(1) var<storage, read> pool: array<vec4<f32>>;
-@group(0) @binding(2) var<storage, read> face_energy: array<f32>;
-@group(0) @binding(3) var<storage, read> gbuf: array<GPixel>;
-// Per pixel: (r, g, b, 1 where shaded).
-@group(0) @binding(4) var<storage, read_write> out_color: array<vec4<f32>>;
-// Per pixel: (available, green, yellow, brdf) sample counts (the seed's red / green / yellow).
-@group(0) @binding(5) var<storage, read_write> out_stats: array<vec4<u32>>;
-@group(0) @binding(6) var<uniform> sp: ShadeParams;
 
 struct Shaded {
     color: vec3<f32>,
@@ -130,21 +122,4 @@ fn shade(px: GPixel, pixel_index: u32) -> Shaded {
     }
     res.color = sum;
     return res;
-}
-
-@compute @workgroup_size(64)
-fn shade_gbuffer(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
-    let i = linear_id(gid, nwg, 64u);
-    if (i >= sp.pixel_count) {
-        return;
-    }
-    let px = gbuf[i];
-    if (px.n.w == 0.0) {
-        out_color[i] = vec4(0.0);
-        out_stats[i] = vec4(0u);
-        return;
-    }
-    let r = shade(px, i);
-    out_color[i] = vec4(r.color, 1.0);
-    out_stats[i] = r.stats;
 }

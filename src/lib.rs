@@ -7,6 +7,8 @@
 //! pool ([`sampling`]) -> per-pixel face weighting and MIS shading ([`render`]). This core needs
 //! no Bevy and no GPU; it is the oracle that the GPU pipeline is tested against.
 
+#[cfg(feature = "app")]
+pub mod app;
 pub mod bench;
 pub mod envmap;
 pub mod error;

@@ -54,7 +54,8 @@ type Decoded = (usize, std::result::Result<Arc<CubeMap>, String>);
 /// capacity 1), looping. Dropping it stops the thread.
 struct SequenceDecoder {
     files: Vec<PathBuf>,
-    rx: Receiver<Decoded>,
+    // A Mutex only so the stream is `Sync` (a Bevy resource); one thread ever locks it.
+    rx: std::sync::Mutex<Receiver<Decoded>>,
     _thread: std::thread::JoinHandle<()>,
 }
 
@@ -82,7 +83,7 @@ impl SequenceDecoder {
                 }
             })
             .map_err(|e| Error::invalid(format!("cannot start the decoder thread: {e}")))?;
-        Ok(SequenceDecoder { files, rx, _thread: thread })
+        Ok(SequenceDecoder { files, rx: std::sync::Mutex::new(rx), _thread: thread })
     }
 }
 
@@ -161,7 +162,7 @@ impl EnvStream {
                 // The first frame is worth waiting for (there is nothing to show before it); any
                 // unreadable frames before the first good one are reported and skipped.
                 loop {
-                    let (i, r) = d.rx.recv().map_err(|_| Error::file(dir, "frame decoder stopped"))?;
+                    let (i, r) = d.rx.lock().expect("decoder channel").recv().map_err(|_| Error::file(dir, "frame decoder stopped"))?;
                     match r {
                         Ok(m) => {
                             s.set_frame(m);
@@ -278,7 +279,8 @@ impl EnvStream {
         }
         loop {
             let Some(d) = &self.decoder else { return };
-            match d.rx.try_recv() {
+            let got = d.rx.lock().expect("decoder channel").try_recv();
+            match got {
                 Ok((_, Ok(m))) => {
                     self.set_frame(m);
                     break;

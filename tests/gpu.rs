@@ -256,3 +256,7 @@ fn gpu_stream_follows_the_map_every_frame() {
 
 #[path = "gpu/stability.rs"]
 mod stability;
+
+#[cfg(feature = "app")]
+#[path = "gpu/bevy_app.rs"]
+mod bevy_app;

@@ -5,6 +5,8 @@ pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
 pub const SAMPLING: &str = include_str!("../../shaders/sampling.wgsl");
 pub const DISTRIBUTION: &str = include_str!("../../shaders/distribution.wgsl");
 pub const SHADE: &str = include_str!("../../shaders/shade.wgsl");
+pub const SHADE_COMPUTE: &str = include_str!("../../shaders/shade_compute.wgsl");
+pub const LIGHTING: &str = include_str!("../../shaders/lighting.wgsl");
 
 /// Distribution build + pool module.
 pub fn distribution_source() -> String {
@@ -13,11 +15,16 @@ pub fn distribution_source() -> String {
 
 /// Per-pixel shading module (compute entry point `shade_gbuffer`).
 pub fn shade_source() -> String {
-    [COMMON, SAMPLING, SHADE].concat()
+    [COMMON, SAMPLING, SHADE, SHADE_COMPUTE].concat()
 }
 
 /// Compile a module, turning a WGSL error into a readable panic (a shader that does not compile
 /// is a build defect, caught by the tests).
 pub fn module(device: &wgpu::Device, label: &str, source: &str) -> wgpu::ShaderModule {
     device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some(label), source: wgpu::ShaderSource::Wgsl(source.into()) })
+}
+
+/// The Bevy deferred lighting pass (fullscreen vertex + fragment `lighting`).
+pub fn lighting_source() -> String {
+    [COMMON, SAMPLING, SHADE, LIGHTING].concat()
 }

@@ -1,0 +1,98 @@
+// envis — the Bevy deferred lighting pass: a fullscreen triangle whose fragment decodes Bevy's
+// deferred G-buffer, runs `shade` (shade.wgsl, the twin of render::shade_pixel) and writes HDR
+// radiance; pixels without geometry show the environment map. Needs common.wgsl, sampling.wgsl
+// and shade.wgsl before it.
+//
+// Material convention (written by app::lighting::EnvisMaterial into a StandardMaterial):
+//   kd = base_color (1 - metallic), ks = base_color metallic;
+//   reflectance < 0.25: no glossy lobe; < 0.75: GGX with alpha = perceptual_roughness^2;
+//   otherwise normalised Phong with exponent e = 2 / perceptual_roughness^4 - 2.
+
+struct LightingView {
+    world_from_clip: mat4x4<f32>,
+    // xyz: camera position; w: 1 for an orthographic projection.
+    camera: vec4<f32>,
+    // xyz: camera forward (world); w: exposure multiplier.
+    forward: vec4<f32>,
+    // Viewport origin and size in pixels.
+    viewport: vec4<f32>,
+}
+
+@group(0) @binding(0) var gbuffer: texture_2d<u32>;
+@group(0) @binding(1) var depth_tex: texture_depth_2d;
+@group(0) @binding(2) var<storage, read> texels: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read> pool: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read> face_energy: array<f32>;
+@group(0) @binding(5) var<uniform> sp: ShadeParams;
+@group(0) @binding(6) var<uniform> lv: LightingView;
+
+@vertex
+fn fullscreen(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
+    let uv = vec2<f32>(f32(i >> 1u), f32(i & 1u)) * 2.0;
+    return vec4(uv * vec2(2.0, -2.0) + vec2(-1.0, 1.0), 0.0, 1.0);
+}
+
+// Bevy's octahedral decode (bevy_pbr utils.wgsl) of a [0, 1]^2 point.
+fn octahedral_decode(v: vec2<f32>) -> vec3<f32> {
+    let f = v * 2.0 - 1.0;
+    var n = vec3(f.xy, 1.0 - abs(f.x) - abs(f.y));
+    let t = saturate(-n.z);
+    let w = select(vec2(t), vec2(-t), n.xy >= vec2(0.0));
+    n = vec3(n.xy + w, n.z);
+    return normalize(n);
+}
+
+// Bevy's deferred G-buffer (pbr_deferred_functions.wgsl) -> an envis G-buffer texel.
+fn decode_gbuffer(g: vec4<u32>, o: vec3<f32>) -> GPixel {
+    let base_rough = unpack4x8unorm(g.r);
+    let base = pow(base_rough.rgb, vec3(2.2));
+    let r = base_rough.a;
+    let props = unpack4x8unorm(g.b);
+    let reflectance = props.r;
+    let metallic = props.g;
+    let oct = vec2(f32(g.a & 0xFFFu), f32((g.a >> 12u) & 0xFFFu)) / 4095.0;
+    let n = octahedral_decode(oct);
+    var lobe = LOBE_NONE;
+    var param = 0.0;
+    if (reflectance >= 0.75) {
+        lobe = LOBE_PHONG;
+        let r2 = max(r * r, 1e-4);
+        param = clamp(2.0 / (r2 * r2) - 2.0, 0.0, 1e6);
+    } else if (reflectance >= 0.25) {
+        lobe = LOBE_GGX;
+        param = clamp(r * r, 1e-4, 1.0);
+    }
+    let ks = select(vec3(0.0), base * metallic, lobe != LOBE_NONE);
+    return GPixel(vec4(n, 1.0), vec4(o, 0.0), vec4(base * (1.0 - metallic), f32(lobe)), vec4(ks, param));
+}
+
+@fragment
+fn lighting(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
+    let coord = vec2<i32>(floor(pos.xy));
+    let depth = textureLoad(depth_tex, coord, 0);
+    let uv = (pos.xy - lv.viewport.xy) / lv.viewport.zw;
+    let ndc = vec2(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0);
+    let ortho = lv.camera.w > 0.5;
+    let exposure = lv.forward.w;
+    if (depth <= 0.0) {
+        // No geometry (reverse-Z far plane): the environment in the direction of the pixel's ray.
+        var dir = lv.forward.xyz;
+        if (!ortho) {
+            let p = lv.world_from_clip * vec4(ndc, 1.0, 1.0);
+            dir = p.xyz / p.w - lv.camera.xyz;
+        }
+        let hit = dir_to_texel(dir, sp.n);
+        return vec4(texels[(hit.face * sp.n + hit.row) * sp.n + hit.col].xyz * exposure, 1.0);
+    }
+    let wp = lv.world_from_clip * vec4(ndc, depth, 1.0);
+    let world = wp.xyz / wp.w;
+    var o = -lv.forward.xyz;
+    if (!ortho) {
+        o = normalize(lv.camera.xyz - world);
+    }
+    let px = decode_gbuffer(textureLoad(gbuffer, coord, 0), o);
+    let local = vec2<u32>(max(pos.xy - lv.viewport.xy, vec2(0.0)));
+    let pixel_index = local.y * u32(lv.viewport.z) + local.x;
+    let r = shade(px, pixel_index);
+    return vec4(r.color * exposure, 1.0);
+}

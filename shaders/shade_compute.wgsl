@@ -1,0 +1,29 @@
+// envis — compute entry point of the shading stage over a G-buffer buffer (headless backend and
+// the CPU-twin tests). Needs common.wgsl, sampling.wgsl and shade.wgsl before it.
+
+@group(0) @binding(0) var<storage, read> texels: array<vec4<f32>>;
+@group(0) @binding(1) var<storage, read> pool: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> face_energy: array<f32>;
+@group(0) @binding(3) var<storage, read> gbuf: array<GPixel>;
+// Per pixel: (r, g, b, 1 where shaded).
+@group(0) @binding(4) var<storage, read_write> out_color: array<vec4<f32>>;
+// Per pixel: (available, green, yellow, brdf) sample counts (the seed's red / green / yellow).
+@group(0) @binding(5) var<storage, read_write> out_stats: array<vec4<u32>>;
+@group(0) @binding(6) var<uniform> sp: ShadeParams;
+
+@compute @workgroup_size(64)
+fn shade_gbuffer(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let i = linear_id(gid, nwg, 64u);
+    if (i >= sp.pixel_count) {
+        return;
+    }
+    let px = gbuf[i];
+    if (px.n.w == 0.0) {
+        out_color[i] = vec4(0.0);
+        out_stats[i] = vec4(0u);
+        return;
+    }
+    let r = shade(px, i);
+    out_color[i] = vec4(r.color, 1.0);
+    out_stats[i] = r.stats;
+}

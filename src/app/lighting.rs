@@ -1,0 +1,244 @@
+//! `MisLightingPlugin`: the face-weighted MIS deferred lighting pass, replacing Bevy's for cameras
+//! marked [`EnvisCamera`]. Meshes write Bevy's deferred G-buffer through a `StandardMaterial`
+//! made by [`EnvisMaterial`]; the pass decodes it and runs the same `shade` function as the
+//! headless backend (`shaders/shade.wgsl`).
+
+use super::sampling::EnvSamplingState;
+use super::{EnvisCounters, EnvisSettings};
+use crate::gpu::shaders;
+use crate::gpu::shading::ShadeParams;
+use crate::render::Strategy;
+use crate::sampling::{Lobe, Material};
+use bevy::core_pipeline::core_3d::main_opaque_pass_3d;
+use bevy::core_pipeline::prepass::{DeferredPrepass, DepthPrepass, ViewPrepassTextures};
+use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
+use bevy::pbr::deferred::SkipDeferredLighting;
+use bevy::material::OpaqueRendererMethod;
+use bevy::prelude::*;
+use bevy::render::extract_component::{ExtractComponent, ExtractComponentPlugin};
+use bevy::render::renderer::{RenderContext, RenderDevice, ViewQuery};
+use bevy::render::view::{ExtractedView, ViewTarget};
+use bevy::render::{Render, RenderApp, RenderStartup, RenderSystems};
+use std::collections::HashMap;
+use std::sync::Mutex;
+use wgpu::util::DeviceExt;
+
+/// Marks a 3D camera whose lighting is done by envis. Brings the deferred prepasses it needs;
+/// the camera must also have `Msaa::Off` (deferred rendering has no MSAA).
+#[derive(Component, Clone, Copy, Default, ExtractComponent)]
+#[require(DepthPrepass, DeferredPrepass)]
+pub struct EnvisCamera;
+
+/// An envis material, written into Bevy's deferred G-buffer as a `StandardMaterial`
+/// (the encoding is documented in `shaders/lighting.wgsl` and `docs/bevy.md`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum EnvisMaterial {
+    Lambert { albedo: Vec3 },
+    /// Normalised Phong; exponent up to 1e4 (stored as roughness `(2 / (e + 2))^(1/4)`, 8 bits).
+    Phong { albedo: Vec3, exponent: f32 },
+    /// GGX with F = 1 (stored as perceptual roughness `sqrt(alpha)`, 8 bits).
+    Ggx { albedo: Vec3, alpha: f32 },
+    /// Lambert `(1 - specular) albedo` plus GGX `specular albedo`.
+    Mix { albedo: Vec3, specular: f32, alpha: f32 },
+}
+
+/// sRGB-ish 8-bit round trip of Bevy's G-buffer base colour (`pow(c, 1/2.2)` in unorm8).
+fn gbuffer_color(c: Vec3) -> Vec3 {
+    c.map(|x| ((x.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0).round() / 255.0).powf(2.2))
+}
+fn unorm8(x: f32) -> f32 {
+    (x.clamp(0.0, 1.0) * 255.0).round() / 255.0
+}
+
+impl EnvisMaterial {
+    fn encode(&self) -> (Vec3, f32, f32, f32) {
+        // (albedo, metallic, reflectance, perceptual roughness)
+        match *self {
+            EnvisMaterial::Lambert { albedo } => (albedo, 0.0, 0.0, 1.0),
+            EnvisMaterial::Phong { albedo, exponent } => (albedo, 1.0, 1.0, (2.0 / (exponent.max(0.0) + 2.0)).powf(0.25)),
+            EnvisMaterial::Ggx { albedo, alpha } => (albedo, 1.0, 0.5, alpha.clamp(1e-4, 1.0).sqrt()),
+            EnvisMaterial::Mix { albedo, specular, alpha } => (albedo, specular.clamp(0.0, 1.0), 0.5, alpha.clamp(1e-4, 1.0).sqrt()),
+        }
+    }
+
+    /// The `StandardMaterial` that writes this material into the deferred G-buffer.
+    pub fn standard(&self) -> StandardMaterial {
+        let (c, metallic, reflectance, roughness) = self.encode();
+        StandardMaterial {
+            base_color: Color::linear_rgb(c.x, c.y, c.z),
+            metallic,
+            reflectance,
+            perceptual_roughness: roughness,
+            opaque_render_method: OpaqueRendererMethod::Deferred,
+            ..default()
+        }
+    }
+
+    /// The core material the lighting pass decodes from the G-buffer (8-bit quantised), i.e.
+    /// what the CPU twin must render to compare with a Bevy frame.
+    pub fn decoded(&self) -> Material {
+        let (c, metallic, reflectance, roughness) = self.encode();
+        let (base, m, refl, r) = (gbuffer_color(c), unorm8(metallic), unorm8(reflectance), unorm8(roughness));
+        let lobe = if refl >= 0.75 {
+            let r2 = (r * r).max(1e-4);
+            Lobe::Phong { exponent: (2.0 / (r2 * r2) - 2.0).clamp(0.0, 1e6) }
+        } else if refl >= 0.25 {
+            Lobe::Ggx { alpha: (r * r).clamp(1e-4, 1.0) }
+        } else {
+            Lobe::None
+        };
+        let ks = if lobe == Lobe::None { Vec3::ZERO } else { base * m };
+        Material { kd: base * (1.0 - m), ks, lobe }
+    }
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct LightingView {
+    world_from_clip: [[f32; 4]; 4],
+    camera: [f32; 4],
+    forward: [f32; 4],
+    viewport: [f32; 4],
+}
+
+/// The lighting pipeline (raw wgpu, shared WGSL with the headless backend), one per target format.
+#[derive(Resource)]
+pub struct LightingPipelines {
+    layout: wgpu::BindGroupLayout,
+    pipeline_layout: wgpu::PipelineLayout,
+    module: wgpu::ShaderModule,
+    by_format: Mutex<HashMap<wgpu::TextureFormat, wgpu::RenderPipeline>>,
+}
+
+impl LightingPipelines {
+    fn new(device: &wgpu::Device) -> Self {
+        use wgpu::{BindingType as B, BufferBindingType as BB, ShaderStages as S};
+        let e = |binding: u32, ty: B| wgpu::BindGroupLayoutEntry { binding, visibility: S::FRAGMENT, ty, count: None };
+        let buf = |ty: BB| B::Buffer { ty, has_dynamic_offset: false, min_binding_size: None };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("envis lighting layout"),
+            entries: &[
+                e(0, B::Texture { sample_type: wgpu::TextureSampleType::Uint, view_dimension: wgpu::TextureViewDimension::D2, multisampled: false }),
+                e(1, B::Texture { sample_type: wgpu::TextureSampleType::Depth, view_dimension: wgpu::TextureViewDimension::D2, multisampled: false }),
+                e(2, buf(BB::Storage { read_only: true })),
+                e(3, buf(BB::Storage { read_only: true })),
+                e(4, buf(BB::Storage { read_only: true })),
+                e(5, buf(BB::Uniform)),
+                e(6, buf(BB::Uniform)),
+            ],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("envis lighting"), bind_group_layouts: &[Some(&layout)], immediate_size: 0 });
+        let module = shaders::module(device, "envis lighting.wgsl", &shaders::lighting_source());
+        LightingPipelines { layout, pipeline_layout, module, by_format: Mutex::new(HashMap::new()) }
+    }
+
+    fn pipeline(&self, device: &wgpu::Device, format: wgpu::TextureFormat) -> wgpu::RenderPipeline {
+        let mut map = self.by_format.lock().expect("lighting pipelines");
+        map.entry(format)
+            .or_insert_with(|| {
+                device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                    label: Some("envis lighting"),
+                    layout: Some(&self.pipeline_layout),
+                    vertex: wgpu::VertexState { module: &self.module, entry_point: Some("fullscreen"), compilation_options: Default::default(), buffers: &[] },
+                    fragment: Some(wgpu::FragmentState {
+                        module: &self.module,
+                        entry_point: Some("lighting"),
+                        compilation_options: Default::default(),
+                        targets: &[Some(wgpu::ColorTargetState { format, blend: None, write_mask: wgpu::ColorWrites::ALL })],
+                    }),
+                    primitive: Default::default(),
+                    depth_stencil: None,
+                    multisample: Default::default(),
+                    multiview_mask: None,
+                    cache: None,
+                })
+            })
+            .clone()
+    }
+}
+
+/// Adds the envis deferred lighting pass for [`EnvisCamera`] views.
+pub struct MisLightingPlugin;
+
+impl Plugin for MisLightingPlugin {
+    fn build(&self, app: &mut App) {
+        app.add_plugins(ExtractComponentPlugin::<EnvisCamera>::default());
+        let Some(render_app) = app.get_sub_app_mut(RenderApp) else { return };
+        render_app
+            .add_systems(RenderStartup, init_lighting)
+            .add_systems(Render, skip_bevy_deferred_lighting.in_set(RenderSystems::CreateViews))
+            .add_systems(Core3d, mis_lighting.before(main_opaque_pass_3d).in_set(Core3dSystems::MainPass));
+    }
+}
+
+fn init_lighting(mut commands: Commands, device: Res<RenderDevice>) {
+    commands.insert_resource(LightingPipelines::new(device.wgpu_device()));
+}
+
+/// Bevy's own deferred lighting must not also light envis views.
+fn skip_bevy_deferred_lighting(mut commands: Commands, views: Query<Entity, (With<EnvisCamera>, Without<SkipDeferredLighting>)>) {
+    for e in &views {
+        commands.entity(e).insert(SkipDeferredLighting);
+    }
+}
+
+/// The per-view lighting pass: G-buffer + this frame's distribution and pool -> HDR radiance.
+#[allow(clippy::too_many_arguments)]
+fn mis_lighting(
+    view: ViewQuery<(&ViewTarget, &ViewPrepassTextures, &ExtractedView), With<EnvisCamera>>,
+    pipes: Option<Res<LightingPipelines>>,
+    state: Res<EnvSamplingState>,
+    settings: Res<EnvisSettings>,
+    counters: Res<EnvisCounters>,
+    mut ctx: RenderContext,
+) {
+    let (target, prepass, ev) = view.into_inner();
+    let (Some(pipes), Some(sampler)) = (pipes, state.sampler.as_ref()) else { return };
+    let (Some(depth), Some(deferred)) = (prepass.depth_view(), prepass.deferred_view()) else { return };
+    let mut s = settings.sampling;
+    if s.strategy == Strategy::Global {
+        s.strategy = Strategy::Paper; // `global` is CPU only; the panel does not offer it
+    }
+    if s.light_samples + s.brdf_samples == 0 {
+        s.light_samples = 1;
+    }
+    let vp = ev.viewport;
+    let params = ShadeParams::new(&s, sampler.n, sampler.m, (vp.z * vp.w) as usize);
+    let world_from_view = ev.world_from_view.to_matrix();
+    let lv = LightingView {
+        world_from_clip: (world_from_view * ev.clip_from_view.inverse()).to_cols_array_2d(),
+        camera: ev.world_from_view.translation().extend(if ev.clip_from_view.w_axis.w == 1.0 { 1.0 } else { 0.0 }).to_array(),
+        forward: ev.world_from_view.forward().as_vec3().extend(settings.exposure).to_array(),
+        viewport: [vp.x as f32, vp.y as f32, vp.z as f32, vp.w as f32],
+    };
+    let device = ctx.render_device().wgpu_device().clone();
+    let pipeline = pipes.pipeline(&device, target.main_texture_format());
+    let ubuf = |label: &str, bytes: &[u8]| device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents: bytes, usage: wgpu::BufferUsages::UNIFORM });
+    let (pbuf, vbuf) = (ubuf("envis shade params", bytemuck::bytes_of(&params)), ubuf("envis lighting view", bytemuck::bytes_of(&lv)));
+    let energies = wgpu::BufferBinding { buffer: &sampler.totals, offset: 0, size: wgpu::BufferSize::new(crate::gpu::sampler::TOTALS_COLUMNS as u64 * 4) };
+    let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("envis lighting"),
+        layout: &pipes.layout,
+        entries: &[
+            wgpu::BindGroupEntry { binding: 0, resource: wgpu::BindingResource::TextureView(deferred) },
+            wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(depth) },
+            wgpu::BindGroupEntry { binding: 2, resource: sampler.texels.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 3, resource: sampler.pool.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 4, resource: wgpu::BindingResource::Buffer(energies) },
+            wgpu::BindGroupEntry { binding: 5, resource: pbuf.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 6, resource: vbuf.as_entire_binding() },
+        ],
+    });
+    let mut pass = ctx.command_encoder().begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some("envis mis lighting"),
+        color_attachments: &[Some(target.get_color_attachment())],
+        depth_stencil_attachment: None,
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    });
+    pass.set_pipeline(&pipeline);
+    pass.set_bind_group(0, &bind, &[]);
+    pass.draw(0..3, 0..1);
+    counters.bump(|c| &c.lighting_passes);
+}
