@@ -83,8 +83,14 @@ enum MisArg {
 
 #[derive(Clone, Copy, ValueEnum)]
 enum BackendArg {
+    /// The CPU renderer (the oracle).
     Cpu,
+    /// The WGSL stages on a headless wgpu device, shading the same analytic G-buffer as `cpu`
+    /// (same seed: the same image to float rounding).
     Gpu,
+    /// The whole Bevy pipeline offscreen: a sphere mesh -> Bevy's deferred G-buffer (24-bit
+    /// normals, 8-bit materials) -> the envis lighting pass.
+    Bevy,
 }
 
 #[derive(Args)]
@@ -216,6 +222,44 @@ fn render_gpu(_: &envis::envmap::CubeMap, _: &[Option<render::GPixel>], _: usize
     Err(Error::invalid("--backend gpu: this envis was built without the `gpu` feature (cargo build --features gpu)"))
 }
 
+/// `--backend bevy`: the Bevy app headless (no window), sphere mesh + deferred G-buffer.
+#[cfg(feature = "app")]
+fn render_bevy(a: &SceneArgs, s: &Settings) -> Result<(render::Rendered, serde_json::Value)> {
+    use envis::app::{headless::HeadlessSphere, EnvisMaterial, EnvisSettings};
+    use envis::sampling::Lobe;
+    use envis::stream::{EnvStream, StreamSource};
+    let mat = material(a)?;
+    let em = match mat.lobe {
+        Lobe::None => EnvisMaterial::Lambert { albedo: mat.kd },
+        Lobe::Phong { exponent } => EnvisMaterial::Phong { albedo: mat.ks, exponent },
+        Lobe::Ggx { alpha } => EnvisMaterial::Ggx { albedo: mat.ks, alpha },
+    };
+    let source = match a.env.parse::<EnvSource>()? {
+        EnvSource::Sky { hours } => StreamSource::Sky { hours, speed: 0.0 },
+        EnvSource::File(p) => StreamSource::File(p),
+    };
+    EnvStream::open(source.clone(), a.face_size)?; // refuse a bad source here, with its error
+    let t0 = std::time::Instant::now();
+    let mut app = HeadlessSphere::new(source, a.face_size, em, EnvisSettings { sampling: *s, exposure: 1.0 }, a.size as u32);
+    let data = app.capture();
+    let mut stats = render::RenderStats::for_settings(a.size, a.size, s, s.pool_per_face());
+    stats.shade_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let c = app.counters();
+    let extra = serde_json::json!({
+        "backend": "bevy",
+        "note": "shade_ms is the wall time of the whole headless app (start-up, pipelines, frames); per-pixel sample counts are not read back",
+        "distribution_builds": c.get(|c| &c.builds),
+        "lighting_passes": c.get(|c| &c.lighting_passes),
+    });
+    let image = envis::envmap::Image { width: a.size, height: a.size, data };
+    Ok((render::Rendered { image, stats }, extra))
+}
+
+#[cfg(not(feature = "app"))]
+fn render_bevy(_: &SceneArgs, _: &Settings) -> Result<(render::Rendered, serde_json::Value)> {
+    Err(Error::invalid("--backend bevy: this envis was built without the `app` feature (cargo build --features app)"))
+}
+
 fn run(cli: Cli) -> Result<()> {
     match cli.cmd {
         Cmd::Render(r) => {
@@ -244,9 +288,13 @@ fn run(cli: Cli) -> Result<()> {
             settings.validate()?;
             let (env, gbuf, _) = setup(&r.scene)?;
             let size = r.scene.size;
+            if !matches!(r.backend, BackendArg::Cpu) && settings.strategy == Strategy::Global {
+                return Err(Error::invalid("--strategy global is CPU only (one lat-long distribution); the GPU backends have paper, light and brdf"));
+            }
             let (mut out, extra) = match r.backend {
                 BackendArg::Cpu => (render::render(&env.cube, &gbuf, size, size, &settings)?, serde_json::json!({ "backend": "cpu" })),
                 BackendArg::Gpu => render_gpu(&env.cube, &gbuf, size, &settings)?,
+                BackendArg::Bevy => render_bevy(&r.scene, &settings)?,
             };
             // What the loader clamped, plus anything the GPU's own sanitise pass found.
             out.stats.clamped_texels.add(env.report);

@@ -13,6 +13,7 @@
 //! shared by both worlds and counts the work done (builds, uploads, lighting passes), which is how
 //! tests prove that work is skipped when nothing changed.
 
+pub mod headless;
 pub mod lighting;
 pub mod sampling;
 pub mod stream;

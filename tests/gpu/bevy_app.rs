@@ -1,92 +1,13 @@
-//! The Bevy plugins, headless on the same device (lavapipe in CI): a real Bevy app renders the
-//! unit sphere through Bevy's deferred G-buffer and the envis lighting pass, and the result is
-//! compared with the CPU renderer on the same scene; stream frames and work counters are checked.
+//! The Bevy plugins, headless on the same device (lavapipe in CI): a real Bevy app
+//! ([`HeadlessSphere`]) renders the unit sphere through Bevy's deferred G-buffer and the envis
+//! lighting pass, and the result is compared with the CPU renderer on the same scene; stream
+//! frames and work counters are checked.
 
 use super::*;
-use bevy::asset::RenderAssetUsages;
-use bevy::camera::{RenderTarget, ScalingMode};
-use bevy::core_pipeline::tonemapping::Tonemapping;
-use bevy::image::Image;
-use bevy::prelude::*;
-use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat, TextureUsages};
-use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
-use bevy::render::RenderPlugin;
-use bevy::window::ExitCondition;
-use bevy::winit::WinitPlugin;
-use envis::app::{EnvFrame, EnvMapSamplingPlugin, EnvMapStream, EnvMapStreamPlugin, EnvisCamera, EnvisCounters, EnvisMaterial, EnvisSettings, MisLightingPlugin};
+use bevy::math::Vec3;
+use envis::app::headless::HeadlessSphere;
+use envis::app::{EnvFrame, EnvisMaterial, EnvisSettings};
 use envis::stream::StreamSource;
-use std::sync::{Arc, Mutex};
-
-struct Harness {
-    app: App,
-    target: Handle<Image>,
-    size: u32,
-}
-
-/// A headless app: the unit sphere (an icosphere mesh) with `mat`, an orthographic camera on +Z
-/// looking down -Z framing [-1, 1]^2 (the CPU `sphere` scene), HDR, no tonemapping, rendering
-/// into an Rgba32Float image.
-fn harness(source: StreamSource, face: usize, mat: EnvisMaterial, settings: EnvisSettings, size: u32) -> Harness {
-    let mut app = App::new();
-    app.add_plugins(
-        DefaultPlugins
-            .set(RenderPlugin { synchronous_pipeline_compilation: true, ..default() })
-            .set(WindowPlugin { primary_window: None, exit_condition: ExitCondition::DontExit, ..default() })
-            .disable::<WinitPlugin>(),
-    )
-    .insert_resource(settings)
-    .add_plugins((EnvMapStreamPlugin { source, face_size: face }, EnvMapSamplingPlugin, MisLightingPlugin));
-    let mut img = Image::new_uninit(Extent3d { width: size, height: size, depth_or_array_layers: 1 }, TextureDimension::D2, TextureFormat::Rgba32Float, RenderAssetUsages::RENDER_WORLD);
-    img.texture_descriptor.usage |= TextureUsages::RENDER_ATTACHMENT | TextureUsages::COPY_SRC;
-    let target = app.world_mut().resource_mut::<Assets<Image>>().add(img);
-    let mesh = app.world_mut().resource_mut::<Assets<Mesh>>().add(Sphere::new(1.0).mesh().ico(7).unwrap());
-    let material = app.world_mut().resource_mut::<Assets<StandardMaterial>>().add(mat.standard());
-    app.world_mut().spawn((Mesh3d(mesh), MeshMaterial3d(material), Transform::IDENTITY));
-    app.world_mut().spawn((
-        Camera3d::default(),
-        Projection::Orthographic(OrthographicProjection { scaling_mode: ScalingMode::Fixed { width: 2.0, height: 2.0 }, ..OrthographicProjection::default_3d() }),
-        Transform::from_xyz(0.0, 0.0, 5.0).looking_at(Vec3::ZERO, Vec3::Y),
-        RenderTarget::from(target.clone()),
-        bevy::camera::Hdr,
-        Msaa::Off,
-        Tonemapping::None,
-        EnvisCamera,
-    ));
-    app.finish();
-    app.cleanup();
-    Harness { app, target, size }
-}
-
-impl Harness {
-    fn update(&mut self) {
-        self.app.update();
-    }
-    /// Render frames until a screenshot of the target arrives; returns linear RGB, row-major.
-    fn capture(&mut self) -> Vec<Vec3> {
-        // The first frames prepare meshes, materials and pipelines; draw a few before capturing.
-        for _ in 0..3 {
-            self.update();
-        }
-        let got: Arc<Mutex<Option<Image>>> = Arc::default();
-        let sink = got.clone();
-        self.app.world_mut().spawn(Screenshot::image(self.target.clone())).observe(move |ev: On<ScreenshotCaptured>| {
-            *sink.lock().unwrap() = Some(ev.image.clone());
-        });
-        for _ in 0..20 {
-            self.update();
-            if let Some(img) = got.lock().unwrap().take() {
-                let data = img.data.expect("screenshot data");
-                let px: &[f32] = bytemuck::cast_slice(&data);
-                assert_eq!(px.len(), (self.size * self.size * 4) as usize);
-                return px.chunks_exact(4).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
-            }
-        }
-        panic!("no screenshot after 20 frames");
-    }
-    fn counters(&self) -> EnvisCounters {
-        self.app.world().resource::<EnvisCounters>().clone()
-    }
-}
 
 fn on_sphere(size: u32) -> impl Fn(usize) -> bool {
     move |i| {
@@ -114,7 +35,7 @@ fn bevy_frame_matches_cpu_renderer() {
     ];
     for (name, mat) in mats {
         let sampling = Settings { light_samples: 32, brdf_samples: 32, seed: 7, ..Default::default() };
-        let mut h = harness(StreamSource::Sky { hours, speed: 0.0 }, face, mat, EnvisSettings { sampling, exposure: 1.0 }, size);
+        let mut h = HeadlessSphere::new(StreamSource::Sky { hours, speed: 0.0 }, face, mat, EnvisSettings { sampling, exposure: 1.0 }, size);
         let img = h.capture();
         if let Ok(dir) = std::env::var("ENVIS_TEST_DUMP") {
             let im = envis::envmap::Image { width: size as usize, height: size as usize, data: img.clone() };
@@ -145,7 +66,7 @@ fn bevy_frame_matches_cpu_renderer() {
 fn bevy_builds_only_when_the_frame_changes() {
     let Some(_) = gpu() else { return };
     let mat = EnvisMaterial::Lambert { albedo: Vec3::splat(0.8) };
-    let mut h = harness(StreamSource::Sky { hours: 10.0, speed: 0.0 }, 16, mat, EnvisSettings::default(), 32);
+    let mut h = HeadlessSphere::new(StreamSource::Sky { hours: 10.0, speed: 0.0 }, 16, mat, EnvisSettings::default(), 32);
     for _ in 0..100 {
         h.update();
     }
@@ -155,7 +76,7 @@ fn bevy_builds_only_when_the_frame_changes() {
     assert!(c.get(|c| &c.lighting_passes) >= 95, "{:?}", c.0);
     let before = h.capture();
     // Move the sun: exactly one more upload + build, and the image changes.
-    h.app.world_mut().resource_mut::<EnvMapStream>().stream.set_sky_hours(16.0);
+    h.stream_mut().stream.set_sky_hours(16.0);
     let after = h.capture();
     let c = h.counters();
     assert_eq!(c.get(|c| &c.builds), 2, "{:?}", c.0);

@@ -1,0 +1,96 @@
+//! A headless Bevy app (no window): the `sphere` scene of the CPU renderer — the unit sphere seen
+//! by an orthographic camera on +Z looking down -Z, framing `[-1, 1]^2` — drawn through Bevy's
+//! deferred G-buffer and the envis lighting pass into a float image. Used by
+//! `envis render --backend bevy` and by the tests.
+
+use super::{EnvMapSamplingPlugin, EnvMapStream, EnvMapStreamPlugin, EnvisCamera, EnvisCounters, EnvisMaterial, EnvisSettings, MisLightingPlugin};
+use crate::stream::StreamSource;
+use bevy::asset::RenderAssetUsages;
+use bevy::camera::{Hdr, RenderTarget, ScalingMode};
+use bevy::core_pipeline::tonemapping::Tonemapping;
+use bevy::image::Image;
+use bevy::prelude::*;
+use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat, TextureUsages};
+use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
+use bevy::render::RenderPlugin;
+use bevy::window::ExitCondition;
+use bevy::winit::WinitPlugin;
+use std::sync::{Arc, Mutex};
+
+/// The app, its float render target and the target's size.
+pub struct HeadlessSphere {
+    pub app: App,
+    target: Handle<Image>,
+    size: u32,
+}
+
+impl HeadlessSphere {
+    /// Build the app: stream `source` at `face` texels per face, the sphere with `mat`, HDR output
+    /// without tonemapping into a `size x size` Rgba32Float image.
+    pub fn new(source: StreamSource, face: usize, mat: EnvisMaterial, settings: EnvisSettings, size: u32) -> Self {
+        let mut app = App::new();
+        app.add_plugins(
+            DefaultPlugins
+                .set(RenderPlugin { synchronous_pipeline_compilation: true, ..default() })
+                .set(WindowPlugin { primary_window: None, exit_condition: ExitCondition::DontExit, ..default() })
+                .disable::<WinitPlugin>()
+                .disable::<bevy::log::LogPlugin>(),
+        )
+        .insert_resource(settings)
+        .add_plugins((EnvMapStreamPlugin { source, face_size: face }, EnvMapSamplingPlugin, MisLightingPlugin));
+        let mut img = Image::new_uninit(Extent3d { width: size, height: size, depth_or_array_layers: 1 }, TextureDimension::D2, TextureFormat::Rgba32Float, RenderAssetUsages::RENDER_WORLD);
+        img.texture_descriptor.usage |= TextureUsages::RENDER_ATTACHMENT | TextureUsages::COPY_SRC;
+        let target = app.world_mut().resource_mut::<Assets<Image>>().add(img);
+        let mesh = app.world_mut().resource_mut::<Assets<Mesh>>().add(Sphere::new(1.0).mesh().ico(7).expect("icosphere"));
+        let material = app.world_mut().resource_mut::<Assets<StandardMaterial>>().add(mat.standard());
+        app.world_mut().spawn((Mesh3d(mesh), MeshMaterial3d(material), Transform::IDENTITY));
+        app.world_mut().spawn((
+            Camera3d::default(),
+            Projection::Orthographic(OrthographicProjection { scaling_mode: ScalingMode::Fixed { width: 2.0, height: 2.0 }, ..OrthographicProjection::default_3d() }),
+            Transform::from_xyz(0.0, 0.0, 5.0).looking_at(Vec3::ZERO, Vec3::Y),
+            RenderTarget::from(target.clone()),
+            Hdr,
+            Msaa::Off,
+            Tonemapping::None,
+            EnvisCamera,
+        ));
+        app.finish();
+        app.cleanup();
+        HeadlessSphere { app, target, size }
+    }
+
+    pub fn update(&mut self) {
+        self.app.update();
+    }
+
+    /// Draw frames until a capture of the target arrives (after a few frames of set-up: meshes,
+    /// materials and pipelines are prepared over the first frames). Linear RGB, row-major.
+    pub fn capture(&mut self) -> Vec<Vec3> {
+        for _ in 0..3 {
+            self.update();
+        }
+        let got: Arc<Mutex<Option<Image>>> = Arc::default();
+        let sink = got.clone();
+        self.app.world_mut().spawn(Screenshot::image(self.target.clone())).observe(move |ev: On<ScreenshotCaptured>| {
+            *sink.lock().expect("capture") = Some(ev.image.clone());
+        });
+        for _ in 0..20 {
+            self.update();
+            if let Some(img) = got.lock().expect("capture").take() {
+                let data = img.data.expect("screenshot data");
+                let px: &[f32] = bytemuck::cast_slice(&data);
+                assert_eq!(px.len(), (self.size * self.size * 4) as usize, "capture size");
+                return px.chunks_exact(4).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
+            }
+        }
+        panic!("no capture of the render target after 20 frames");
+    }
+
+    pub fn counters(&self) -> EnvisCounters {
+        self.app.world().resource::<EnvisCounters>().clone()
+    }
+
+    pub fn stream_mut(&mut self) -> Mut<'_, EnvMapStream> {
+        self.app.world_mut().resource_mut::<EnvMapStream>()
+    }
+}
