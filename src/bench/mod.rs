@@ -10,9 +10,13 @@
 //!
 //! Suite `offset`: the effect of the per-pixel random start offset into the pool (`DIR/bench-offset.json`).
 //!
+//! Suite `gpu`: per-pass GPU times next to their CPU twins (see [`gpu`]).
+//!
 //! Suite `accuracy`: error vs time over strategies, budgets, materials and maps (see [`accuracy`]).
 
 pub mod accuracy;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 
 use crate::envmap::{load::load_env, luminance, CubeMap};
 use crate::error::{Error, Result};
@@ -31,9 +35,12 @@ pub struct BenchArgs {
     pub env: String,
     #[arg(long, default_value_t = 64)]
     pub face_size: usize,
-    /// Image width and height of the sphere.
+    /// Image width (and height, unless --height) of the sphere.
     #[arg(long, default_value_t = 256)]
     pub size: usize,
+    /// Image height (suite `gpu`; default: 9/16 of --size).
+    #[arg(long)]
+    pub height: Option<usize>,
     #[arg(long, default_value_t = 32)]
     pub light_samples: usize,
     #[arg(long, default_value_t = 32)]
@@ -74,7 +81,11 @@ pub fn run(a: BenchArgs) -> Result<()> {
         "offset" => offset(a, dir),
         "accuracy" => accuracy_suite(a, dir),
         "popping" => popping(a, dir),
-        other => Err(Error::invalid(format!("unknown bench suite '{other}' (available: speed, offset, accuracy, popping)"))),
+        #[cfg(feature = "gpu")]
+        "gpu" => gpu::run(a, dir),
+        #[cfg(not(feature = "gpu"))]
+        "gpu" => Err(Error::invalid("bench suite 'gpu': this envis was built without the `gpu` feature")),
+        other => Err(Error::invalid(format!("unknown bench suite '{other}' (available: speed, offset, accuracy, popping, gpu)"))),
     }
 }
 

@@ -1,0 +1,151 @@
+//! Suite `gpu`: the GPU stages' per-pass times, each next to its CPU twin run in the same process.
+//!
+//! - distribution build + light pool for 6 x N^2 faces (N = 16 .. 1024, or what the device binds);
+//! - a full frame (`--size` / `--height`, default 1920 x 1080) of the sphere G-buffer at
+//!   `N_L + N_B` samples (default 32 + 32).
+//! GPU figures are timestamp queries around each compute pass (when the device has them) and wall
+//! time from submission to completion; each is the median of `--repeat` runs after one warm-up.
+
+use super::{median, BenchArgs};
+use crate::envmap::load::{load_env, EnvSource};
+use crate::error::{Error, Result};
+use crate::gpu::{EnvSampler, GpuContext, GpuGPixel, Shader};
+use crate::render::{self, pool_seed, Settings};
+use crate::sampling::{CubeDistribution, LightPool, Material};
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(serde::Serialize)]
+struct BuildRow {
+    face: usize,
+    texels: usize,
+    pool_per_face: usize,
+    gpu_ms: Option<f64>,
+    gpu_wall_ms: f64,
+    cpu_ms: f64,
+    cpu_over_gpu: Option<f64>,
+}
+
+#[derive(serde::Serialize)]
+struct FrameRow {
+    width: usize,
+    height: usize,
+    shaded_pixels: usize,
+    light_samples: usize,
+    brdf_samples: usize,
+    material: String,
+    gpu_build_ms: Option<f64>,
+    gpu_shade_ms: Option<f64>,
+    gpu_shade_wall_ms: f64,
+    cpu_shade_ms: f64,
+    cpu_over_gpu: Option<f64>,
+}
+
+pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
+    let ctx = GpuContext::new()?;
+    let repeat = a.repeat.max(1);
+    eprintln!("gpu bench on {} ({:?}), timestamps: {}", ctx.info.name, ctx.info.backend, ctx.timestamps);
+    let m = a.light_samples.max(1);
+    let faces: Vec<usize> = if a.quick { vec![16, 64, 256] } else { vec![16, 64, 256, 1024] };
+    let mut builds = Vec::new();
+    for &n in &faces {
+        let sampler = match EnvSampler::new(&ctx, n, m) {
+            Ok(s) => s,
+            Err(e) => {
+                eprintln!("  {n}^2: skipped on this device: {e}");
+                continue;
+            }
+        };
+        let map = load_env(&EnvSource::Sky { hours: 10.0 }, n)?.cube;
+        sampler.upload(&ctx.queue, &map);
+        let (mut g, mut w, mut c) = (Vec::new(), Vec::new(), Vec::new());
+        for k in 0..=repeat {
+            let t = Instant::now();
+            ctx.wait(sampler.run(&ctx, pool_seed(k as u32)))?;
+            let wall = t.elapsed().as_secs_f64() * 1e3;
+            let gms = sampler.last_gpu_ms(&ctx);
+            let t = Instant::now();
+            let dist = CubeDistribution::build(&map);
+            let pool = LightPool::build(&map, &dist, m, pool_seed(k as u32));
+            let cpu = t.elapsed().as_secs_f64() * 1e3;
+            std::hint::black_box(pool.samples.len());
+            if k > 0 {
+                w.push(wall);
+                c.push(cpu);
+                if let Some(x) = gms {
+                    g.push(x);
+                }
+            }
+        }
+        let gpu_ms = (!g.is_empty()).then(|| median(g));
+        let (gpu_wall_ms, cpu_ms) = (median(w), median(c));
+        let row = BuildRow { face: n, texels: 6 * n * n, pool_per_face: m, gpu_ms, gpu_wall_ms, cpu_ms, cpu_over_gpu: gpu_ms.map(|g| cpu_ms / g) };
+        eprintln!("  build+pool 6x{n}^2, M={m}: GPU {} ms (wall {gpu_wall_ms:.3} ms), CPU {cpu_ms:.3} ms", fmt(gpu_ms));
+        builds.push(row);
+    }
+
+    // A full frame.
+    let (width, height) = if a.quick { (480, 270) } else { (a.size.max(1), a.height.unwrap_or(a.size * 9 / 16).max(1)) };
+    let face = a.face_size;
+    let map = load_env(&a.env.parse::<EnvSource>()?, face)?.cube;
+    let s = Settings { light_samples: a.light_samples, brdf_samples: a.brdf_samples, ..Default::default() };
+    s.validate()?;
+    let mut frames = Vec::new();
+    for (name, mat) in [("diffuse", Material::diffuse(0.8)), ("ggx 0.2", Material::ggx(0.8, 0.2))] {
+        let gbuf = render::sphere_gbuffer(width, height, mat);
+        let shaded = gbuf.iter().filter(|p| p.is_some()).count();
+        let pixels: Vec<GpuGPixel> = gbuf.iter().map(GpuGPixel::from).collect();
+        let sampler = EnvSampler::new(&ctx, face, s.pool_per_face())?;
+        sampler.upload(&ctx.queue, &map);
+        let shader = Shader::new(&ctx);
+        let (mut gb, mut gs, mut gw, mut cs) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        for k in 0..=repeat.min(3) {
+            ctx.wait(sampler.run(&ctx, pool_seed(s.seed)))?;
+            let b = sampler.last_gpu_ms(&ctx);
+            let t = Instant::now();
+            let job = shader.shade(&ctx, &sampler, &pixels, &s)?;
+            let wall = t.elapsed().as_secs_f64() * 1e3;
+            let cpu = render::render(&map, &gbuf, width, height, &s)?.stats.shade_ms;
+            if k > 0 {
+                b.map(|x| gb.push(x));
+                job.gpu_ms.map(|x| gs.push(x));
+                gw.push(wall);
+                cs.push(cpu);
+            }
+        }
+        let gpu_shade_ms = (!gs.is_empty()).then(|| median(gs));
+        let cpu_shade_ms = median(cs);
+        let row = FrameRow {
+            width,
+            height,
+            shaded_pixels: shaded,
+            light_samples: s.light_samples,
+            brdf_samples: s.brdf_samples,
+            material: name.into(),
+            gpu_build_ms: (!gb.is_empty()).then(|| median(gb)),
+            gpu_shade_ms,
+            gpu_shade_wall_ms: median(gw),
+            cpu_shade_ms,
+            cpu_over_gpu: gpu_shade_ms.map(|g| cpu_shade_ms / g),
+        };
+        eprintln!("  frame {width}x{height} {name}, {}+{}: GPU shade {} ms (wall incl. upload/readback {:.1} ms), CPU {cpu_shade_ms:.1} ms", s.light_samples, s.brdf_samples, fmt(row.gpu_shade_ms), row.gpu_shade_wall_ms);
+        frames.push(row);
+    }
+    let out = serde_json::json!({
+        "device": ctx.info.name,
+        "backend": format!("{:?}", ctx.info.backend),
+        "driver": ctx.info.driver_info,
+        "timestamps": ctx.timestamps,
+        "repeat": repeat,
+        "build": builds,
+        "frame": frames,
+    });
+    let path = dir.join("bench-gpu.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&out).expect("json") + "\n").map_err(|e| Error::file(&path, format!("cannot write: {e}")))?;
+    eprintln!("wrote {}", path.display());
+    Ok(())
+}
+
+fn fmt(x: Option<f64>) -> String {
+    x.map_or("n/a".into(), |v| format!("{v:.3}"))
+}
