@@ -4,6 +4,7 @@
 //! headless backend (`shaders/shade.wgsl`).
 
 use super::sampling::EnvSamplingState;
+use super::timing::{AsyncTimer, EnvisTimings};
 use super::{EnvisCounters, EnvisSettings};
 use crate::gpu::shaders;
 use crate::gpu::shading::ShadeParams;
@@ -108,10 +109,12 @@ pub struct LightingPipelines {
     pipeline_layout: wgpu::PipelineLayout,
     module: wgpu::ShaderModule,
     by_format: Mutex<HashMap<wgpu::TextureFormat, wgpu::RenderPipeline>>,
+    /// Times the first envis camera's lighting pass of a frame.
+    timer: Option<AsyncTimer>,
 }
 
 impl LightingPipelines {
-    fn new(device: &wgpu::Device) -> Self {
+    fn new(device: &wgpu::Device, queue: &wgpu::Queue) -> Self {
         use wgpu::{BindingType as B, BufferBindingType as BB, ShaderStages as S};
         let e = |binding: u32, ty: B| wgpu::BindGroupLayoutEntry { binding, visibility: S::FRAGMENT, ty, count: None };
         let buf = |ty: BB| B::Buffer { ty, has_dynamic_offset: false, min_binding_size: None };
@@ -129,7 +132,8 @@ impl LightingPipelines {
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("envis lighting"), bind_group_layouts: &[Some(&layout)], immediate_size: 0 });
         let module = shaders::module(device, "envis lighting.wgsl", &shaders::lighting_source());
-        LightingPipelines { layout, pipeline_layout, module, by_format: Mutex::new(HashMap::new()) }
+        let timer = AsyncTimer::new(device, queue, "envis lighting timer");
+        LightingPipelines { layout, pipeline_layout, module, by_format: Mutex::new(HashMap::new()), timer }
     }
 
     fn pipeline(&self, device: &wgpu::Device, format: wgpu::TextureFormat) -> wgpu::RenderPipeline {
@@ -166,13 +170,22 @@ impl Plugin for MisLightingPlugin {
         let Some(render_app) = app.get_sub_app_mut(RenderApp) else { return };
         render_app
             .add_systems(RenderStartup, init_lighting)
+            .init_resource::<EnvisTimings>()
             .add_systems(Render, skip_bevy_deferred_lighting.in_set(RenderSystems::CreateViews))
+            .add_systems(Render, poll_lighting_timer.in_set(RenderSystems::Prepare))
             .add_systems(Core3d, mis_lighting.before(main_opaque_pass_3d).in_set(Core3dSystems::MainPass));
     }
 }
 
-fn init_lighting(mut commands: Commands, device: Res<RenderDevice>) {
-    commands.insert_resource(LightingPipelines::new(device.wgpu_device()));
+fn init_lighting(mut commands: Commands, device: Res<RenderDevice>, queue: Res<bevy::render::renderer::RenderQueue>) {
+    commands.insert_resource(LightingPipelines::new(device.wgpu_device(), &queue));
+}
+
+/// Collect the lighting pass's GPU time of an earlier frame (never waits).
+fn poll_lighting_timer(pipes: Option<Res<LightingPipelines>>, timings: Res<EnvisTimings>) {
+    if let Some(ms) = pipes.as_ref().and_then(|p| p.timer.as_ref()).and_then(|t| t.poll()) {
+        timings.set(|t| t.lighting_gpu_ms = Some(ms));
+    }
 }
 
 /// Bevy's own deferred lighting must not also light envis views.
@@ -190,8 +203,10 @@ fn mis_lighting(
     state: Res<EnvSamplingState>,
     settings: Res<EnvisSettings>,
     counters: Res<EnvisCounters>,
+    timings: Res<EnvisTimings>,
     mut ctx: RenderContext,
 ) {
+    let t0 = std::time::Instant::now();
     let (target, prepass, ev) = view.into_inner();
     let (Some(pipes), Some(sampler)) = (pipes, state.sampler.as_ref()) else { return };
     let (Some(depth), Some(deferred)) = (prepass.depth_view(), prepass.deferred_view()) else { return };
@@ -229,16 +244,25 @@ fn mis_lighting(
             wgpu::BindGroupEntry { binding: 6, resource: vbuf.as_entire_binding() },
         ],
     });
-    let mut pass = ctx.command_encoder().begin_render_pass(&wgpu::RenderPassDescriptor {
-        label: Some("envis mis lighting"),
-        color_attachments: &[Some(target.get_color_attachment())],
-        depth_stencil_attachment: None,
-        timestamp_writes: None,
-        occlusion_query_set: None,
-        multiview_mask: None,
-    });
-    pass.set_pipeline(&pipeline);
-    pass.set_bind_group(0, &bind, &[]);
-    pass.draw(0..3, 0..1);
+    let timer = pipes.timer.as_ref().filter(|t| t.ready());
+    let enc = ctx.command_encoder();
+    {
+        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("envis mis lighting"),
+            color_attachments: &[Some(target.get_color_attachment())],
+            depth_stencil_attachment: None,
+            timestamp_writes: timer.map(|t| t.render_writes()),
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &bind, &[]);
+        pass.draw(0..3, 0..1);
+    }
+    if let Some(t) = timer {
+        t.resolve(enc);
+    }
     counters.bump(|c| &c.lighting_passes);
+    let ms = t0.elapsed().as_secs_f64() * 1e3;
+    timings.set(|t| t.lighting_cpu_ms = Some(ms));
 }

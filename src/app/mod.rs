@@ -17,10 +17,12 @@ pub mod headless;
 pub mod lighting;
 pub mod sampling;
 pub mod stream;
+pub mod timing;
 
 pub use lighting::{EnvisCamera, EnvisMaterial, MisLightingPlugin};
 pub use sampling::EnvMapSamplingPlugin;
 pub use stream::{EnvFrame, EnvMapStream, EnvMapStreamPlugin};
+pub use timing::{EnvisTimings, PassTimes};
 
 use crate::render::Settings;
 use bevy::prelude::*;

@@ -2,6 +2,7 @@
 //! the render world's `RenderGraph` schedule before `camera_driver` — only when the frame (or the
 //! pool seed / size) changed, so a static map costs nothing per frame after the first build.
 
+use super::timing::{AsyncTimer, EnvisTimings};
 use super::{EnvFrame, EnvisCounters, EnvisSettings};
 use crate::gpu::EnvSampler;
 use crate::render::pool_seed;
@@ -21,6 +22,7 @@ pub struct EnvSamplingState {
     dirty: bool,
     /// Last allocation error, reported once.
     failed: Option<(usize, usize)>,
+    timer: Option<AsyncTimer>,
 }
 
 pub struct EnvMapSamplingPlugin;
@@ -31,6 +33,7 @@ impl Plugin for EnvMapSamplingPlugin {
         render_app
             .init_resource::<EnvSamplingState>()
             .init_resource::<EnvisCounters>()
+            .init_resource::<EnvisTimings>()
             .add_systems(Render, prepare_env_sampler.in_set(RenderSystems::Prepare))
             .add_systems(RenderGraph, build_env_distribution.before(camera_driver));
     }
@@ -44,8 +47,13 @@ pub fn prepare_env_sampler(
     queue: Res<RenderQueue>,
     mut state: ResMut<EnvSamplingState>,
     counters: Res<EnvisCounters>,
+    timings: Res<EnvisTimings>,
 ) {
     let (Some(frame), Some(settings)) = (frame, settings) else { return };
+    let t0 = std::time::Instant::now();
+    if let Some(ms) = state.timer.as_ref().and_then(|t| t.poll()) {
+        timings.set(|t| t.build_gpu_ms = Some(ms));
+    }
     let (n, m) = (frame.map.size, settings.sampling.pool_per_face());
     if state.sampler.as_ref().is_none_or(|s| s.n != n || s.m != m) {
         if state.failed == Some((n, m)) {
@@ -53,7 +61,8 @@ pub fn prepare_env_sampler(
         }
         match EnvSampler::with_device(device.wgpu_device(), &queue, n, m, false) {
             Ok(s) => {
-                *state = EnvSamplingState { sampler: Some(s), ..default() };
+                let timer = AsyncTimer::new(device.wgpu_device(), &queue, "envis build timer");
+                *state = EnvSamplingState { sampler: Some(s), timer, ..default() };
                 counters.bump(|c| &c.allocations);
             }
             Err(e) => {
@@ -77,16 +86,28 @@ pub fn prepare_env_sampler(
         state.seed = Some(seed);
         state.dirty = true;
     }
+    if state.dirty {
+        let ms = t0.elapsed().as_secs_f64() * 1e3;
+        timings.set(|t| t.build_cpu_ms = Some(ms));
+    }
 }
 
 /// Record the build (five compute dispatches) into this frame's command stream, before any camera.
-pub fn build_env_distribution(mut ctx: RenderContext, mut state: ResMut<EnvSamplingState>, counters: Res<EnvisCounters>) {
+pub fn build_env_distribution(mut ctx: RenderContext, mut state: ResMut<EnvSamplingState>, counters: Res<EnvisCounters>, timings: Res<EnvisTimings>) {
     if !state.dirty {
         return;
     }
+    let t0 = std::time::Instant::now();
     if let Some(s) = &state.sampler {
-        s.encode(ctx.command_encoder());
+        let timer = state.timer.as_ref().filter(|t| t.ready());
+        let enc = ctx.command_encoder();
+        s.encode_with(enc, timer.map(|t| t.compute_writes()));
+        if let Some(t) = timer {
+            t.resolve(enc);
+        }
         counters.bump(|c| &c.builds);
     }
     state.dirty = false;
+    let ms = t0.elapsed().as_secs_f64() * 1e3;
+    timings.set(|t| t.build_cpu_ms = Some(t.build_cpu_ms.unwrap_or(0.0) + ms));
 }

@@ -143,14 +143,19 @@ impl EnvSampler {
     /// Record the whole build (sanitise + weights, column CDFs, marginal CDFs, pdf table, pool)
     /// as one compute pass: five dispatches, no CPU round trip.
     pub fn encode(&self, enc: &mut wgpu::CommandEncoder) {
+        self.encode_with(enc, self.timer.as_ref().map(|t| t.writes()));
+        if let Some(t) = &self.timer {
+            t.resolve(enc);
+        }
+    }
+
+    /// [`Self::encode`] with the caller's timestamp writes (the Bevy app times asynchronously).
+    pub fn encode_with(&self, enc: &mut wgpu::CommandEncoder, timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>) {
         let n = self.n as u32;
         let texels = 6 * n * n;
         enc.clear_buffer(&self.problems, 0, None);
         {
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("envis build"),
-                timestamp_writes: self.timer.as_ref().map(|t| t.writes()),
-            });
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("envis build"), timestamp_writes });
             pass.set_bind_group(0, &self.bind_group, &[]);
             let grid = |pass: &mut wgpu::ComputePass, p: &wgpu::ComputePipeline, (x, y): (u32, u32)| {
                 pass.set_pipeline(p);
@@ -161,9 +166,6 @@ impl EnvSampler {
             grid(&mut pass, &self.pipelines[2], (6, 1));
             grid(&mut pass, &self.pipelines[3], dispatch_size(texels, 256));
             grid(&mut pass, &self.pipelines[4], dispatch_size(6 * self.m as u32, 64));
-        }
-        if let Some(t) = &self.timer {
-            t.resolve(enc);
         }
     }
 

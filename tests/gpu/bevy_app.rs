@@ -64,7 +64,7 @@ fn bevy_frame_matches_cpu_renderer() {
 /// time its frame changes, and the image follows it.
 #[test]
 fn bevy_builds_only_when_the_frame_changes() {
-    let Some(_) = gpu() else { return };
+    let Some(ctx) = gpu() else { return };
     let mat = EnvisMaterial::Lambert { albedo: Vec3::splat(0.8) };
     let mut h = HeadlessSphere::new(StreamSource::Sky { hours: 10.0, speed: 0.0 }, 16, mat, EnvisSettings::default(), 32);
     for _ in 0..100 {
@@ -74,6 +74,12 @@ fn bevy_builds_only_when_the_frame_changes() {
     assert_eq!(c.get(|c| &c.builds), 1, "static map: {:?}", c.0);
     assert_eq!(c.get(|c| &c.uploads), 1);
     assert!(c.get(|c| &c.lighting_passes) >= 95, "{:?}", c.0);
+    // Per-pass times as a resource: CPU always, GPU from timestamp queries (lavapipe has them).
+    let t = h.app.world().resource::<envis::app::EnvisTimings>().get();
+    assert!(t.build_cpu_ms.is_some() && t.lighting_cpu_ms.is_some(), "{t:?}");
+    if ctx.timestamps {
+        assert!(t.build_gpu_ms.is_some_and(|x| x > 0.0) && t.lighting_gpu_ms.is_some_and(|x| x > 0.0), "{t:?}");
+    }
     let before = h.capture();
     // Move the sun: exactly one more upload + build, and the image changes.
     h.stream_mut().stream.set_sky_hours(16.0);
