@@ -16,6 +16,8 @@ struct LightingView {
     forward: vec4<f32>,
     // Viewport origin and size in pixels.
     viewport: vec4<f32>,
+    // x: 1 to draw the environment where there is no geometry, 0 for black.
+    options: vec4<f32>,
 }
 
 @group(0) @binding(0) var gbuffer: texture_2d<u32>;
@@ -76,6 +78,9 @@ fn lighting(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
     let exposure = lv.forward.w;
     if (depth <= 0.0) {
         // No geometry (reverse-Z far plane): the environment in the direction of the pixel's ray.
+        if (lv.options.x < 0.5) {
+            return vec4(0.0, 0.0, 0.0, 1.0);
+        }
         var dir = lv.forward.xyz;
         if (!ortho) {
             let p = lv.world_from_clip * vec4(ndc, 1.0, 1.0);

@@ -85,12 +85,12 @@ enum MisArg {
 enum BackendArg {
     /// The CPU renderer (the oracle).
     Cpu,
-    /// The WGSL stages on a headless wgpu device, shading the same analytic G-buffer as `cpu`
-    /// (same seed: the same image to float rounding).
+    /// The Bevy pipeline offscreen (no window): a sphere mesh -> Bevy's deferred G-buffer (24-bit
+    /// normals, 8-bit materials) -> the envis GPU build and lighting pass.
     Gpu,
-    /// The whole Bevy pipeline offscreen: a sphere mesh -> Bevy's deferred G-buffer (24-bit
-    /// normals, 8-bit materials) -> the envis lighting pass.
-    Bevy,
+    /// The WGSL stages alone on a headless wgpu device, shading the same analytic G-buffer as
+    /// `cpu` (same seed: the same image to float rounding).
+    Wgpu,
 }
 
 #[derive(Args)]
@@ -208,21 +208,22 @@ fn write_json(path: &std::path::Path, v: &impl serde::Serialize) -> Result<()> {
     std::fs::write(path, s + "\n").map_err(|e| Error::file(path, format!("cannot write: {e}")))
 }
 
-/// `--backend gpu`: the WGSL stages on a headless wgpu device (the same shaders the Bevy app runs).
+/// `--backend wgpu`: the WGSL stages on a headless wgpu device (the same shaders the Bevy app runs).
 #[cfg(feature = "gpu")]
-fn render_gpu(map: &envis::envmap::CubeMap, gbuf: &[Option<render::GPixel>], size: usize, s: &Settings) -> Result<(render::Rendered, serde_json::Value)> {
+fn render_wgpu(map: &envis::envmap::CubeMap, gbuf: &[Option<render::GPixel>], size: usize, s: &Settings) -> Result<(render::Rendered, serde_json::Value)> {
     let ctx = envis::gpu::GpuContext::new()?;
     let (out, t) = envis::gpu::render_gpu(&ctx, map, gbuf, size, size, s)?;
-    let extra = serde_json::json!({ "backend": "gpu", "device": ctx.info.name, "device_backend": format!("{:?}", ctx.info.backend), "gpu_timings": t });
+    let extra = serde_json::json!({ "backend": "wgpu", "device": ctx.info.name, "device_backend": format!("{:?}", ctx.info.backend), "gpu_timings": t });
     Ok((out, extra))
 }
 
 #[cfg(not(feature = "gpu"))]
-fn render_gpu(_: &envis::envmap::CubeMap, _: &[Option<render::GPixel>], _: usize, _: &Settings) -> Result<(render::Rendered, serde_json::Value)> {
-    Err(Error::invalid("--backend gpu: this envis was built without the `gpu` feature (cargo build --features gpu)"))
+fn render_wgpu(_: &envis::envmap::CubeMap, _: &[Option<render::GPixel>], _: usize, _: &Settings) -> Result<(render::Rendered, serde_json::Value)> {
+    Err(Error::invalid("--backend wgpu: this envis was built without the `gpu` feature (cargo build --features gpu)"))
 }
 
-/// `--backend bevy`: the Bevy app headless (no window), sphere mesh + deferred G-buffer.
+/// `--backend gpu`: the Bevy app headless (no window), sphere mesh + deferred G-buffer. Pixels
+/// off the sphere are 0, as in the CPU contract (the app's sky pass is off).
 #[cfg(feature = "app")]
 fn render_bevy(a: &SceneArgs, s: &Settings) -> Result<(render::Rendered, serde_json::Value)> {
     use envis::app::{headless::HeadlessSphere, EnvisMaterial, EnvisSettings};
@@ -240,13 +241,16 @@ fn render_bevy(a: &SceneArgs, s: &Settings) -> Result<(render::Rendered, serde_j
     };
     EnvStream::open(source.clone(), a.face_size)?; // refuse a bad source here, with its error
     let t0 = std::time::Instant::now();
-    let mut app = HeadlessSphere::new(source, a.face_size, em, EnvisSettings { sampling: *s, exposure: 1.0 }, a.size as u32);
+    let mut app = HeadlessSphere::new(source, a.face_size, em, EnvisSettings { sampling: *s, exposure: 1.0, show_sky: false }, a.size as u32);
     let data = app.capture();
     let mut stats = render::RenderStats::for_settings(a.size, a.size, s, s.pool_per_face());
     stats.shade_ms = t0.elapsed().as_secs_f64() * 1e3;
     let c = app.counters();
+    let t = app.app.world().resource::<envis::app::EnvisTimings>().get();
     let extra = serde_json::json!({
-        "backend": "bevy",
+        "backend": "gpu",
+        "pipeline": "bevy (offscreen)",
+        "pass_times_ms": t,
         "note": "shade_ms is the wall time of the whole headless app (start-up, pipelines, frames); per-pixel sample counts are not read back",
         "distribution_builds": c.get(|c| &c.builds),
         "lighting_passes": c.get(|c| &c.lighting_passes),
@@ -257,7 +261,7 @@ fn render_bevy(a: &SceneArgs, s: &Settings) -> Result<(render::Rendered, serde_j
 
 #[cfg(not(feature = "app"))]
 fn render_bevy(_: &SceneArgs, _: &Settings) -> Result<(render::Rendered, serde_json::Value)> {
-    Err(Error::invalid("--backend bevy: this envis was built without the `app` feature (cargo build --features app)"))
+    Err(Error::invalid("--backend gpu: this envis was built without the `app` feature (cargo build --features app)"))
 }
 
 fn run(cli: Cli) -> Result<()> {
@@ -293,8 +297,8 @@ fn run(cli: Cli) -> Result<()> {
             }
             let (mut out, extra) = match r.backend {
                 BackendArg::Cpu => (render::render(&env.cube, &gbuf, size, size, &settings)?, serde_json::json!({ "backend": "cpu" })),
-                BackendArg::Gpu => render_gpu(&env.cube, &gbuf, size, &settings)?,
-                BackendArg::Bevy => render_bevy(&r.scene, &settings)?,
+                BackendArg::Wgpu => render_wgpu(&env.cube, &gbuf, size, &settings)?,
+                BackendArg::Gpu => render_bevy(&r.scene, &settings)?,
             };
             // What the loader clamped, plus anything the GPU's own sanitise pass found.
             out.stats.clamped_texels.add(env.report);

@@ -260,3 +260,46 @@ mod stability;
 #[cfg(feature = "app")]
 #[path = "gpu/bevy_app.rs"]
 mod bevy_app;
+
+fn read_exr_mean(path: &Path) -> f64 {
+    let img = envis::envmap::load::read_exr(path).unwrap();
+    mean_lum(&img.data)
+}
+
+/// The command line: `--backend wgpu` (the stages on the analytic G-buffer) equals the CPU image
+/// to float rounding; `--backend gpu` (the Bevy pipeline offscreen) agrees statistically; both
+/// write the device and pass times into `--stats`.
+#[test]
+fn cli_gpu_backends() {
+    let Some(_) = gpu() else { return };
+    let dir = std::env::temp_dir().join(format!("envis-gpu-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut backends = vec!["cpu", "wgpu"];
+    if cfg!(feature = "app") {
+        backends.push("gpu");
+    }
+    let mut means = Vec::new();
+    for b in &backends {
+        let out = dir.join(format!("{b}.exr"));
+        let stats = dir.join(format!("{b}.json"));
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_envis"))
+            .args(["render", "--env", "builtin:sky:14", "--brdf", "ggx", "--alpha", "0.3", "--size", "48", "--face-size", "32", "--backend", b])
+            .arg("--out")
+            .arg(&out)
+            .arg("--stats")
+            .arg(&stats)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "--backend {b}: {}", String::from_utf8_lossy(&o.stderr));
+        let j: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+        assert_eq!(j["backend"], *b, "{j}");
+        means.push(read_exr_mean(&out));
+    }
+    assert!(rel(means[1], means[0]) < 1e-3, "wgpu {} vs cpu {}", means[1], means[0]);
+    if means.len() > 2 {
+        assert!(rel(means[2], means[0]) < 0.03, "gpu (bevy) {} vs cpu {}", means[2], means[0]);
+    }
+    // `global` is refused on the GPU backends with a one-line error.
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_envis")).args(["render", "--backend", "wgpu", "--strategy", "global", "--out", "/tmp/x.exr"]).output().unwrap();
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("CPU only"));
+}

@@ -100,6 +100,7 @@ struct LightingView {
     camera: [f32; 4],
     forward: [f32; 4],
     viewport: [f32; 4],
+    options: [f32; 4],
 }
 
 /// The lighting pipeline (raw wgpu, shared WGSL with the headless backend), one per target format.
@@ -225,6 +226,7 @@ fn mis_lighting(
         camera: ev.world_from_view.translation().extend(if ev.clip_from_view.w_axis.w == 1.0 { 1.0 } else { 0.0 }).to_array(),
         forward: ev.world_from_view.forward().as_vec3().extend(settings.exposure).to_array(),
         viewport: [vp.x as f32, vp.y as f32, vp.z as f32, vp.w as f32],
+        options: [settings.show_sky as u32 as f32, 0.0, 0.0, 0.0],
     };
     let device = ctx.render_device().wgpu_device().clone();
     let pipeline = pipes.pipeline(&device, target.main_texture_format());

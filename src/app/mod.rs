@@ -36,11 +36,14 @@ pub struct EnvisSettings {
     pub sampling: Settings,
     /// Multiplier applied to the HDR radiance before tonemapping.
     pub exposure: f32,
+    /// Draw the environment where there is no geometry (off: those pixels are 0, as in the CPU
+    /// renderer's contract).
+    pub show_sky: bool,
 }
 
 impl Default for EnvisSettings {
     fn default() -> Self {
-        EnvisSettings { sampling: Settings::default(), exposure: 1.0 }
+        EnvisSettings { sampling: Settings::default(), exposure: 1.0, show_sky: true }
     }
 }
 

@@ -35,7 +35,7 @@ fn bevy_frame_matches_cpu_renderer() {
     ];
     for (name, mat) in mats {
         let sampling = Settings { light_samples: 32, brdf_samples: 32, seed: 7, ..Default::default() };
-        let mut h = HeadlessSphere::new(StreamSource::Sky { hours, speed: 0.0 }, face, mat, EnvisSettings { sampling, exposure: 1.0 }, size);
+        let mut h = HeadlessSphere::new(StreamSource::Sky { hours, speed: 0.0 }, face, mat, EnvisSettings { sampling, ..Default::default() }, size);
         let img = h.capture();
         if let Ok(dir) = std::env::var("ENVIS_TEST_DUMP") {
             let im = envis::envmap::Image { width: size as usize, height: size as usize, data: img.clone() };
