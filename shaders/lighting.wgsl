@@ -16,7 +16,9 @@ struct LightingView {
     forward: vec4<f32>,
     // Viewport origin and size in pixels.
     viewport: vec4<f32>,
-    // x: 1 to draw the environment where there is no geometry, 0 for black.
+    // x: 1 to draw the environment where there is no geometry, 0 for black; y: overlay
+    // (0 none, 1 effective samples per pixel, 2 wasted fraction, 3 |fractional - integer|);
+    // z, w: the probed pixel (negative: none).
     options: vec4<f32>,
 }
 
@@ -27,6 +29,14 @@ struct LightingView {
 @group(0) @binding(4) var<storage, read> face_energy: array<f32>;
 @group(0) @binding(5) var<uniform> sp: ShadeParams;
 @group(0) @binding(6) var<uniform> lv: LightingView;
+// The probed pixel, for the sample-debug view: n, o, kd, ks (as GPixel), estimate, (x, y, index, 1).
+@group(0) @binding(7) var<storage, read_write> probe: array<vec4<f32>, 6>;
+
+// Blue -> cyan -> green -> yellow -> red for t in [0, 1].
+fn heat(t: f32) -> vec3<f32> {
+    let x = clamp(t, 0.0, 1.0) * 4.0;
+    return clamp(vec3(x - 2.0, select(x, 4.0 - x, x > 2.0), 2.0 - x), vec3(0.0), vec3(1.0));
+}
 
 @vertex
 fn fullscreen(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
@@ -99,5 +109,30 @@ fn lighting(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
     let local = vec2<u32>(max(pos.xy - lv.viewport.xy, vec2(0.0)));
     let pixel_index = local.y * u32(lv.viewport.z) + local.x;
     let r = shade(px, pixel_index);
+    if (all(vec2<f32>(local) == lv.options.zw)) {
+        probe[0] = px.n;
+        probe[1] = px.o;
+        probe[2] = px.kd;
+        probe[3] = px.ks;
+        probe[4] = vec4(r.color, 1.0);
+        probe[5] = vec4(f32(local.x), f32(local.y), f32(pixel_index), 1.0);
+    }
+    let overlay = u32(lv.options.y);
+    if (overlay == 1u) {
+        // Samples this pixel evaluated (used light samples + BRDF samples) over its budget.
+        let used = f32(r.stats.y + r.stats.z + r.stats.w);
+        return vec4(heat(used / max(f32(sp.nl + sp.nb), 1.0)), 1.0);
+    }
+    if (overlay == 2u) {
+        // Fraction of the light samples used that had a negative cosine (the seed's yellow).
+        let light = r.stats.y + r.stats.z;
+        return vec4(heat(select(0.0, f32(r.stats.z) / f32(light), light > 0u)), 1.0);
+    }
+    if (overlay == 3u) {
+        // Where integer counts differ from fractional ones (where integer counts pop).
+        let other = shade_counts(px, pixel_index, 1u - min(sp.counts, 1u));
+        let d = length(r.color - other.color) / max(length(r.color), 1e-3);
+        return vec4(heat(d * 4.0), 1.0);
+    }
     return vec4(r.color * exposure, 1.0);
 }

@@ -40,6 +40,11 @@ struct Shaded {
 }
 
 fn shade(px: GPixel, pixel_index: u32) -> Shaded {
+    return shade_counts(px, pixel_index, sp.counts);
+}
+
+// `shade` with the counts mode given (the debug overlay compares fractional and integer).
+fn shade_counts(px: GPixel, pixel_index: u32, counts: u32) -> Shaded {
     var res = Shaded(vec3(0.0), vec4(0u));
     let mat = Material(px.kd.xyz, px.ks.xyz, u32(px.kd.w), px.ks.w);
     let n = normalize_or_zero(px.n.xyz);
@@ -70,7 +75,7 @@ fn shade(px: GPixel, pixel_index: u32) -> Shaded {
             offset = rng_next_u32(&rng) % m;
         }
         for (var f = 0u; f < 6u; f++) {
-            let c = face_count(mu[f] * f32(nl), m, sp.counts);
+            let c = face_count(mu[f] * f32(nl), m, counts);
             density[f] = c.density;
             var idx = offset;
             for (var k = 0u; k < c.taken; k++) {

@@ -9,10 +9,43 @@ use envis::sampling::{Counts, Heuristic, Material};
 use std::path::PathBuf;
 
 #[derive(Parser)]
-#[command(name = "envis", version, about = "Real-time, unbiased importance sampling of dynamic HDR environment maps")]
+#[command(name = "envis", version, about = "Real-time, unbiased importance sampling of dynamic HDR environment maps", args_conflicts_with_subcommands = true)]
 struct Cli {
     #[command(subcommand)]
-    cmd: Cmd,
+    cmd: Option<Cmd>,
+    /// Without a subcommand: the interactive demo.
+    #[command(flatten)]
+    demo: DemoArgs,
+}
+
+/// Options of the interactive demo (`envis` with no subcommand).
+#[derive(Args, Clone)]
+struct DemoArgs {
+    /// Environment: builtin:sky[:HOURS] (animated), an .exr/.hdr file, or a directory of frames.
+    #[arg(long, default_value = "builtin:sky:9")]
+    env: String,
+    /// A directory of .exr/.hdr frames, played in name order, looping.
+    #[arg(long)]
+    sequence: Option<PathBuf>,
+    /// Frame rate of --sequence.
+    #[arg(long, default_value_t = 24.0)]
+    fps: f32,
+    /// Maps to rotate and cross-fade (comma-separated files).
+    #[arg(long, value_delimiter = ',')]
+    carousel: Vec<PathBuf>,
+    /// Cube face size in texels.
+    #[arg(long, default_value_t = 128)]
+    face_size: usize,
+    /// Window size, WIDTHxHEIGHT.
+    #[arg(long, default_value = "1280x720")]
+    window: String,
+    #[arg(long, default_value_t = 32)]
+    light_samples: usize,
+    #[arg(long, default_value_t = 32)]
+    brdf_samples: usize,
+    /// Scripted run for CI: take screenshots into DIR, write DIR/report.json, exit.
+    #[arg(long)]
+    script: Option<PathBuf>,
 }
 
 #[derive(Subcommand)]
@@ -241,7 +274,7 @@ fn render_bevy(a: &SceneArgs, s: &Settings) -> Result<(render::Rendered, serde_j
     };
     EnvStream::open(source.clone(), a.face_size)?; // refuse a bad source here, with its error
     let t0 = std::time::Instant::now();
-    let mut app = HeadlessSphere::new(source, a.face_size, em, EnvisSettings { sampling: *s, exposure: 1.0, show_sky: false }, a.size as u32);
+    let mut app = HeadlessSphere::new(source, a.face_size, em, EnvisSettings { sampling: *s, show_sky: false, ..Default::default() }, a.size as u32);
     let data = app.capture();
     let mut stats = render::RenderStats::for_settings(a.size, a.size, s, s.pool_per_face());
     stats.shade_ms = t0.elapsed().as_secs_f64() * 1e3;
@@ -264,8 +297,44 @@ fn render_bevy(_: &SceneArgs, _: &Settings) -> Result<(render::Rendered, serde_j
     Err(Error::invalid("--backend gpu: this envis was built without the `app` feature (cargo build --features app)"))
 }
 
+#[cfg(feature = "app")]
+fn run_demo(a: DemoArgs) -> Result<()> {
+    use envis::stream::StreamSource;
+    let source = if let Some(dir) = a.sequence {
+        StreamSource::Sequence { dir, fps: a.fps }
+    } else if !a.carousel.is_empty() {
+        StreamSource::Carousel { paths: a.carousel, period: 8.0, fade: 2.0, spin: 0.05 }
+    } else {
+        StreamSource::parse(&a.env)?
+    };
+    // Refuse a bad source before opening a window, with its error.
+    envis::stream::EnvStream::open(source.clone(), a.face_size)?;
+    let (w, h) = a
+        .window
+        .split_once('x')
+        .and_then(|(w, h)| Some((w.parse::<u32>().ok()?, h.parse::<u32>().ok()?)))
+        .filter(|(w, h)| (64..=8192).contains(w) && (64..=8192).contains(h))
+        .ok_or_else(|| Error::invalid(format!("--window {}: expected WIDTHxHEIGHT, e.g. 1280x720", a.window)))?;
+    let sampling = Settings { light_samples: a.light_samples, brdf_samples: a.brdf_samples, ..Default::default() };
+    sampling.validate()?;
+    if let Some(d) = &a.script {
+        std::fs::create_dir_all(d).map_err(|e| Error::file(d, format!("cannot create: {e}")))?;
+    }
+    let exit = envis::app::demo::run(envis::app::demo::DemoOptions { source, face_size: a.face_size, script: a.script, window: (w, h), sampling });
+    match exit {
+        bevy::app::AppExit::Success => Ok(()),
+        bevy::app::AppExit::Error(c) => Err(Error::invalid(format!("the demo exited with code {c}"))),
+    }
+}
+
+#[cfg(not(feature = "app"))]
+fn run_demo(_: DemoArgs) -> Result<()> {
+    Err(Error::invalid("the interactive demo needs the `app` feature (cargo run --release --features app); see `envis --help` for the commands"))
+}
+
 fn run(cli: Cli) -> Result<()> {
-    match cli.cmd {
+    let Some(cmd) = cli.cmd else { return run_demo(cli.demo) };
+    match cmd {
         Cmd::Render(r) => {
             check_exr_path(&r.out)?;
             let settings = Settings {

@@ -850,3 +850,31 @@ fn cli_contract() {
 
 #[path = "core/stream.rs"]
 mod stream;
+
+/// The sample-debug view classifies the pool exactly as the estimator uses it: as many green
+/// (used, positive cosine) and yellow (used, non-positive) samples as `shade_pixel` counts, the
+/// rest red; and it reports the same estimate.
+#[test]
+fn debug_pixel_matches_the_estimator() {
+    use envis::render::{debug_pixel, shade_pixel, FrameData, SampleKind};
+    let map = load_env(&EnvSource::Sky { hours: 16.0 }, 16).unwrap().cube;
+    let gbuf = sphere_gbuffer(12, 12, Material::ggx(0.8, 0.3));
+    for s in [
+        Settings { light_samples: 24, brdf_samples: 8, ..Default::default() },
+        Settings { light_samples: 24, brdf_samples: 8, counts: Counts::Integer, pixel_offset: true, pool_size: 40, seed: 5, ..Default::default() },
+        Settings { light_samples: 10, brdf_samples: 6, strategy: Strategy::Light, ..Default::default() },
+    ] {
+        let fd = FrameData::prepare(&map, &s);
+        for (i, px) in gbuf.iter().enumerate() {
+            let Some(px) = px else { continue };
+            let (c, st) = shade_pixel(&fd, &s, px, i as u32);
+            let d = debug_pixel(&fd, &s, px, i as u32);
+            let count = |k| d.samples.iter().filter(|x| x.kind == k).count() as u32;
+            assert_eq!(count(SampleKind::Used), st.green, "pixel {i} {s:?}");
+            assert_eq!(count(SampleKind::Wasted), st.yellow, "pixel {i} {s:?}");
+            assert_eq!(d.samples.len() as u32, st.available);
+            assert_eq!(d.estimate, c);
+            assert!((d.mu.iter().sum::<f32>() - 1.0).abs() < 1e-5);
+        }
+    }
+}

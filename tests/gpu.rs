@@ -303,3 +303,7 @@ fn cli_gpu_backends() {
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_envis")).args(["render", "--backend", "wgpu", "--strategy", "global", "--out", "/tmp/x.exr"]).output().unwrap();
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("CPU only"));
 }
+
+#[cfg(feature = "app")]
+#[path = "gpu/demo.rs"]
+mod demo;

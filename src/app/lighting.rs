@@ -4,7 +4,8 @@
 //! headless backend (`shaders/shade.wgsl`).
 
 use super::sampling::EnvSamplingState;
-use super::timing::{AsyncTimer, EnvisTimings};
+use super::timing::{AsyncRead, AsyncTimer, EnvisTimings};
+use super::{EnvisProbe, Overlay, ProbeResult};
 use super::{EnvisCounters, EnvisSettings};
 use crate::gpu::shaders;
 use crate::gpu::shading::ShadeParams;
@@ -112,6 +113,9 @@ pub struct LightingPipelines {
     by_format: Mutex<HashMap<wgpu::TextureFormat, wgpu::RenderPipeline>>,
     /// Times the first envis camera's lighting pass of a frame.
     timer: Option<AsyncTimer>,
+    /// The probed pixel's record (6 vec4) and its readback.
+    probe: wgpu::Buffer,
+    probe_read: AsyncRead,
 }
 
 impl LightingPipelines {
@@ -129,12 +133,15 @@ impl LightingPipelines {
                 e(4, buf(BB::Storage { read_only: true })),
                 e(5, buf(BB::Uniform)),
                 e(6, buf(BB::Uniform)),
+                e(7, buf(BB::Storage { read_only: false })),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("envis lighting"), bind_group_layouts: &[Some(&layout)], immediate_size: 0 });
         let module = shaders::module(device, "envis lighting.wgsl", &shaders::lighting_source());
         let timer = AsyncTimer::new(device, queue, "envis lighting timer");
-        LightingPipelines { layout, pipeline_layout, module, by_format: Mutex::new(HashMap::new()), timer }
+        let probe = device.create_buffer(&wgpu::BufferDescriptor { label: Some("envis probe"), size: 96, usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST, mapped_at_creation: false });
+        let probe_read = AsyncRead::new(device, "envis probe readback", 96);
+        LightingPipelines { layout, pipeline_layout, module, by_format: Mutex::new(HashMap::new()), timer, probe, probe_read }
     }
 
     fn pipeline(&self, device: &wgpu::Device, format: wgpu::TextureFormat) -> wgpu::RenderPipeline {
@@ -173,7 +180,8 @@ impl Plugin for MisLightingPlugin {
             .add_systems(RenderStartup, init_lighting)
             .init_resource::<EnvisTimings>()
             .add_systems(Render, skip_bevy_deferred_lighting.in_set(RenderSystems::CreateViews))
-            .add_systems(Render, poll_lighting_timer.in_set(RenderSystems::Prepare))
+            .init_resource::<EnvisProbe>()
+            .add_systems(Render, poll_lighting_readbacks.in_set(RenderSystems::Prepare))
             .add_systems(Core3d, mis_lighting.before(main_opaque_pass_3d).in_set(Core3dSystems::MainPass));
     }
 }
@@ -182,10 +190,29 @@ fn init_lighting(mut commands: Commands, device: Res<RenderDevice>, queue: Res<b
     commands.insert_resource(LightingPipelines::new(device.wgpu_device(), &queue));
 }
 
-/// Collect the lighting pass's GPU time of an earlier frame (never waits).
-fn poll_lighting_timer(pipes: Option<Res<LightingPipelines>>, timings: Res<EnvisTimings>) {
-    if let Some(ms) = pipes.as_ref().and_then(|p| p.timer.as_ref()).and_then(|t| t.poll()) {
+/// Collect the lighting pass's GPU time and the probed pixel of an earlier frame (never waits).
+fn poll_lighting_readbacks(pipes: Option<Res<LightingPipelines>>, timings: Res<EnvisTimings>, probe: Res<EnvisProbe>) {
+    let Some(pipes) = pipes else { return };
+    if let Some(ms) = pipes.timer.as_ref().and_then(|t| t.poll()) {
         timings.set(|t| t.lighting_gpu_ms = Some(ms));
+    }
+    if let Some(bytes) = pipes.probe_read.poll() {
+        let v: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&bytes);
+        if v[5][3] == 1.0 {
+            let lobe = match v[2][3] as u32 {
+                1 => Lobe::Phong { exponent: v[3][3] },
+                2 => Lobe::Ggx { alpha: v[3][3] },
+                _ => Lobe::None,
+            };
+            let v3 = |a: [f32; 4]| Vec3::new(a[0], a[1], a[2]);
+            let r = ProbeResult {
+                pixel: UVec2::new(v[5][0] as u32, v[5][1] as u32),
+                gpixel: crate::render::GPixel { n: v3(v[0]), o: v3(v[1]), material: Material { kd: v3(v[2]), ks: v3(v[3]), lobe } },
+                estimate: v3(v[4]),
+                pixel_index: v[5][2] as u32,
+            };
+            *probe.lock().expect("probe") = Some(r);
+        }
     }
 }
 
@@ -226,7 +253,11 @@ fn mis_lighting(
         camera: ev.world_from_view.translation().extend(if ev.clip_from_view.w_axis.w == 1.0 { 1.0 } else { 0.0 }).to_array(),
         forward: ev.world_from_view.forward().as_vec3().extend(settings.exposure).to_array(),
         viewport: [vp.x as f32, vp.y as f32, vp.z as f32, vp.w as f32],
-        options: [settings.show_sky as u32 as f32, 0.0, 0.0, 0.0],
+        options: {
+            let overlay = Overlay::ALL.iter().position(|o| *o == settings.overlay).unwrap_or(0) as f32;
+            let p = settings.probe.map_or([-1.0, -1.0], |p| [p.x as f32, p.y as f32]);
+            [settings.show_sky as u32 as f32, overlay, p[0], p[1]]
+        },
     };
     let device = ctx.render_device().wgpu_device().clone();
     let pipeline = pipes.pipeline(&device, target.main_texture_format());
@@ -244,10 +275,15 @@ fn mis_lighting(
             wgpu::BindGroupEntry { binding: 4, resource: wgpu::BindingResource::Buffer(energies) },
             wgpu::BindGroupEntry { binding: 5, resource: pbuf.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 6, resource: vbuf.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 7, resource: pipes.probe.as_entire_binding() },
         ],
     });
+    let probing = settings.probe.is_some() && pipes.probe_read.ready();
     let timer = pipes.timer.as_ref().filter(|t| t.ready());
     let enc = ctx.command_encoder();
+    if probing {
+        enc.clear_buffer(&pipes.probe, 0, None);
+    }
     {
         let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("envis mis lighting"),
@@ -263,6 +299,9 @@ fn mis_lighting(
     }
     if let Some(t) = timer {
         t.resolve(enc);
+    }
+    if probing {
+        pipes.probe_read.copy_from(enc, &pipes.probe);
     }
     counters.bump(|c| &c.lighting_passes);
     let ms = t0.elapsed().as_secs_f64() * 1e3;

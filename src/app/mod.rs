@@ -13,6 +13,7 @@
 //! shared by both worlds and counts the work done (builds, uploads, lighting passes), which is how
 //! tests prove that work is skipped when nothing changed.
 
+pub mod demo;
 pub mod headless;
 pub mod lighting;
 pub mod sampling;
@@ -39,13 +40,59 @@ pub struct EnvisSettings {
     /// Draw the environment where there is no geometry (off: those pixels are 0, as in the CPU
     /// renderer's contract).
     pub show_sky: bool,
+    /// Full-screen debug overlay (none costs nothing: the shader skips it).
+    pub overlay: Overlay,
+    /// Pixel (viewport coordinates) whose G-buffer texel and estimate are read back for the
+    /// sample-debug view ([`EnvisProbe`]).
+    pub probe: Option<UVec2>,
 }
 
 impl Default for EnvisSettings {
     fn default() -> Self {
-        EnvisSettings { sampling: Settings::default(), exposure: 1.0, show_sky: true }
+        EnvisSettings { sampling: Settings::default(), exposure: 1.0, show_sky: true, overlay: Overlay::None, probe: None }
     }
 }
+
+/// Full-screen debug overlays of the lighting pass.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Overlay {
+    #[default]
+    None,
+    /// Samples each pixel evaluated (used light + BRDF) over its budget, as a heat map.
+    EffectiveSamples,
+    /// Fraction of the used light samples with a negative cosine (the seed's yellow).
+    Wasted,
+    /// |fractional - integer| / fractional: where integer counts pop.
+    CountsDifference,
+}
+
+impl Overlay {
+    pub const ALL: [Overlay; 4] = [Overlay::None, Overlay::EffectiveSamples, Overlay::Wasted, Overlay::CountsDifference];
+    pub fn name(self) -> &'static str {
+        match self {
+            Overlay::None => "none",
+            Overlay::EffectiveSamples => "effective samples",
+            Overlay::Wasted => "wasted (yellow) fraction",
+            Overlay::CountsDifference => "fractional - integer",
+        }
+    }
+}
+
+/// What the lighting pass read back for the probed pixel.
+#[derive(Clone, Copy, Debug)]
+pub struct ProbeResult {
+    pub pixel: UVec2,
+    /// The decoded G-buffer texel (normal, view, material) exactly as the shader saw it.
+    pub gpixel: crate::render::GPixel,
+    /// The GPU's estimate for the pixel (before exposure).
+    pub estimate: Vec3,
+    /// Its random-stream index (the CPU twin needs it to reproduce the estimate).
+    pub pixel_index: u32,
+}
+
+/// The latest probe result, shared by both worlds.
+#[derive(Resource, Clone, Default, Deref)]
+pub struct EnvisProbe(pub Arc<std::sync::Mutex<Option<ProbeResult>>>);
 
 /// Work counters, shared by the main and the render world.
 #[derive(Default, Debug)]

@@ -71,6 +71,7 @@ impl Plugin for EnvMapStreamPlugin {
         let frame = EnvFrame { generation: stream.generation(), map: stream.frame().clone() };
         let counters = app.world_mut().get_resource_or_insert_with(EnvisCounters::default).clone();
         let timings = app.world_mut().get_resource_or_insert_with(super::EnvisTimings::default).clone();
+        let probe = app.world_mut().get_resource_or_insert_with(super::EnvisProbe::default).clone();
         app.insert_resource(EnvMapStream { stream, log: Vec::new() })
             .insert_resource(frame)
             .init_resource::<EnvisSettings>()
@@ -78,7 +79,7 @@ impl Plugin for EnvMapStreamPlugin {
             .add_systems(PostUpdate, advance_stream);
         // Share the counters with the render world.
         if let Some(render_app) = app.get_sub_app_mut(bevy::render::RenderApp) {
-            render_app.insert_resource(counters).insert_resource(timings);
+            render_app.insert_resource(counters).insert_resource(timings).insert_resource(probe);
         }
     }
 }

@@ -35,51 +35,30 @@ const WRITTEN: u8 = 1;
 const MAPPING: u8 = 2;
 const MAPPED: u8 = 3;
 
-/// Two timestamps around one pass, resolved and mapped without blocking.
-pub struct AsyncTimer {
-    set: wgpu::QuerySet,
-    resolve: wgpu::Buffer,
+/// A small GPU -> CPU copy that never blocks: copy into it after a pass, then [`Self::poll`]
+/// once per frame until the bytes arrive. A new copy is accepted only when the last one was read.
+pub struct AsyncRead {
     readback: wgpu::Buffer,
+    size: u64,
     state: Arc<AtomicU8>,
-    period_ns: f32,
 }
 
-impl AsyncTimer {
-    /// `None` when the device has no timestamp queries.
-    pub fn new(device: &wgpu::Device, queue: &wgpu::Queue, label: &str) -> Option<Self> {
-        if !device.features().contains(wgpu::Features::TIMESTAMP_QUERY) {
-            return None;
-        }
-        let set = device.create_query_set(&wgpu::QuerySetDescriptor { label: Some(label), ty: wgpu::QueryType::Timestamp, count: 2 });
-        let buf = |usage| device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size: 16, usage, mapped_at_creation: false });
-        Some(AsyncTimer {
-            set,
-            resolve: buf(wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC),
-            readback: buf(wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ),
-            state: Arc::new(AtomicU8::new(IDLE)),
-            period_ns: queue.get_timestamp_period(),
-        })
+impl AsyncRead {
+    pub fn new(device: &wgpu::Device, label: &str, size: u64) -> Self {
+        let readback = device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ, mapped_at_creation: false });
+        AsyncRead { readback, size, state: Arc::new(AtomicU8::new(IDLE)) }
     }
-
-    /// Whether this pass should be timed now (the previous result has been collected).
+    /// Whether a new copy can be recorded (the previous bytes have been collected).
     pub fn ready(&self) -> bool {
         self.state.load(Ordering::Acquire) == IDLE
     }
-    pub fn compute_writes(&self) -> wgpu::ComputePassTimestampWrites<'_> {
-        wgpu::ComputePassTimestampWrites { query_set: &self.set, beginning_of_pass_write_index: Some(0), end_of_pass_write_index: Some(1) }
-    }
-    pub fn render_writes(&self) -> wgpu::RenderPassTimestampWrites<'_> {
-        wgpu::RenderPassTimestampWrites { query_set: &self.set, beginning_of_pass_write_index: Some(0), end_of_pass_write_index: Some(1) }
-    }
-    /// After the timed pass: resolve into the readback buffer.
-    pub fn resolve(&self, enc: &mut wgpu::CommandEncoder) {
-        enc.resolve_query_set(&self.set, 0..2, &self.resolve, 0);
-        enc.copy_buffer_to_buffer(&self.resolve, 0, &self.readback, 0, 16);
+    pub fn copy_from(&self, enc: &mut wgpu::CommandEncoder, src: &wgpu::Buffer) {
+        enc.copy_buffer_to_buffer(src, 0, &self.readback, 0, self.size);
         self.state.store(WRITTEN, Ordering::Release);
     }
-    /// Call once per frame, after the frame that resolved was submitted: requests the mapping,
-    /// and returns the milliseconds once they are mapped.
-    pub fn poll(&self) -> Option<f64> {
+    /// Call once per frame after the copying frame was submitted: requests the mapping, and
+    /// returns the bytes once mapped.
+    pub fn poll(&self) -> Option<Vec<u8>> {
         match self.state.load(Ordering::Acquire) {
             WRITTEN => {
                 self.state.store(MAPPING, Ordering::Release);
@@ -90,15 +69,54 @@ impl AsyncTimer {
                 None
             }
             MAPPED => {
-                let t: [u64; 2] = {
-                    let v = self.readback.slice(..).get_mapped_range();
-                    bytemuck::pod_read_unaligned(&v[..16])
-                };
+                let v = self.readback.slice(..).get_mapped_range().to_vec();
                 self.readback.unmap();
                 self.state.store(IDLE, Ordering::Release);
-                (t[1] > t[0]).then(|| (t[1] - t[0]) as f64 * self.period_ns as f64 * 1e-6)
+                Some(v)
             }
             _ => None,
         }
+    }
+}
+
+/// Two timestamps around one pass, resolved and read back with an [`AsyncRead`].
+pub struct AsyncTimer {
+    set: wgpu::QuerySet,
+    resolve: wgpu::Buffer,
+    read: AsyncRead,
+    period_ns: f32,
+}
+
+impl AsyncTimer {
+    /// `None` when the device has no timestamp queries.
+    pub fn new(device: &wgpu::Device, queue: &wgpu::Queue, label: &str) -> Option<Self> {
+        if !device.features().contains(wgpu::Features::TIMESTAMP_QUERY) {
+            return None;
+        }
+        let set = device.create_query_set(&wgpu::QuerySetDescriptor { label: Some(label), ty: wgpu::QueryType::Timestamp, count: 2 });
+        let resolve = device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size: 16, usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC, mapped_at_creation: false });
+        Some(AsyncTimer { set, resolve, read: AsyncRead::new(device, label, 16), period_ns: queue.get_timestamp_period() })
+    }
+
+    /// Whether this pass should be timed now (the previous result has been collected).
+    pub fn ready(&self) -> bool {
+        self.read.ready()
+    }
+    pub fn compute_writes(&self) -> wgpu::ComputePassTimestampWrites<'_> {
+        wgpu::ComputePassTimestampWrites { query_set: &self.set, beginning_of_pass_write_index: Some(0), end_of_pass_write_index: Some(1) }
+    }
+    pub fn render_writes(&self) -> wgpu::RenderPassTimestampWrites<'_> {
+        wgpu::RenderPassTimestampWrites { query_set: &self.set, beginning_of_pass_write_index: Some(0), end_of_pass_write_index: Some(1) }
+    }
+    /// After the timed pass: resolve into the readback buffer.
+    pub fn resolve(&self, enc: &mut wgpu::CommandEncoder) {
+        enc.resolve_query_set(&self.set, 0..2, &self.resolve, 0);
+        self.read.copy_from(enc, &self.resolve);
+    }
+    /// Milliseconds of the timed pass, once they have arrived.
+    pub fn poll(&self) -> Option<f64> {
+        let v = self.read.poll()?;
+        let t: [u64; 2] = bytemuck::pod_read_unaligned(&v[..16]);
+        (t[1] > t[0]).then(|| (t[1] - t[0]) as f64 * self.period_ns as f64 * 1e-6)
     }
 }

@@ -359,13 +359,15 @@ impl CubeMap {
     }
 }
 
+/// Block (column, row) of each face in the 4:3 horizontal cross, in face order +X, -X, +Y, -Y, +Z, -Z.
+pub const CROSS_BLOCKS: [(usize, usize); 6] = [(2, 1), (0, 1), (1, 0), (1, 2), (1, 1), (3, 1)];
+
 /// Unfold a cube map as a 4:3 horizontal cross (`+Y` above; `-X +Z +X -Z`; `-Y` below), the
 /// layout [`load::Layout::HorizontalCross`] reads back. Empty blocks are black.
 pub fn cube_to_cross(cube: &CubeMap) -> Image {
     let n = cube.size;
     let mut img = Image::new(4 * n, 3 * n);
-    let place = [(0usize, 2usize, 1usize), (1, 0, 1), (2, 1, 0), (3, 1, 2), (4, 1, 1), (5, 3, 1)];
-    for (face, bx, by) in place {
+    for (face, &(bx, by)) in CROSS_BLOCKS.iter().enumerate() {
         for r in 0..n {
             for c in 0..n {
                 img.data[(by * n + r) * 4 * n + bx * n + c] = cube.texel(face, c, r);
