@@ -20,6 +20,8 @@ struct LightingView {
     // (0 none, 1 effective samples per pixel, 2 wasted fraction, 3 |fractional - integer|);
     // z, w: the probed pixel (negative: none).
     options: vec4<f32>,
+    // x: 1 to average frames; y: frames averaged before this one (0 restarts the mean).
+    accumulate: vec4<f32>,
 }
 
 @group(0) @binding(0) var gbuffer: texture_2d<u32>;
@@ -31,6 +33,8 @@ struct LightingView {
 @group(0) @binding(6) var<uniform> lv: LightingView;
 // The probed pixel, for the sample-debug view: n, o, kd, ks (as GPixel), estimate, (x, y, index, 1).
 @group(0) @binding(7) var<storage, read_write> probe: array<vec4<f32>, 6>;
+// Running mean of the accumulated frames, one per viewport pixel (bound only when accumulating).
+@group(0) @binding(8) var<storage, read_write> accum: array<vec4<f32>>;
 
 // Blue -> cyan -> green -> yellow -> red for t in [0, 1].
 fn heat(t: f32) -> vec3<f32> {
@@ -134,5 +138,13 @@ fn lighting(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
         let d = length(r.color - other.color) / max(length(r.color), 1e-3);
         return vec4(heat(d * 4.0), 1.0);
     }
-    return vec4(r.color * exposure, 1.0);
+    var color = r.color;
+    if (lv.accumulate.x > 0.5) {
+        let k = lv.accumulate.y;
+        if (k > 0.0) {
+            color = accum[pixel_index].xyz + (color - accum[pixel_index].xyz) / (k + 1.0);
+        }
+        accum[pixel_index] = vec4(color, 1.0);
+    }
+    return vec4(color * exposure, 1.0);
 }

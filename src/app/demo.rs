@@ -279,6 +279,7 @@ fn panel(
                         if let Some(mut m) = materials.get_mut(&o.handle) {
                             *m = o.material.standard();
                         }
+                        settings.scene_revision += 1;
                     }
                 }
             });
@@ -365,6 +366,13 @@ fn sampling_ui(ui: &mut egui::Ui, settings: &mut EnvisSettings) {
     ui.horizontal(|ui| {
         ui.add(egui::DragValue::new(&mut s.seed).prefix("seed "));
         ui.checkbox(&mut s.pixel_offset, "per-pixel pool offset");
+    });
+    let frame = settings.frame;
+    ui.horizontal(|ui| {
+        ui.checkbox(&mut settings.accumulate, "accumulate over frames");
+        if settings.accumulate {
+            ui.label(format!("{} frames", frame + 1));
+        }
     });
     ui.horizontal(|ui| {
         ui.label("overlay [O]");

@@ -102,6 +102,7 @@ struct LightingView {
     forward: [f32; 4],
     viewport: [f32; 4],
     options: [f32; 4],
+    accumulate: [f32; 4],
 }
 
 /// The lighting pipeline (raw wgpu, shared WGSL with the headless backend), one per target format.
@@ -116,6 +117,8 @@ pub struct LightingPipelines {
     /// The probed pixel's record (6 vec4) and its readback.
     probe: wgpu::Buffer,
     probe_read: AsyncRead,
+    /// Per view: the running mean of the accumulated frames (one vec4 per pixel) and its size.
+    accum: Mutex<HashMap<Entity, (wgpu::Buffer, UVec2)>>,
 }
 
 impl LightingPipelines {
@@ -134,6 +137,7 @@ impl LightingPipelines {
                 e(5, buf(BB::Uniform)),
                 e(6, buf(BB::Uniform)),
                 e(7, buf(BB::Storage { read_only: false })),
+                e(8, buf(BB::Storage { read_only: false })),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("envis lighting"), bind_group_layouts: &[Some(&layout)], immediate_size: 0 });
@@ -141,7 +145,7 @@ impl LightingPipelines {
         let timer = AsyncTimer::new(device, queue, "envis lighting timer");
         let probe = device.create_buffer(&wgpu::BufferDescriptor { label: Some("envis probe"), size: 96, usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST, mapped_at_creation: false });
         let probe_read = AsyncRead::new(device, "envis probe readback", 96);
-        LightingPipelines { layout, pipeline_layout, module, by_format: Mutex::new(HashMap::new()), timer, probe, probe_read }
+        LightingPipelines { layout, pipeline_layout, module, by_format: Mutex::new(HashMap::new()), timer, probe, probe_read, accum: Mutex::new(HashMap::new()) }
     }
 
     fn pipeline(&self, device: &wgpu::Device, format: wgpu::TextureFormat) -> wgpu::RenderPipeline {
@@ -235,6 +239,7 @@ fn mis_lighting(
     mut ctx: RenderContext,
 ) {
     let t0 = std::time::Instant::now();
+    let view_entity = view.entity();
     let (target, prepass, ev) = view.into_inner();
     let (Some(pipes), Some(sampler)) = (pipes, state.sampler.as_ref()) else { return };
     let (Some(depth), Some(deferred)) = (prepass.depth_view(), prepass.deferred_view()) else { return };
@@ -246,6 +251,7 @@ fn mis_lighting(
         s.light_samples = 1;
     }
     let vp = ev.viewport;
+    s.seed = settings.frame_seed();
     let params = ShadeParams::new(&s, sampler.n, sampler.m, (vp.z * vp.w) as usize);
     let world_from_view = ev.world_from_view.to_matrix();
     let lv = LightingView {
@@ -258,8 +264,19 @@ fn mis_lighting(
             let p = settings.probe.map_or([-1.0, -1.0], |p| [p.x as f32, p.y as f32]);
             [settings.show_sky as u32 as f32, overlay, p[0], p[1]]
         },
+        accumulate: [settings.accumulate as u32 as f32, settings.frame as f32, 0.0, 0.0],
     };
     let device = ctx.render_device().wgpu_device().clone();
+    let accum = {
+        let mut map = pipes.accum.lock().expect("accumulation buffers");
+        let size = UVec2::new(vp.z.max(1), vp.w.max(1));
+        let entry = map.entry(view_entity).or_insert_with(|| (device.create_buffer(&wgpu::BufferDescriptor { label: Some("envis accumulation"), size: 16, usage: wgpu::BufferUsages::STORAGE, mapped_at_creation: false }), UVec2::ZERO));
+        if settings.accumulate && entry.1 != size {
+            let bytes = size.x as u64 * size.y as u64 * 16;
+            *entry = (device.create_buffer(&wgpu::BufferDescriptor { label: Some("envis accumulation"), size: bytes, usage: wgpu::BufferUsages::STORAGE, mapped_at_creation: false }), size);
+        }
+        entry.0.clone()
+    };
     let pipeline = pipes.pipeline(&device, target.main_texture_format());
     let ubuf = |label: &str, bytes: &[u8]| device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents: bytes, usage: wgpu::BufferUsages::UNIFORM });
     let (pbuf, vbuf) = (ubuf("envis shade params", bytemuck::bytes_of(&params)), ubuf("envis lighting view", bytemuck::bytes_of(&lv)));
@@ -276,6 +293,7 @@ fn mis_lighting(
             wgpu::BindGroupEntry { binding: 5, resource: pbuf.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 6, resource: vbuf.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 7, resource: pipes.probe.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 8, resource: accum.as_entire_binding() },
         ],
     });
     let probing = settings.probe.is_some() && pipes.probe_read.ready();

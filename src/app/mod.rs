@@ -45,11 +45,55 @@ pub struct EnvisSettings {
     /// Pixel (viewport coordinates) whose G-buffer texel and estimate are read back for the
     /// sample-debug view ([`EnvisProbe`]).
     pub probe: Option<UVec2>,
+    /// Average frames while nothing changes: every frame draws a new pool and new per-pixel
+    /// streams (seeds mixed with [`Self::frame`]), so the running mean converges to the integral.
+    pub accumulate: bool,
+    /// Frames accumulated so far (0 = this frame starts a new average). Kept by
+    /// [`track_accumulation`]; bump [`Self::scene_revision`] when the scene changes.
+    pub frame: u32,
+    /// Changes whenever something the image depends on changed outside the settings (materials).
+    pub scene_revision: u32,
+}
+
+impl EnvisSettings {
+    /// The seed of this frame: the user's seed, mixed with the accumulation frame when accumulating.
+    pub fn frame_seed(&self) -> u32 {
+        if self.accumulate && self.frame > 0 { crate::sampling::rng::hash_combine(&[self.sampling.seed, self.frame]) } else { self.sampling.seed }
+    }
+}
+
+/// Restart the running mean when the camera, the environment frame, the settings or the scene
+/// changed; otherwise count one more frame.
+pub fn track_accumulation(mut settings: ResMut<EnvisSettings>, cams: Query<&GlobalTransform, With<EnvisCamera>>, frame: Res<EnvFrame>, mut last: Local<Option<String>>) {
+    if !settings.accumulate {
+        if settings.frame != 0 {
+            settings.frame = 0;
+        }
+        *last = None;
+        return;
+    }
+    let s = &*settings;
+    let key = format!(
+        "{:?}|{}|{}|{:?}|{}|{}|{}",
+        s.sampling,
+        s.exposure,
+        s.show_sky,
+        s.overlay,
+        s.scene_revision,
+        frame.generation,
+        cams.iter().map(|t| format!("{:?}", t.to_matrix().to_cols_array())).collect::<String>()
+    );
+    if last.as_deref() == Some(key.as_str()) {
+        settings.frame += 1;
+    } else {
+        settings.frame = 0;
+        *last = Some(key);
+    }
 }
 
 impl Default for EnvisSettings {
     fn default() -> Self {
-        EnvisSettings { sampling: Settings::default(), exposure: 1.0, show_sky: true, overlay: Overlay::None, probe: None }
+        EnvisSettings { sampling: Settings::default(), exposure: 1.0, show_sky: true, overlay: Overlay::None, probe: None, accumulate: false, frame: 0, scene_revision: 0 }
     }
 }
 

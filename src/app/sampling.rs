@@ -80,7 +80,7 @@ pub fn prepare_env_sampler(
         state.dirty = true;
         counters.bump(|c| &c.uploads);
     }
-    let seed = pool_seed(settings.sampling.seed);
+    let seed = pool_seed(settings.frame_seed());
     if state.seed != Some(seed) {
         sampler.set_seed(&queue, seed);
         state.seed = Some(seed);

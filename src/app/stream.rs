@@ -76,7 +76,7 @@ impl Plugin for EnvMapStreamPlugin {
             .insert_resource(frame)
             .init_resource::<EnvisSettings>()
             .add_plugins((ExtractResourcePlugin::<EnvFrame>::default(), ExtractResourcePlugin::<EnvisSettings>::default()))
-            .add_systems(PostUpdate, advance_stream);
+            .add_systems(PostUpdate, (advance_stream, super::track_accumulation.after(bevy::transform::TransformSystems::Propagate)).chain());
         // Share the counters with the render world.
         if let Some(render_app) = app.get_sub_app_mut(bevy::render::RenderApp) {
             render_app.insert_resource(counters).insert_resource(timings).insert_resource(probe);

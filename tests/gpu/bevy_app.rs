@@ -90,4 +90,71 @@ fn bevy_builds_only_when_the_frame_changes() {
     assert!(generation >= 2);
     let diff: f32 = before.iter().zip(&after).map(|(a, b)| (*a - *b).abs().max_element()).sum();
     assert!(diff > 1.0, "the image did not follow the new frame");
+    // A new face size mid-stream reallocates the GPU sampler (once) and the image follows.
+    assert_eq!(c.get(|c| &c.allocations), 1);
+    assert!(h.stream_mut().switch(StreamSource::Sky { hours: 16.0, speed: 0.0 }, 32));
+    let resized = h.capture();
+    let c = h.counters();
+    assert_eq!(c.get(|c| &c.allocations), 2, "{:?}", c.0);
+    assert_eq!(c.get(|c| &c.builds), 3, "{:?}", c.0);
+    let diff: f32 = after.iter().zip(&resized).map(|(a, b)| (*a - *b).abs().max_element()).sum();
+    assert!(diff > 0.0 && resized.iter().all(|c| c.is_finite()), "32^2 faces: image {diff}");
+    // A bad source is refused, keeps the current stream, and says why.
+    assert!(!h.stream_mut().switch(StreamSource::File("/nonexistent/map.exr".into()), 32));
+    assert!(h.stream_mut().log.last().is_some_and(|m| m.contains("/nonexistent/map.exr") && m.contains("kept")));
+}
+
+/// Pixel noise: mean absolute difference between horizontal neighbours inside the sphere.
+fn roughness(img: &[Vec3], size: u32) -> f64 {
+    let inside = on_sphere(size);
+    let mut s = 0.0;
+    let mut n = 0.0;
+    for i in 0..img.len() - 1 {
+        if inside(i) && inside(i + 1) && (i as u32 + 1) % size != 0 {
+            s += (luminance(img[i]) - luminance(img[i + 1])).abs() as f64;
+            n += 1.0;
+        }
+    }
+    s / n
+}
+
+/// Accumulating over frames (new pool and streams each frame) removes noise and keeps the mean:
+/// after ~30 frames the image is much smoother than one frame, and still agrees with the CPU.
+#[test]
+fn bevy_accumulation_converges() {
+    let Some(_) = gpu() else { return };
+    let (size, face) = (48u32, 16usize);
+    let mat = EnvisMaterial::Ggx { albedo: Vec3::splat(0.8), alpha: 0.3 };
+    let sampling = Settings { light_samples: 4, brdf_samples: 4, ..Default::default() };
+    let mut h = HeadlessSphere::new(StreamSource::Sky { hours: 15.0, speed: 0.0 }, face, mat, EnvisSettings { sampling, accumulate: false, ..Default::default() }, size);
+    let one = h.capture();
+    h.app.world_mut().resource_mut::<EnvisSettings>().accumulate = true;
+    for _ in 0..30 {
+        h.update();
+    }
+    let acc = h.capture();
+    let frames = h.app.world().resource::<EnvisSettings>().frame;
+    assert!(frames >= 30, "accumulated only {frames} frames");
+    // Against a converged CPU render of the same (quantised) scene: the error shrinks, and the
+    // running mean stays unbiased.
+    let map = load_env(&EnvSource::Sky { hours: 15.0 }, face).unwrap().cube;
+    let gbuf = sphere_gbuffer(size as usize, size as usize, mat.decoded());
+    let cpu = render(&map, &gbuf, size as usize, size as usize, &Settings { light_samples: 256, brdf_samples: 256, ..sampling }).unwrap().image.data;
+    let inside = on_sphere(size);
+    let idx: Vec<usize> = (0..acc.len()).filter(|&i| inside(i)).collect();
+    let rmse = |v: &[Vec3]| (idx.iter().map(|&i| ((luminance(v[i]) - luminance(cpu[i])) as f64).powi(2)).sum::<f64>() / idx.len() as f64).sqrt();
+    let (e1, ea) = (rmse(&one), rmse(&acc));
+    eprintln!("accumulation: RMSE {e1:.4} (1 frame) -> {ea:.4} ({frames} frames); neighbour roughness {:.4} -> {:.4} (converged CPU {:.4})", roughness(&one, size), roughness(&acc, size), roughness(&cpu, size));
+    assert!(ea * 2.5 < e1, "accumulation did not reduce the error: {e1} -> {ea}");
+    let mean = |v: &[Vec3]| idx.iter().map(|&i| luminance(v[i]) as f64).sum::<f64>() / idx.len() as f64;
+    assert!(rel(mean(&acc), mean(&cpu)) < 0.02, "accumulated mean {} vs CPU {}", mean(&acc), mean(&cpu));
+    // Moving the camera restarts the average.
+    h.app.world_mut().query::<&mut bevy::prelude::Transform>().iter_mut(h.app.world_mut()).for_each(|mut t| {
+        if t.translation.z > 1.0 {
+            t.translation.x += 0.01;
+        }
+    });
+    h.update();
+    h.update();
+    assert!(h.app.world().resource::<EnvisSettings>().frame < 3, "the camera moved but the average went on");
 }
