@@ -18,8 +18,21 @@ struct ShadeParams {
     seed: u32,
     pixel_offset: u32,
     pixel_count: u32,
-    _pad0: u32,
+    // 1: each pixel's material chooses the split of nl + nb (render::budget_for).
+    material_budget: u32,
     _pad1: u32,
+}
+
+// render::budget_for: diffuse -> all light samples; near-mirror with no diffuse part -> all BRDF.
+fn budget_for(mat: Material, nl: u32, nb: u32) -> vec2<u32> {
+    let near_mirror = (mat.lobe == LOBE_PHONG && mat.param >= 1000.0) || (mat.lobe == LOBE_GGX && mat.param <= 0.02);
+    if (mat.lobe == LOBE_NONE || max(max(mat.ks.x, mat.ks.y), mat.ks.z) <= 0.0) {
+        return vec2(nl + nb, 0u);
+    }
+    if (near_mirror && max(max(mat.kd.x, mat.kd.y), mat.kd.z) <= 0.0) {
+        return vec2(0u, nl + nb);
+    }
+    return vec2(nl, nb);
 }
 const STRATEGY_PAPER: u32 = 0u;
 const STRATEGY_LIGHT: u32 = 1u;
@@ -56,8 +69,13 @@ fn shade_counts(px: GPixel, pixel_index: u32, counts: u32) -> Shaded {
     let ol = to_local(fr, o);
     var rng = rng_new(sp.seed, pixel_index);
     var sum = vec3(0.0);
-    let nl = sp.nl;
-    let nb = sp.nb;
+    var nl = sp.nl;
+    var nb = sp.nb;
+    if (sp.material_budget != 0u && sp.strategy == STRATEGY_PAPER) {
+        let b = budget_for(mat, nl, nb);
+        nl = b.x;
+        nb = b.y;
+    }
     let nb_f = f32(nb);
     let size = sp.n;
     let m = sp.m;

@@ -150,6 +150,10 @@ struct RenderArgs {
     /// Start each pixel at a random offset into the pool (decorrelates pixels).
     #[arg(long)]
     pixel_offset: bool,
+    /// Let each pixel's material choose the light / BRDF split of the budget (`paper` only):
+    /// diffuse -> light samples only, near-mirror -> BRDF samples only.
+    #[arg(long)]
+    material_budget: bool,
     #[arg(long, value_enum, default_value_t = BackendArg::Cpu)]
     backend: BackendArg,
     /// Output image (linear RGB float32 EXR).
@@ -357,6 +361,7 @@ fn run(cli: Cli) -> Result<()> {
                 },
                 seed: r.seed,
                 pixel_offset: r.pixel_offset,
+                material_budget: r.material_budget,
             };
             settings.validate()?;
             let (env, gbuf, _) = setup(&r.scene)?;

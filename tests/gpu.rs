@@ -307,3 +307,26 @@ fn cli_gpu_backends() {
 #[cfg(feature = "app")]
 #[path = "gpu/demo.rs"]
 mod demo;
+
+/// The material-driven budget on the GPU: the same image as the CPU twin, and the work it skips
+/// is skipped there too (no BRDF sample for a diffuse scene, no light sample for a near-mirror).
+#[test]
+fn gpu_material_budget_matches_cpu_and_skips_work() {
+    let Some(ctx) = gpu() else { return };
+    let map = load_env(&EnvSource::Sky { hours: 13.0 }, 16).unwrap().cube;
+    let size = 32;
+    for (name, mat) in [("diffuse", Material::diffuse(0.8)), ("ggx 0.01", Material::ggx(0.8, 0.01)), ("ggx 0.3", Material::ggx(0.8, 0.3))] {
+        let gbuf = sphere_gbuffer(size, size, mat);
+        let s = Settings { light_samples: 8, brdf_samples: 8, material_budget: true, seed: 4, ..Default::default() };
+        let (g, _) = render_gpu(ctx, &map, &gbuf, size, size, &s).unwrap();
+        let c = render(&map, &gbuf, size, size, &s).unwrap();
+        assert!(rel(mean_lum(&g.image.data), mean_lum(&c.image.data)) < 1e-3, "{name}: image mean");
+        assert_eq!(g.stats.brdf_samples_drawn, c.stats.brdf_samples_drawn, "{name}");
+        assert!((g.stats.green - c.stats.green).abs() < 1e-3, "{name}");
+        match name {
+            "diffuse" => assert_eq!(g.stats.brdf_samples_drawn, 0),
+            "ggx 0.01" => assert!(g.stats.green + g.stats.yellow == 0.0 && g.stats.brdf_samples_drawn == 16 * g.stats.shaded_pixels),
+            _ => assert!(g.stats.brdf_samples_drawn == 8 * g.stats.shaded_pixels && g.stats.green > 0.0),
+        }
+    }
+}

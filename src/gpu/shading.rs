@@ -44,7 +44,8 @@ pub struct ShadeParams {
     pub seed: u32,
     pub pixel_offset: u32,
     pub pixel_count: u32,
-    pub _pad: [u32; 2],
+    pub material_budget: u32,
+    pub _pad: u32,
 }
 
 impl ShadeParams {
@@ -67,7 +68,8 @@ impl ShadeParams {
             seed: s.seed,
             pixel_offset: s.pixel_offset as u32,
             pixel_count: pixel_count as u32,
-            _pad: [0; 2],
+            material_budget: s.material_budget as u32,
+            _pad: 0,
         }
     }
 }

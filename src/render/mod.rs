@@ -56,6 +56,39 @@ pub struct Settings {
     pub seed: u32,
     /// Start each pixel at a random offset into the pool (decorrelates pixels).
     pub pixel_offset: bool,
+    /// Let each pixel's material choose the split of the `N_L + N_B` budget (`paper` only): see
+    /// [`budget_for`].
+    pub material_budget: bool,
+}
+
+/// Phong exponents from here up, and GGX roughness from here down, count as near-mirror lobes.
+pub const NEAR_MIRROR_EXPONENT: f32 = 1000.0;
+pub const NEAR_MIRROR_ALPHA: f32 = 0.02;
+
+/// The material-driven split of a pixel's budget `(N_L, N_B)` (the `paper` strategy with
+/// [`Settings::material_budget`]):
+/// - diffuse only (no glossy lobe): all `N_L + N_B` samples from the light pool. Light sampling
+///   with face weighting covers every direction the cosine lobe reaches, so it is unbiased alone,
+///   and the accuracy sweep shows light samples beat BRDF samples on diffuse at every budget.
+/// - a near-mirror lobe with no diffuse part: all samples from the BRDF. Light samples almost never
+///   land in the lobe, and the BRDF pdf covers its whole support.
+/// - otherwise the user's split, combined by MIS.
+/// Each choice is an unbiased estimator on its own, so mixing them per pixel stays unbiased.
+#[inline]
+pub fn budget_for(m: &crate::sampling::Material, nl: usize, nb: usize) -> (usize, usize) {
+    use crate::sampling::Lobe;
+    let near_mirror = match m.lobe {
+        Lobe::None => false,
+        Lobe::Phong { exponent } => exponent >= NEAR_MIRROR_EXPONENT,
+        Lobe::Ggx { alpha } => alpha <= NEAR_MIRROR_ALPHA,
+    };
+    if m.lobe == Lobe::None || m.ks.max_element() <= 0.0 {
+        (nl + nb, 0)
+    } else if near_mirror && m.kd.max_element() <= 0.0 {
+        (0, nl + nb)
+    } else {
+        (nl, nb)
+    }
 }
 
 impl Default for Settings {
@@ -69,6 +102,7 @@ impl Default for Settings {
             mis: Heuristic::Balance,
             seed: 0,
             pixel_offset: false,
+            material_budget: false,
         }
     }
 }
@@ -86,7 +120,8 @@ impl Settings {
     }
     /// M, the samples per face in the pool.
     pub fn pool_per_face(&self) -> usize {
-        if self.pool_size > 0 { self.pool_size } else { self.light_samples.max(1) + if self.strategy == Strategy::Light { self.brdf_samples } else { 0 } }
+        let all = self.strategy == Strategy::Light || (self.strategy == Strategy::Paper && self.material_budget);
+        if self.pool_size > 0 { self.pool_size } else { self.light_samples.max(1) + if all { self.brdf_samples } else { 0 } }
     }
 }
 
@@ -156,6 +191,7 @@ pub fn shade_pixel(fd: &FrameData, s: &Settings, px: &GPixel, pixel_index: u32) 
     let mut rng = Rng::new(s.seed, pixel_index);
     let mut sum = Vec3::ZERO;
     let (nl, nb) = match s.strategy {
+        Strategy::Paper if s.material_budget => budget_for(mat, s.light_samples, s.brdf_samples),
         Strategy::Paper | Strategy::Global => (s.light_samples, s.brdf_samples),
         Strategy::Light => (s.light_samples + s.brdf_samples, 0),
         Strategy::Brdf => (0, s.light_samples + s.brdf_samples),
@@ -290,6 +326,7 @@ pub struct RenderStats {
     pub pool_per_face: usize,
     pub seed: u32,
     pub pixel_offset: bool,
+    pub material_budget: bool,
     /// Distribution (CDF tables, face energies) + light-sample pool build, milliseconds.
     pub build_ms: f64,
     /// Shading of all pixels, milliseconds.
@@ -298,6 +335,8 @@ pub struct RenderStats {
     pub shaded_pixels: u64,
     /// Light samples used + BRDF samples drawn, over all pixels.
     pub samples_evaluated: u64,
+    /// BRDF samples drawn, over all pixels (0 for a diffuse scene with `material_budget`).
+    pub brdf_samples_drawn: u64,
     /// Samples evaluated per second of shading.
     pub samples_per_second: f64,
     /// Mean over shaded pixels of the fraction of available light samples discarded by face weighting.
@@ -326,6 +365,7 @@ impl RenderStats {
             pool_per_face,
             seed: s.seed,
             pixel_offset: s.pixel_offset,
+            material_budget: s.material_budget,
             ..Default::default()
         }
     }
@@ -337,6 +377,7 @@ impl RenderStats {
         for st in per_pixel.iter().flatten() {
             self.shaded_pixels += 1;
             self.samples_evaluated += (st.green + st.yellow + st.brdf) as u64;
+            self.brdf_samples_drawn += st.brdf as u64;
             if st.available > 0 {
                 let a = st.available as f64;
                 red += st.red() as f64 / a;
@@ -427,6 +468,7 @@ pub fn debug_pixel(fd: &FrameData, s: &Settings, px: &GPixel, pixel_index: u32) 
     let m = fd.pool.per_face;
     let nl = match s.strategy {
         Strategy::Light => s.light_samples + s.brdf_samples,
+        Strategy::Paper if s.material_budget => budget_for(&px.material, s.light_samples, s.brdf_samples).0,
         _ => s.light_samples,
     };
     let fw = face_weights(n, &fd.energies, s.strategy != Strategy::Light);
