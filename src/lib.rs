@@ -16,6 +16,7 @@ pub mod error;
 pub mod gpu;
 pub mod render;
 pub mod sampling;
+pub mod scene;
 pub mod stats;
 pub mod stream;
 

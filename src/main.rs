@@ -46,6 +46,9 @@ struct DemoArgs {
     /// Scripted run for CI: take screenshots into DIR, write DIR/report.json, exit.
     #[arg(long)]
     script: Option<PathBuf>,
+    /// A TOML scene file (objects, camera, environment, sampling; see assets/scenes/).
+    #[arg(long)]
+    scene: Option<PathBuf>,
 }
 
 #[derive(Subcommand)]
@@ -68,7 +71,8 @@ struct SceneArgs {
     /// Cube face size in texels.
     #[arg(long, default_value_t = 64)]
     face_size: usize,
-    /// Scene (only `sphere` for now).
+    /// Scene: `sphere` (the unit sphere, orthographic), or a TOML scene file (which then supplies
+    /// the environment, camera, objects, materials and sampling settings; see assets/scenes/).
     #[arg(long, default_value = "sphere")]
     scene: String,
     /// Image width and height in pixels.
@@ -217,12 +221,24 @@ fn material(a: &SceneArgs) -> Result<Material> {
     })
 }
 
-fn setup(a: &SceneArgs) -> Result<(LoadedEnv, Vec<Option<render::GPixel>>, Material)> {
-    if a.scene != "sphere" {
-        return Err(Error::invalid(format!("unknown scene '{}' (expected: sphere)", a.scene)));
-    }
+/// The environment, G-buffer and material of `--scene`: `sphere` (with the command-line
+/// environment and material), or a TOML scene file, which supplies everything but the size.
+fn setup(a: &SceneArgs) -> Result<(LoadedEnv, Vec<Option<render::GPixel>>, Material, Option<envis::scene::Scene>)> {
     if a.size == 0 || a.size > 16384 {
         return Err(Error::invalid(format!("--size {} out of range 1..=16384", a.size)));
+    }
+    if a.scene != "sphere" {
+        if !a.scene.ends_with(".toml") {
+            return Err(Error::invalid(format!("unknown scene '{}' (expected: sphere, or a .toml scene file)", a.scene)));
+        }
+        let sc = envis::scene::Scene::load(std::path::Path::new(&a.scene))?;
+        let src: EnvSource = sc.environment.parse()?;
+        let env = load_env(&src, sc.file.environment.face_size)?;
+        if env.report.total() > 0 {
+            eprintln!("envis: {}: {}", sc.environment, env.report);
+        }
+        let gbuf = sc.gbuffer(a.size, a.size);
+        return Ok((env, gbuf, sc.objects[0].material, Some(sc)));
     }
     let mat = material(a)?;
     let src: EnvSource = a.env.parse()?;
@@ -230,7 +246,7 @@ fn setup(a: &SceneArgs) -> Result<(LoadedEnv, Vec<Option<render::GPixel>>, Mater
     if env.report.total() > 0 {
         eprintln!("envis: {}: {}", a.env, env.report);
     }
-    Ok((env, render::sphere_gbuffer(a.size, a.size, mat), mat))
+    Ok((env, render::sphere_gbuffer(a.size, a.size, mat), mat, None))
 }
 
 fn check_exr_path(p: &std::path::Path) -> Result<()> {
@@ -304,7 +320,13 @@ fn render_bevy(_: &SceneArgs, _: &Settings) -> Result<(render::Rendered, serde_j
 #[cfg(feature = "app")]
 fn run_demo(a: DemoArgs) -> Result<()> {
     use envis::stream::StreamSource;
-    let source = if let Some(dir) = a.sequence {
+    let scene = a.scene.as_deref().map(envis::scene::Scene::load).transpose()?;
+    let source = if let Some(sc) = &scene {
+        match StreamSource::parse(&sc.environment)? {
+            StreamSource::Sky { hours, .. } => StreamSource::Sky { hours, speed: sc.file.environment.speed },
+            other => other,
+        }
+    } else if let Some(dir) = a.sequence {
         StreamSource::Sequence { dir, fps: a.fps }
     } else if !a.carousel.is_empty() {
         StreamSource::Carousel { paths: a.carousel, period: 8.0, fade: 2.0, spin: 0.05 }
@@ -312,19 +334,20 @@ fn run_demo(a: DemoArgs) -> Result<()> {
         StreamSource::parse(&a.env)?
     };
     // Refuse a bad source before opening a window, with its error.
-    envis::stream::EnvStream::open(source.clone(), a.face_size)?;
+    envis::stream::EnvStream::open(source.clone(), scene.as_ref().map_or(a.face_size, |s| s.file.environment.face_size))?;
     let (w, h) = a
         .window
         .split_once('x')
         .and_then(|(w, h)| Some((w.parse::<u32>().ok()?, h.parse::<u32>().ok()?)))
         .filter(|(w, h)| (64..=8192).contains(w) && (64..=8192).contains(h))
         .ok_or_else(|| Error::invalid(format!("--window {}: expected WIDTHxHEIGHT, e.g. 1280x720", a.window)))?;
-    let sampling = Settings { light_samples: a.light_samples, brdf_samples: a.brdf_samples, ..Default::default() };
+    let sampling = scene.as_ref().map_or(Settings { light_samples: a.light_samples, brdf_samples: a.brdf_samples, ..Default::default() }, |s| s.settings);
     sampling.validate()?;
+    let face_size = scene.as_ref().map_or(a.face_size, |s| s.file.environment.face_size);
     if let Some(d) = &a.script {
         std::fs::create_dir_all(d).map_err(|e| Error::file(d, format!("cannot create: {e}")))?;
     }
-    let exit = envis::app::demo::run(envis::app::demo::DemoOptions { source, face_size: a.face_size, script: a.script, window: (w, h), sampling });
+    let exit = envis::app::demo::run(envis::app::demo::DemoOptions { source, face_size, script: a.script, window: (w, h), sampling, scene });
     match exit {
         bevy::app::AppExit::Success => Ok(()),
         bevy::app::AppExit::Error(c) => Err(Error::invalid(format!("the demo exited with code {c}"))),
@@ -364,8 +387,13 @@ fn run(cli: Cli) -> Result<()> {
                 material_budget: r.material_budget,
             };
             settings.validate()?;
-            let (env, gbuf, _) = setup(&r.scene)?;
+            let (env, gbuf, _, scene) = setup(&r.scene)?;
+            // A scene file supplies the sampling settings too.
+            let settings = scene.as_ref().map_or(settings, |sc| sc.settings);
             let size = r.scene.size;
+            if scene.is_some() && matches!(r.backend, BackendArg::Gpu) {
+                return Err(Error::invalid("--backend gpu renders the sphere scene; render scene files with --backend cpu or wgpu, or open them in the demo (envis --scene FILE)"));
+            }
             if !matches!(r.backend, BackendArg::Cpu) && settings.strategy == Strategy::Global {
                 return Err(Error::invalid("--strategy global is CPU only (one lat-long distribution); the GPU backends have paper, light and brdf"));
             }
@@ -394,7 +422,7 @@ fn run(cli: Cli) -> Result<()> {
             if !(r.refine.is_finite() && r.refine > 0.0) {
                 return Err(Error::invalid("--refine must be > 0"));
             }
-            let (env, gbuf, mat) = setup(&r.scene)?;
+            let (env, gbuf, mat, _) = setup(&r.scene)?;
             let t = std::time::Instant::now();
             let (img, _) = reference::reference_image(&env.cube, &gbuf, r.scene.size, r.scene.size, r.refine);
             let ms = t.elapsed().as_secs_f64() * 1e3;

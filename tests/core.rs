@@ -919,3 +919,46 @@ fn material_budget_skips_work_and_stays_unbiased() {
     }
     assert!(failures.is_empty(), "biased:\n{}", failures.join("\n"));
 }
+
+/// Scene files: the shipped examples load and render; errors name the file, the line and the
+/// field; a broken glTF names the file.
+#[test]
+fn scene_files_load_render_and_report_errors() {
+    use envis::scene::Scene;
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
+    for name in ["showcase.toml", "diffuse-static.toml", "glossy-dynamic.toml"] {
+        let sc = Scene::load(&dir.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let g = sc.gbuffer(24, 24);
+        let hits = g.iter().filter(|p| p.is_some()).count();
+        assert!(hits > 24 * 24 / 4, "{name}: only {hits} pixels hit geometry");
+        for p in g.iter().flatten() {
+            assert!((p.n.length() - 1.0).abs() < 1e-3 && p.n.dot(p.o) > -1e-3, "{name}: bad G-buffer texel {p:?}");
+        }
+    }
+    // The CLI renders a scene file (the file supplies everything but the size).
+    let t = tempdir();
+    let out = t.join("scene.exr");
+    let o = envis_cmd(&["render", "--scene", dir.join("diffuse-static.toml").to_str().unwrap(), "--size", "24", "--out", out.to_str().unwrap(), "--stats", t.join("s.json").to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(t.join("s.json")).unwrap()).unwrap();
+    assert_eq!(j["brdf_samples_drawn"], 0, "diffuse scene with material_budget drew BRDF samples: {j}");
+    // Errors: file + line + field.
+    let cases = [
+        ("typo.toml", "[environment]\nsource = \"builtin:sky\"\n\n[[object]]\nshape = \"sphere\"\nradus = 1.0\nmaterial = { type = \"diffuse\" }\n", &["typo.toml", "line 6", "radus"][..]),
+        ("nomat.toml", "[environment]\nsource = \"builtin:sky\"\n[[object]]\nshape = \"sphere\"\n", &["nomat.toml", "material"][..]),
+        ("shape.toml", "[environment]\nsource = \"builtin:sky\"\n[[object]]\nshape = \"cone\"\nmaterial = { type = \"diffuse\" }\n", &["shape.toml", "object 1", "`shape`", "cone"][..]),
+        ("mat.toml", "[environment]\nsource = \"builtin:sky\"\n[[object]]\nshape = \"sphere\"\nmaterial = { type = \"velvet\" }\n", &["mat.toml", "`material`", "velvet"][..]),
+        ("samp.toml", "[environment]\nsource = \"builtin:sky\"\n[sampling]\ncounts = \"often\"\n[[object]]\nshape = \"sphere\"\nmaterial = { type = \"diffuse\" }\n", &["samp.toml", "counts", "often"][..]),
+        ("glb.toml", "[environment]\nsource = \"builtin:sky\"\n[[object]]\nshape = \"gltf\"\npath = \"broken.glb\"\nmaterial = { type = \"diffuse\" }\n", &["broken.glb", "glTF"][..]),
+    ];
+    std::fs::write(t.join("broken.glb"), b"glTF\x02\x00\x00\x00garbage").unwrap();
+    for (file, text, needles) in cases {
+        let p = t.join(file);
+        std::fs::write(&p, text).unwrap();
+        let e = Scene::load(&p).err().unwrap_or_else(|| panic!("{file}: accepted")).to_string();
+        for n in needles {
+            assert!(e.contains(n), "{file}: '{e}' does not name '{n}'");
+        }
+        assert_eq!(e.lines().count(), 1, "{file}: not one line: {e}");
+    }
+}

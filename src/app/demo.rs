@@ -25,7 +25,13 @@ pub struct DemoOptions {
     pub script: Option<PathBuf>,
     pub window: (u32, u32),
     pub sampling: Settings,
+    /// Objects and camera from a scene file (the built-in showcase otherwise).
+    pub scene: Option<crate::scene::Scene>,
 }
+
+/// The scene file the demo was started with.
+#[derive(Resource)]
+struct SceneResource(crate::scene::Scene);
 
 /// Run the demo until the window closes (or the script ends).
 pub fn run(opts: DemoOptions) -> AppExit {
@@ -52,6 +58,9 @@ pub fn run(opts: DemoOptions) -> AppExit {
     .add_systems(EguiPrimaryContextPass, panel);
     if scripted {
         app.add_systems(Update, run_script.after(update_debug_view));
+    }
+    if let Some(sc) = opts.scene {
+        app.insert_resource(SceneResource(sc));
     }
     app.run()
 }
@@ -113,11 +122,66 @@ impl FrameDataOwned {
     }
 }
 
-fn setup_scene(mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>, mut materials: ResMut<Assets<StandardMaterial>>, assets: Res<AssetServer>) {
+/// The envis material that writes `m` into the G-buffer.
+pub fn envis_material(m: &crate::sampling::Material) -> EnvisMaterial {
+    use crate::sampling::Lobe;
+    match m.lobe {
+        Lobe::None => EnvisMaterial::Lambert { albedo: m.kd },
+        Lobe::Phong { exponent } => EnvisMaterial::Phong { albedo: m.ks + m.kd, exponent },
+        Lobe::Ggx { alpha } if m.kd.max_element() <= 0.0 => EnvisMaterial::Ggx { albedo: m.ks, alpha },
+        Lobe::Ggx { alpha } => {
+            let all = m.kd + m.ks;
+            let lum = crate::envmap::luminance;
+            EnvisMaterial::Mix { albedo: all, specular: lum(m.ks) / lum(all).max(1e-6), alpha }
+        }
+    }
+}
+
+/// A Bevy mesh of world-space triangles.
+fn bevy_mesh(m: &crate::scene::TriMesh) -> Mesh {
+    use bevy::asset::RenderAssetUsages;
+    use bevy::mesh::{Indices, PrimitiveTopology};
+    Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default())
+        .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, m.positions.iter().map(|p| p.to_array()).collect::<Vec<_>>())
+        .with_inserted_attribute(Mesh::ATTRIBUTE_NORMAL, m.normals.iter().map(|p| p.to_array()).collect::<Vec<_>>())
+        .with_inserted_indices(Indices::U32(m.indices.iter().flatten().copied().collect()))
+}
+
+fn setup_scene(mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>, mut materials: ResMut<Assets<StandardMaterial>>, assets: Res<AssetServer>, scene: Option<Res<SceneResource>>) {
     let mut spawn = |name: &'static str, mesh: Handle<Mesh>, material: EnvisMaterial, transform: Transform| {
         let handle = materials.add(material.standard());
         commands.spawn((Mesh3d(mesh), MeshMaterial3d(handle.clone()), transform, DemoObject { name, material, handle }));
     };
+    if let Some(sc) = scene {
+        use crate::scene::Shape;
+        for o in &sc.0.objects {
+            let name: &'static str = Box::leak(o.name.clone().into_boxed_str());
+            let mat = envis_material(&o.material);
+            match &o.shape {
+                Shape::Sphere { center, radius } => spawn(name, meshes.add(Sphere::new(*radius).mesh().ico(6).expect("icosphere")), mat, Transform::from_translation(*center)),
+                Shape::Plane { center, normal, u, half, .. } => {
+                    let rot = Quat::from_mat3(&Mat3::from_cols(*u, *normal, u.cross(*normal)));
+                    spawn(name, meshes.add(Plane3d::default().mesh().size(2.0 * half, 2.0 * half)), mat, Transform::from_translation(*center).with_rotation(rot))
+                }
+                Shape::Mesh(m) => spawn(name, meshes.add(bevy_mesh(m)), mat, Transform::IDENTITY),
+            }
+        }
+        let c = &sc.0.file.camera;
+        let (eye, target) = (Vec3::from(c.position), Vec3::from(c.target));
+        let d = eye - target;
+        let distance = d.length().max(0.1);
+        commands.spawn((
+            Camera3d::default(),
+            Projection::Perspective(PerspectiveProjection { fov: c.fov.to_radians(), ..default() }),
+            bevy::camera::Hdr,
+            Msaa::Off,
+            Tonemapping::TonyMcMapface,
+            EnvisCamera,
+            Orbit { yaw: d.x.atan2(d.z), pitch: (d.y / distance).asin(), distance, target },
+            Transform::default(),
+        ));
+        return;
+    }
     spawn("sphere", meshes.add(Sphere::new(1.0).mesh().ico(6).expect("icosphere")), EnvisMaterial::Phong { albedo: Vec3::splat(0.8), exponent: 150.0 }, Transform::from_xyz(-2.3, 1.0, 0.0));
     let bunny = assets.load(GltfAssetLabel::Primitive { mesh: 0, primitive: 0 }.from_asset("models/bunny_plain.glb"));
     spawn("bunny", bunny, EnvisMaterial::Ggx { albedo: Vec3::new(0.9, 0.75, 0.5), alpha: 0.2 }, Transform::from_xyz(0.0, 0.0, 0.3).with_scale(Vec3::splat(1.6)));
@@ -159,7 +223,14 @@ fn orbit_camera(
     }
 }
 
-fn keys(keys: Res<ButtonInput<KeyCode>>, mut settings: ResMut<EnvisSettings>, mut state: ResMut<DemoState>) {
+fn keys(keys: Res<ButtonInput<KeyCode>>, mut settings: ResMut<EnvisSettings>, mut state: ResMut<DemoState>, mut last: Local<Option<std::time::Instant>>) {
+    // Frames per second of the app (an exponential moving average of wall-clock frame times).
+    let now = std::time::Instant::now();
+    if let Some(t) = *last {
+        let dt = (now - t).as_secs_f32().max(1e-6);
+        state.fps = if state.fps == 0.0 { 1.0 / dt } else { 0.9 * state.fps + 0.1 / dt };
+    }
+    *last = Some(now);
     if keys.just_pressed(KeyCode::KeyI) {
         settings.sampling.counts = if settings.sampling.counts == Counts::Fractional { Counts::Integer } else { Counts::Fractional };
     }
@@ -264,8 +335,7 @@ fn panel(
     windows: Query<&Window, With<PrimaryWindow>>,
 ) -> Result {
     let ctx = contexts.ctx_mut()?.clone();
-    let dt = time.delta_secs().max(1e-6);
-    state.fps = if state.fps == 0.0 { 1.0 / dt } else { 0.9 * state.fps + 0.1 / dt };
+    let _ = time;
     if state.cross.as_ref().is_none_or(|(g, _)| *g != frame.generation) {
         state.cross = Some((frame.generation, cross_texture(&ctx, &frame.map)));
     }

@@ -1,0 +1,535 @@
+//! Scene files (TOML): objects (built-in shapes or glTF meshes, transforms, materials), the
+//! environment source, the camera and the sampling settings. `envis render --scene FILE` and the
+//! demo's `--scene FILE` read them; examples are in `assets/scenes/`.
+//!
+//! ```toml
+//! [environment]
+//! source = "builtin:sky:10"   # or a file, or a directory of frames
+//! face_size = 64
+//!
+//! [camera]
+//! position = [0.0, 1.5, 6.0]
+//! target = [0.0, 0.8, 0.0]
+//! fov = 40.0                  # vertical, degrees
+//!
+//! [sampling]                  # every field optional
+//! light_samples = 32
+//! brdf_samples = 32
+//! material_budget = true
+//!
+//! [[object]]
+//! shape = "sphere"            # sphere | plane | torus | gltf
+//! radius = 1.0
+//! position = [-1.5, 1.0, 0.0]
+//! material = { type = "phong", albedo = 0.8, exponent = 150.0 }
+//! ```
+//!
+//! Errors name the file, the line and the field. The CPU G-buffer of a scene is ray cast:
+//! spheres and planes analytically, tori and glTF meshes as triangles.
+
+use crate::error::{Error, Result};
+use crate::render::{GPixel, Settings, Strategy};
+use crate::sampling::{Counts, Heuristic, Lobe, Material};
+use glam::{EulerRot, Mat3, Quat, Vec3};
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    pub environment: EnvironmentSpec,
+    #[serde(default)]
+    pub camera: CameraSpec,
+    #[serde(default)]
+    pub sampling: SamplingSpec,
+    #[serde(rename = "object", default)]
+    pub objects: Vec<ObjectSpec>,
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EnvironmentSpec {
+    /// `builtin:sky[:HOURS]`, an `.exr` / `.hdr` file or a frame directory (relative to the scene file).
+    pub source: String,
+    #[serde(default = "default_face")]
+    pub face_size: usize,
+    /// Sky animation speed, hours per second (the demo).
+    #[serde(default)]
+    pub speed: f32,
+}
+
+fn default_face() -> usize {
+    64
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraSpec {
+    pub position: [f32; 3],
+    pub target: [f32; 3],
+    /// Vertical field of view in degrees.
+    pub fov: f32,
+}
+
+impl Default for CameraSpec {
+    fn default() -> Self {
+        CameraSpec { position: [0.0, 1.5, 6.0], target: [0.0, 0.8, 0.0], fov: 40.0 }
+    }
+}
+
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SamplingSpec {
+    pub light_samples: Option<usize>,
+    pub brdf_samples: Option<usize>,
+    pub strategy: Option<String>,
+    pub counts: Option<String>,
+    pub mis: Option<String>,
+    pub seed: Option<u32>,
+    pub pool: Option<usize>,
+    pub pixel_offset: Option<bool>,
+    pub material_budget: Option<bool>,
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObjectSpec {
+    #[serde(default)]
+    pub name: Option<String>,
+    pub shape: String,
+    /// Sphere radius (default 1).
+    #[serde(default)]
+    pub radius: Option<f32>,
+    /// Plane side length (default 10).
+    #[serde(default)]
+    pub size: Option<f32>,
+    /// Torus radii (default 0.9 and 0.45).
+    #[serde(default)]
+    pub major_radius: Option<f32>,
+    #[serde(default)]
+    pub minor_radius: Option<f32>,
+    /// glTF / GLB path (relative to the scene file): the first mesh primitive is used.
+    #[serde(default)]
+    pub path: Option<String>,
+    #[serde(default)]
+    pub position: [f32; 3],
+    /// Rotation, degrees about X, then Y, then Z.
+    #[serde(default)]
+    pub rotation: [f32; 3],
+    #[serde(default = "one")]
+    pub scale: f32,
+    pub material: MaterialSpec,
+}
+
+fn one() -> f32 {
+    1.0
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialSpec {
+    /// diffuse | phong | ggx | mix
+    #[serde(rename = "type")]
+    pub kind: String,
+    /// Albedo: one number or `[r, g, b]`.
+    #[serde(default = "default_albedo")]
+    pub albedo: Albedo,
+    #[serde(default)]
+    pub exponent: Option<f32>,
+    #[serde(default)]
+    pub alpha: Option<f32>,
+    /// `mix`: the specular share of the albedo.
+    #[serde(default)]
+    pub specular: Option<f32>,
+}
+
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(untagged)]
+pub enum Albedo {
+    Grey(f32),
+    Rgb([f32; 3]),
+}
+
+fn default_albedo() -> Albedo {
+    Albedo::Grey(0.8)
+}
+
+impl Albedo {
+    pub fn rgb(self) -> Vec3 {
+        match self {
+            Albedo::Grey(a) => Vec3::splat(a),
+            Albedo::Rgb(c) => Vec3::from(c),
+        }
+    }
+}
+
+/// A built scene object: its material and geometry in world space.
+#[derive(Clone, Debug)]
+pub struct Object {
+    pub name: String,
+    pub material: Material,
+    pub shape: Shape,
+    pub spec: ObjectSpec,
+}
+
+#[derive(Clone, Debug)]
+pub enum Shape {
+    Sphere { center: Vec3, radius: f32 },
+    /// A square of side `size` on the plane through `center` with normal `normal`.
+    Plane { center: Vec3, normal: Vec3, u: Vec3, v: Vec3, half: f32 },
+    /// World-space triangles with per-vertex normals.
+    Mesh(TriMesh),
+}
+
+#[derive(Clone, Debug, Default)]
+pub struct TriMesh {
+    pub positions: Vec<Vec3>,
+    pub normals: Vec<Vec3>,
+    pub indices: Vec<[u32; 3]>,
+}
+
+/// A loaded scene.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    pub path: PathBuf,
+    pub file: SceneFile,
+    pub objects: Vec<Object>,
+    pub settings: Settings,
+    /// The environment source, resolved relative to the scene file.
+    pub environment: String,
+}
+
+fn err(path: &Path, msg: impl Into<String>) -> Error {
+    Error::file(path, msg)
+}
+
+/// Line (1-based) of a byte offset in `text`.
+fn line_of(text: &str, offset: usize) -> usize {
+    text[..offset.min(text.len())].matches('\n').count() + 1
+}
+
+impl Scene {
+    pub fn load(path: &Path) -> Result<Scene> {
+        let text = std::fs::read_to_string(path).map_err(|e| err(path, format!("cannot read: {e}")))?;
+        let file: SceneFile = toml::from_str(&text).map_err(|e| {
+            let line = e.span().map(|s| format!("line {}: ", line_of(&text, s.start))).unwrap_or_default();
+            err(path, format!("{line}{}", e.message().trim()))
+        })?;
+        let base = path.parent().unwrap_or(Path::new("."));
+        let resolve = |p: &str| -> PathBuf {
+            let p = PathBuf::from(p);
+            if p.is_absolute() { p } else { base.join(p) }
+        };
+        let environment = if file.environment.source.starts_with("builtin:") { file.environment.source.clone() } else { resolve(&file.environment.source).display().to_string() };
+        let settings = sampling_settings(path, &file.sampling)?;
+        let mut objects = Vec::new();
+        for (i, o) in file.objects.iter().enumerate() {
+            let at = |field: &str| format!("object {} ({}), field `{field}`", i + 1, o.name.as_deref().unwrap_or(&o.shape));
+            let material = material(&o.material).map_err(|m| err(path, format!("{}: {m}", at("material"))))?;
+            let rot = Quat::from_euler(EulerRot::XYZ, o.rotation[0].to_radians(), o.rotation[1].to_radians(), o.rotation[2].to_radians());
+            let pos = Vec3::from(o.position);
+            if !(o.scale.is_finite() && o.scale > 0.0) {
+                return Err(err(path, format!("{}: must be > 0", at("scale"))));
+            }
+            let shape = match o.shape.as_str() {
+                "sphere" => Shape::Sphere { center: pos, radius: o.radius.unwrap_or(1.0) * o.scale },
+                "plane" => {
+                    let m = Mat3::from_quat(rot);
+                    Shape::Plane { center: pos, normal: m * Vec3::Y, u: m * Vec3::X, v: m * Vec3::Z, half: 0.5 * o.size.unwrap_or(10.0) * o.scale }
+                }
+                "torus" => Shape::Mesh(torus_mesh(o.major_radius.unwrap_or(0.9), o.minor_radius.unwrap_or(0.45), 64, 32).transformed(rot, pos, o.scale)),
+                "gltf" => {
+                    let p = o.path.as_deref().ok_or_else(|| err(path, format!("{}: a gltf object needs a path", at("path"))))?;
+                    Shape::Mesh(load_glb(&resolve(p))?.transformed(rot, pos, o.scale))
+                }
+                other => return Err(err(path, format!("{}: unknown shape '{other}' (sphere, plane, torus, gltf)", at("shape")))),
+            };
+            objects.push(Object { name: o.name.clone().unwrap_or_else(|| format!("{} {}", o.shape, i + 1)), material, shape, spec: o.clone() });
+        }
+        if objects.is_empty() {
+            return Err(err(path, "no [[object]] in the scene"));
+        }
+        Ok(Scene { path: path.to_path_buf(), file, objects, settings, environment })
+    }
+
+    /// The scene's G-buffer seen by its camera (perspective), `width x height`, row-major.
+    pub fn gbuffer(&self, width: usize, height: usize) -> Vec<Option<GPixel>> {
+        use rayon::prelude::*;
+        let c = &self.file.camera;
+        let eye = Vec3::from(c.position);
+        let fwd = (Vec3::from(c.target) - eye).normalize_or(Vec3::NEG_Z);
+        let right = fwd.cross(Vec3::Y).normalize_or(Vec3::X);
+        let up = right.cross(fwd);
+        let t = (0.5 * c.fov.clamp(1.0, 170.0).to_radians()).tan();
+        let aspect = width as f32 / height as f32;
+        (0..width * height)
+            .into_par_iter()
+            .map(|i| {
+                let (x, y) = ((i % width) as f32 + 0.5, (i / width) as f32 + 0.5);
+                let ndc_x = (2.0 * x / width as f32 - 1.0) * t * aspect;
+                let ndc_y = (1.0 - 2.0 * y / height as f32) * t;
+                let d = (fwd + right * ndc_x + up * ndc_y).normalize();
+                self.trace(eye, d).map(|(n, m)| GPixel { n, o: -d, material: m })
+            })
+            .collect()
+    }
+
+    /// Closest hit along the ray: shading normal (facing the ray) and material.
+    pub fn trace(&self, o: Vec3, d: Vec3) -> Option<(Vec3, Material)> {
+        let mut best = f32::INFINITY;
+        let mut hit = None;
+        for obj in &self.objects {
+            if let Some((t, n)) = obj.shape.intersect(o, d, best) {
+                best = t;
+                hit = Some((if n.dot(d) > 0.0 { -n } else { n }, obj.material));
+            }
+        }
+        hit
+    }
+}
+
+fn sampling_settings(path: &Path, s: &SamplingSpec) -> Result<Settings> {
+    let mut out = Settings::default();
+    let bad = |field: &str, v: &str, ok: &str| err(path, format!("[sampling] field `{field}`: '{v}' (expected {ok})"));
+    if let Some(v) = s.light_samples {
+        out.light_samples = v;
+    }
+    if let Some(v) = s.brdf_samples {
+        out.brdf_samples = v;
+    }
+    if let Some(v) = &s.strategy {
+        out.strategy = match v.as_str() {
+            "paper" => Strategy::Paper,
+            "global" => Strategy::Global,
+            "light" => Strategy::Light,
+            "brdf" => Strategy::Brdf,
+            _ => return Err(bad("strategy", v, "paper, global, light or brdf")),
+        };
+    }
+    if let Some(v) = &s.counts {
+        out.counts = match v.as_str() {
+            "fractional" => Counts::Fractional,
+            "integer" => Counts::Integer,
+            _ => return Err(bad("counts", v, "fractional or integer")),
+        };
+    }
+    if let Some(v) = &s.mis {
+        out.mis = match v.as_str() {
+            "balance" => Heuristic::Balance,
+            "power" => Heuristic::Power,
+            _ => return Err(bad("mis", v, "balance or power")),
+        };
+    }
+    out.seed = s.seed.unwrap_or(0);
+    out.pool_size = s.pool.unwrap_or(0);
+    out.pixel_offset = s.pixel_offset.unwrap_or(false);
+    out.material_budget = s.material_budget.unwrap_or(false);
+    out.validate().map_err(|e| err(path, format!("[sampling]: {e}")))?;
+    Ok(out)
+}
+
+/// The core material of a spec (clamped into the supported ranges).
+pub fn material(m: &MaterialSpec) -> std::result::Result<Material, String> {
+    let a = m.albedo.rgb();
+    if !a.is_finite() || a.min_element() < 0.0 {
+        return Err(format!("albedo {a} must be finite and >= 0"));
+    }
+    Ok(match m.kind.as_str() {
+        "diffuse" => Material { kd: a, ks: Vec3::ZERO, lobe: Lobe::None },
+        "phong" => Material { kd: Vec3::ZERO, ks: a, lobe: Lobe::Phong { exponent: m.exponent.unwrap_or(150.0).clamp(0.0, crate::sampling::brdf::MAX_EXPONENT) } },
+        "ggx" => Material { kd: Vec3::ZERO, ks: a, lobe: Lobe::Ggx { alpha: m.alpha.unwrap_or(0.2).clamp(crate::sampling::brdf::MIN_ALPHA, 1.0) } },
+        "mix" => {
+            let s = m.specular.unwrap_or(0.5).clamp(0.0, 1.0);
+            Material { kd: a * (1.0 - s), ks: a * s, lobe: Lobe::Ggx { alpha: m.alpha.unwrap_or(0.2).clamp(crate::sampling::brdf::MIN_ALPHA, 1.0) } }
+        }
+        other => return Err(format!("unknown type '{other}' (diffuse, phong, ggx, mix)")),
+    })
+}
+
+impl Shape {
+    /// Nearest intersection with `t` in `(1e-4, t_max)`: distance and geometric / shading normal.
+    pub fn intersect(&self, o: Vec3, d: Vec3, t_max: f32) -> Option<(f32, Vec3)> {
+        match self {
+            Shape::Sphere { center, radius } => {
+                let oc = o - *center;
+                let b = oc.dot(d);
+                let c = oc.length_squared() - radius * radius;
+                let disc = b * b - c;
+                if disc < 0.0 {
+                    return None;
+                }
+                let s = disc.sqrt();
+                let t = if -b - s > 1e-4 { -b - s } else { -b + s };
+                (t > 1e-4 && t < t_max).then(|| (t, (o + d * t - *center) / *radius))
+            }
+            Shape::Plane { center, normal, u, v, half } => {
+                let den = normal.dot(d);
+                if den.abs() < 1e-9 {
+                    return None;
+                }
+                let t = normal.dot(*center - o) / den;
+                if !(t > 1e-4 && t < t_max) {
+                    return None;
+                }
+                let p = o + d * t - *center;
+                (p.dot(*u).abs() <= *half && p.dot(*v).abs() <= *half).then_some((t, *normal))
+            }
+            Shape::Mesh(m) => m.intersect(o, d, t_max),
+        }
+    }
+}
+
+impl TriMesh {
+    fn transformed(mut self, rot: Quat, pos: Vec3, scale: f32) -> Self {
+        for p in &mut self.positions {
+            *p = rot * (*p * scale) + pos;
+        }
+        for n in &mut self.normals {
+            *n = (rot * *n).normalize_or_zero();
+        }
+        self
+    }
+
+    /// Möller-Trumbore over all triangles (after a bounding-sphere test); interpolated normal.
+    pub fn intersect(&self, o: Vec3, d: Vec3, t_max: f32) -> Option<(f32, Vec3)> {
+        let (c, r) = self.bounds();
+        let oc = o - c;
+        let b = oc.dot(d);
+        if b * b - (oc.length_squared() - r * r) < 0.0 {
+            return None;
+        }
+        let mut best = t_max;
+        let mut hit = None;
+        for tri in &self.indices {
+            let [a, bb, cc] = tri.map(|i| self.positions[i as usize]);
+            let (e1, e2) = (bb - a, cc - a);
+            let p = d.cross(e2);
+            let det = e1.dot(p);
+            if det.abs() < 1e-12 {
+                continue;
+            }
+            let inv = 1.0 / det;
+            let s = o - a;
+            let u = s.dot(p) * inv;
+            if !(0.0..=1.0).contains(&u) {
+                continue;
+            }
+            let q = s.cross(e1);
+            let v = d.dot(q) * inv;
+            if v < 0.0 || u + v > 1.0 {
+                continue;
+            }
+            let t = e2.dot(q) * inv;
+            if t > 1e-4 && t < best {
+                best = t;
+                let [na, nb, nc] = tri.map(|i| self.normals[i as usize]);
+                let n = (na * (1.0 - u - v) + nb * u + nc * v).normalize_or(e1.cross(e2).normalize_or_zero());
+                hit = Some((t, n));
+            }
+        }
+        hit
+    }
+
+    fn bounds(&self) -> (Vec3, f32) {
+        let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        for p in &self.positions {
+            lo = lo.min(*p);
+            hi = hi.max(*p);
+        }
+        let c = 0.5 * (lo + hi);
+        (c, (hi - c).length() + 1e-4)
+    }
+}
+
+/// A torus around +Y: `major` ring radius, `minor` tube radius, `nu x nv` quads.
+pub fn torus_mesh(major: f32, minor: f32, nu: u32, nv: u32) -> TriMesh {
+    let mut m = TriMesh::default();
+    for i in 0..nu {
+        let a = i as f32 / nu as f32 * std::f32::consts::TAU;
+        for j in 0..nv {
+            let b = j as f32 / nv as f32 * std::f32::consts::TAU;
+            let ring = Vec3::new(a.cos(), 0.0, a.sin());
+            let n = ring * b.cos() + Vec3::Y * b.sin();
+            m.positions.push(ring * major + n * minor);
+            m.normals.push(n);
+        }
+    }
+    let idx = |i: u32, j: u32| (i % nu) * nv + (j % nv);
+    for i in 0..nu {
+        for j in 0..nv {
+            let (a, b, c, d) = (idx(i, j), idx(i + 1, j), idx(i + 1, j + 1), idx(i, j + 1));
+            m.indices.push([a, c, b]);
+            m.indices.push([a, d, c]);
+        }
+    }
+    m
+}
+
+/// The first mesh primitive of a binary glTF (`.glb`): float32 POSITION and NORMAL, u8/u16/u32
+/// indices (or none). Enough for the meshes envis ships; errors name the file.
+pub fn load_glb(path: &Path) -> Result<TriMesh> {
+    let bytes = std::fs::read(path).map_err(|e| err(path, format!("cannot open: {e}")))?;
+    let bad = |m: &str| err(path, format!("not a usable binary glTF: {m}"));
+    if bytes.len() < 20 || &bytes[0..4] != b"glTF" {
+        return Err(bad("missing the glTF header"));
+    }
+    let u32_at = |o: usize| -> Result<u32> { bytes.get(o..o + 4).map(|b| u32::from_le_bytes(b.try_into().unwrap())).ok_or_else(|| bad("truncated")) };
+    let json_len = u32_at(12)? as usize;
+    if u32_at(16)? != 0x4E4F534A {
+        return Err(bad("first chunk is not JSON"));
+    }
+    let json: serde_json::Value = serde_json::from_slice(bytes.get(20..20 + json_len).ok_or_else(|| bad("truncated JSON chunk"))?).map_err(|e| bad(&format!("JSON: {e}")))?;
+    let bin_at = 20 + json_len;
+    let bin_len = u32_at(bin_at)? as usize;
+    let bin = bytes.get(bin_at + 8..bin_at + 8 + bin_len).ok_or_else(|| bad("truncated BIN chunk"))?;
+    let prim = &json["meshes"][0]["primitives"][0];
+    let accessor = |i: &serde_json::Value| -> Result<(Vec<u8>, usize, u64, String)> {
+        let a = &json["accessors"][i.as_u64().ok_or_else(|| bad("accessor index"))? as usize];
+        let view = &json["bufferViews"][a["bufferView"].as_u64().ok_or_else(|| bad("sparse or missing bufferView"))? as usize];
+        let count = a["count"].as_u64().ok_or_else(|| bad("accessor count"))? as usize;
+        let ctype = a["componentType"].as_u64().unwrap_or(0);
+        let kind = a["type"].as_str().unwrap_or("").to_string();
+        let comps = match kind.as_str() {
+            "SCALAR" => 1,
+            "VEC3" => 3,
+            _ => return Err(bad(&format!("accessor type {kind}"))),
+        };
+        let csize = match ctype {
+            5121 => 1,
+            5123 => 2,
+            5125 | 5126 => 4,
+            _ => return Err(bad(&format!("component type {ctype}"))),
+        };
+        let stride = view["byteStride"].as_u64().map(|s| s as usize).unwrap_or(comps * csize);
+        let start = view["byteOffset"].as_u64().unwrap_or(0) as usize + a["byteOffset"].as_u64().unwrap_or(0) as usize;
+        let mut out = Vec::with_capacity(count * comps * csize);
+        for k in 0..count {
+            let o = start + k * stride;
+            out.extend_from_slice(bin.get(o..o + comps * csize).ok_or_else(|| bad("accessor out of the buffer"))?);
+        }
+        Ok((out, count, ctype, kind))
+    };
+    let vec3s = |name: &str| -> Result<Vec<Vec3>> {
+        let (b, n, ctype, kind) = accessor(&prim["attributes"][name])?;
+        if ctype != 5126 || kind != "VEC3" {
+            return Err(bad(&format!("{name} must be float32 VEC3")));
+        }
+        Ok((0..n).map(|k| Vec3::from_array(std::array::from_fn(|c| f32::from_le_bytes(b[12 * k + 4 * c..12 * k + 4 * c + 4].try_into().unwrap())))).collect())
+    };
+    let positions = vec3s("POSITION")?;
+    let normals = vec3s("NORMAL")?;
+    let flat: Vec<u32> = if prim["indices"].is_null() {
+        (0..positions.len() as u32).collect()
+    } else {
+        let (b, n, ctype, _) = accessor(&prim["indices"])?;
+        match ctype {
+            5121 => b.iter().map(|&x| x as u32).collect(),
+            5123 => (0..n).map(|k| u16::from_le_bytes([b[2 * k], b[2 * k + 1]]) as u32).collect(),
+            _ => (0..n).map(|k| u32::from_le_bytes(b[4 * k..4 * k + 4].try_into().unwrap())).collect(),
+        }
+    };
+    if flat.iter().any(|&i| i as usize >= positions.len()) || normals.len() != positions.len() || flat.len() % 3 != 0 {
+        return Err(bad("indices or normals do not match the positions"));
+    }
+    Ok(TriMesh { positions, normals: normals.into_iter().map(|n| n.normalize_or(Vec3::Y)).collect(), indices: flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect() })
+}
