@@ -11,6 +11,7 @@
 //! Suite `offset`: the effect of the per-pixel random start offset into the pool (`DIR/bench-offset.json`).
 //!
 //! Suite `gpu`: per-pass GPU times next to their CPU twins (see [`gpu`]).
+//! Suite `scene`: per-frame cost of a static diffuse scene vs a dynamic glossy one (see [`gpu::scenes`]).
 //!
 //! Suite `accuracy`: error vs time over strategies, budgets, materials and maps (see [`accuracy`]).
 
@@ -83,9 +84,11 @@ pub fn run(a: BenchArgs) -> Result<()> {
         "popping" => popping(a, dir),
         #[cfg(feature = "gpu")]
         "gpu" => gpu::run(a, dir),
+        #[cfg(feature = "gpu")]
+        "scene" => gpu::scenes(a, dir),
         #[cfg(not(feature = "gpu"))]
         "gpu" => Err(Error::invalid("bench suite 'gpu': this envis was built without the `gpu` feature")),
-        other => Err(Error::invalid(format!("unknown bench suite '{other}' (available: speed, offset, accuracy, popping, gpu)"))),
+        other => Err(Error::invalid(format!("unknown bench suite '{other}' (available: speed, offset, accuracy, popping, gpu, scene)"))),
     }
 }
 
