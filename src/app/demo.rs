@@ -52,6 +52,8 @@ pub fn run(opts: DemoOptions) -> AppExit {
     .insert_resource(EnvisSettings { sampling: opts.sampling, ..default() })
     .add_plugins((EnvMapStreamPlugin { source: opts.source.clone(), face_size: opts.face_size }, EnvMapSamplingPlugin, MisLightingPlugin))
     .add_plugins(EguiPlugin::default())
+    // Bevy's own per-pass GPU timings (its prepass writes the G-buffer) for the Timings panel.
+    .add_plugins(bevy::render::diagnostic::RenderDiagnosticsPlugin)
     .insert_resource(DemoState { debug: false, script: opts.script.clone(), face_size: opts.face_size, ..default() })
     .add_systems(Startup, setup_scene)
     .add_systems(Update, (orbit_camera, keys, pick_pixel, update_debug_view, draw_debug_samples).chain())
@@ -333,6 +335,7 @@ fn panel(
     mut objects: Query<&mut DemoObject>,
     mut materials: ResMut<Assets<StandardMaterial>>,
     windows: Query<&Window, With<PrimaryWindow>>,
+    diagnostics: Res<bevy::diagnostic::DiagnosticsStore>,
 ) -> Result {
     let ctx = contexts.ctx_mut()?.clone();
     let _ = time;
@@ -362,6 +365,19 @@ fn panel(
                 let budget = (settings.sampling.light_samples + settings.sampling.brdf_samples) as f64;
                 ui.label(format!("{:.1} FPS, sample budget {:.1} M samples/s", state.fps, px * budget * state.fps as f64 / 1e6));
                 ui.label(format!("builds {}, uploads {}, lighting passes {}", counters.get(|c| &c.builds), counters.get(|c| &c.uploads), counters.get(|c| &c.lighting_passes)));
+                ui.label("overlays run inside the lighting pass (no pass of their own)");
+                // Bevy's passes: the prepass writes the G-buffer.
+                let mut bevy_passes: Vec<(String, f64)> = diagnostics
+                    .iter()
+                    .filter(|d| d.path().as_str().starts_with("render/") && d.path().as_str().ends_with("/elapsed_gpu"))
+                    .filter_map(|d| d.smoothed().map(|v| (d.path().as_str().trim_start_matches("render/").trim_end_matches("/elapsed_gpu").to_string(), v)))
+                    .collect();
+                bevy_passes.sort_by(|a, b| b.1.total_cmp(&a.1));
+                egui::CollapsingHeader::new(format!("Bevy passes ({})", bevy_passes.len())).show(ui, |ui| {
+                    for (name, ms) in bevy_passes.iter().take(12) {
+                        ui.label(format!("{name}: {ms:.3} ms GPU"));
+                    }
+                });
             });
             for m in stream.log.iter().rev().take(3) {
                 ui.colored_label(egui::Color32::from_rgb(255, 170, 60), m);
@@ -437,6 +453,7 @@ fn sampling_ui(ui: &mut egui::Ui, settings: &mut EnvisSettings) {
         ui.add(egui::DragValue::new(&mut s.seed).prefix("seed "));
         ui.checkbox(&mut s.pixel_offset, "per-pixel pool offset");
     });
+    ui.checkbox(&mut s.material_budget, "material budget (diffuse: light only, mirror: BRDF only)");
     let frame = settings.frame;
     ui.horizontal(|ui| {
         ui.checkbox(&mut settings.accumulate, "accumulate over frames");
@@ -622,6 +639,7 @@ fn run_script(
                 "builds": counters.get(|c| &c.builds),
                 "uploads": counters.get(|c| &c.uploads),
                 "lighting_passes": counters.get(|c| &c.lighting_passes),
+                "overlay_passes": counters.get(|c| &c.overlay_passes),
                 "probe": state.pixel.as_ref().map(|(d, g, gpu)| serde_json::json!({
                     "normal": g.n, "gpu_estimate": gpu, "cpu_estimate": d.estimate,
                     "red": d.samples.iter().filter(|s| s.kind == SampleKind::Discarded).count(),

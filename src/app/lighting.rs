@@ -322,6 +322,9 @@ fn mis_lighting(
         pipes.probe_read.copy_from(enc, &pipes.probe);
     }
     counters.bump(|c| &c.lighting_passes);
+    if settings.overlay != Overlay::None {
+        counters.bump(|c| &c.overlay_passes);
+    }
     let ms = t0.elapsed().as_secs_f64() * 1e3;
     timings.set(|t| t.lighting_cpu_ms = Some(ms));
 }

@@ -53,6 +53,9 @@ pub struct EnvisSettings {
     pub frame: u32,
     /// Changes whenever something the image depends on changed outside the settings (materials).
     pub scene_revision: u32,
+    /// Rebuild the distribution and pool every frame even when nothing changed (the always-on
+    /// path the skipping is tested against; off in normal use).
+    pub always_rebuild: bool,
 }
 
 impl EnvisSettings {
@@ -93,7 +96,7 @@ pub fn track_accumulation(mut settings: ResMut<EnvisSettings>, cams: Query<&Glob
 
 impl Default for EnvisSettings {
     fn default() -> Self {
-        EnvisSettings { sampling: Settings::default(), exposure: 1.0, show_sky: true, overlay: Overlay::None, probe: None, accumulate: false, frame: 0, scene_revision: 0 }
+        EnvisSettings { sampling: Settings::default(), exposure: 1.0, show_sky: true, overlay: Overlay::None, probe: None, accumulate: false, frame: 0, scene_revision: 0, always_rebuild: false }
     }
 }
 
@@ -149,6 +152,9 @@ pub struct Counters {
     pub allocations: AtomicU64,
     /// Lighting passes recorded (one per camera per frame).
     pub lighting_passes: AtomicU64,
+    /// Lighting passes that ran an overlay (the overlay is a branch of the lighting pass: with
+    /// overlays off this stays 0 and no overlay code runs).
+    pub overlay_passes: AtomicU64,
 }
 
 /// Handle to the shared [`Counters`] (present in both worlds).

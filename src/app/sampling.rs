@@ -86,6 +86,9 @@ pub fn prepare_env_sampler(
         state.seed = Some(seed);
         state.dirty = true;
     }
+    if settings.always_rebuild {
+        state.dirty = true;
+    }
     if state.dirty {
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         timings.set(|t| t.build_cpu_ms = Some(ms));

@@ -93,6 +93,9 @@ fn demo_scripted_under_xvfb() {
     let t = &r["timings_ms"];
     assert!(t["lighting_cpu_ms"].as_f64().is_some_and(|x| x > 0.0) && t["build_cpu_ms"].as_f64().is_some(), "{r}");
     assert!(r["lighting_passes"].as_u64().unwrap() >= 50, "{r}");
+    // Overlays were on for three steps (and only then).
+    let ov = r["overlay_passes"].as_u64().unwrap();
+    assert!(ov >= 3 && ov < r["lighting_passes"].as_u64().unwrap(), "{r}");
     assert!(r["builds"].as_u64().unwrap() <= 3, "a paused sky must not be rebuilt every frame: {r}");
     let p = &r["probe"];
     let total: u64 = ["red", "green", "yellow"].iter().map(|k| p[k].as_u64().unwrap()).sum();
