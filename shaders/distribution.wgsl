@@ -39,9 +39,6 @@ struct Params {
 
 const TOTALS_COLUMNS: u32 = 8u;
 
-const WG: u32 = 256u;
-var<workgroup> partial: array<f32, 256>;
-
 @compute @workgroup_size(256)
 fn texel_weights(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>, @builtin(local_invocation_index) t: u32) {
     let i = (wg.x + wg.y * nwg.x) * WG + t;
@@ -58,23 +55,6 @@ fn texel_weights(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) 
         texels[i] = vec4(c, 0.0);
     }
     weights[i] = max(luminance(c), 0.0) * solid_angle[i % nn];
-}
-
-// Inclusive scan of partial[] across the workgroup (Hillis-Steele); returns the exclusive prefix of
-// thread t. Call from uniform control flow.
-fn scan_partials(t: u32, s: f32) -> f32 {
-    partial[t] = s;
-    workgroupBarrier();
-    for (var off = 1u; off < WG; off = off << 1u) {
-        var v = partial[t];
-        if (t >= off) {
-            v += partial[t - off];
-        }
-        workgroupBarrier();
-        partial[t] = v;
-        workgroupBarrier();
-    }
-    return partial[t] - s;
 }
 
 @compute @workgroup_size(256)

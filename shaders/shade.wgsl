@@ -37,6 +37,8 @@ fn budget_for(mat: Material, nl: u32, nb: u32) -> vec2<u32> {
 const STRATEGY_PAPER: u32 = 0u;
 const STRATEGY_LIGHT: u32 = 1u;
 const STRATEGY_BRDF: u32 = 2u;
+// One lat-long distribution for the whole sphere (global_layout.wgsl), N_L samples per pixel.
+const STRATEGY_GLOBAL: u32 = 3u;
 
 // One G-buffer texel: normal (w = 1 where there is geometry), view direction, kd (w = lobe kind),
 // ks (w = Phong exponent or GGX alpha).
@@ -81,7 +83,31 @@ fn shade_counts(px: GPixel, pixel_index: u32, counts: u32) -> Shaded {
     let m = sp.m;
     var density: array<f32, 6>;
 
-    if (sp.strategy != STRATEGY_BRDF) {
+    if (sp.strategy == STRATEGY_GLOBAL) {
+        res.stats.x = nl;
+        for (var j = 0u; j < nl; j++) {
+            let u1 = rng_next_f32(&rng);
+            let u2 = rng_next_f32(&rng);
+            let gs = global_sample(size, vec2(u1, u2));
+            if (gs.w <= 0.0) {
+                continue;
+            }
+            let cosv = dot(n, gs.xyz);
+            if (cosv <= 0.0) {
+                res.stats.z += 1u;
+                continue;
+            }
+            res.stats.y += 1u;
+            let il = to_local(fr, gs.xyz);
+            var n_b = 0.0;
+            if (nb > 0u) {
+                n_b = nb_f * brdf_pdf(mat, ol, il);
+            }
+            let hit = dir_to_texel(gs.xyz, size);
+            let radiance = texels[(hit.face * size + hit.row) * size + hit.col].xyz;
+            sum += brdf_eval(mat, ol, il) * radiance * (cosv * mis_weight_over_density(sp.mis, f32(nl) * gs.w, n_b));
+        }
+    } else if (sp.strategy != STRATEGY_BRDF) {
         res.stats.x = 6u * m;
         var energy: array<f32, 6>;
         for (var f = 0u; f < 6u; f++) {
@@ -140,6 +166,8 @@ fn shade_counts(px: GPixel, pixel_index: u32, counts: u32) -> Shaded {
         var n_l = 0.0;
         if (sp.strategy == STRATEGY_PAPER) {
             n_l = density[hit.face] * t.w * (q * sqrt(q));
+        } else if (sp.strategy == STRATEGY_GLOBAL) {
+            n_l = f32(nl) * global_pdf(size, d);
         }
         sum += brdf_eval(mat, ol, il) * t.xyz * (il.z * mis_weight_over_density(sp.mis, nb_f * bs.w, n_l));
     }

@@ -394,9 +394,6 @@ fn run(cli: Cli) -> Result<()> {
             if scene.is_some() && matches!(r.backend, BackendArg::Gpu) {
                 return Err(Error::invalid("--backend gpu renders the sphere scene; render scene files with --backend cpu or wgpu, or open them in the demo (envis --scene FILE)"));
             }
-            if !matches!(r.backend, BackendArg::Cpu) && settings.strategy == Strategy::Global {
-                return Err(Error::invalid("--strategy global is CPU only (one lat-long distribution); the GPU backends have paper, light and brdf"));
-            }
             let (mut out, extra) = match r.backend {
                 BackendArg::Cpu => (render::render(&env.cube, &gbuf, size, size, &settings)?, serde_json::json!({ "backend": "cpu" })),
                 BackendArg::Wgpu => render_wgpu(&env.cube, &gbuf, size, &settings)?,

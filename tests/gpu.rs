@@ -114,6 +114,40 @@ fn gpu_distribution_matches_cpu() {
     }
 }
 
+/// The `global` baseline's build: the GPU's lat-long CDFs and pdf table equal the CPU twin's.
+#[test]
+fn gpu_global_distribution_matches_cpu() {
+    let Some(ctx) = gpu() else { return };
+    for (name, map) in stage_maps(16) {
+        let mut s = EnvSampler::new(ctx, map.size, 4).unwrap();
+        s.enable_global(&ctx.device, &ctx.queue).unwrap();
+        s.upload(&ctx.queue, &map);
+        ctx.wait(s.run(ctx, 1)).unwrap();
+        let g = s.read_global(ctx).unwrap();
+        let cpu = GlobalDistribution::build(&map);
+        let (w, h) = (cpu.width, cpu.height);
+        assert_eq!(g.len(), envis::gpu::sampler::global_len(map.size));
+        for (y, &v) in g[..h + 1].iter().enumerate() {
+            assert!((v - cpu.marginal.cdf[y]).abs() < 1e-5, "{name}: marginal[{y}] gpu {v} cpu {}", cpu.marginal.cdf[y]);
+        }
+        let rows = h + 1;
+        for y in 0..h {
+            for x in 0..=w {
+                let (a, b) = (g[rows + y * (w + 1) + x], cpu.conditional[y].cdf[x]);
+                assert!((a - b).abs() < 1e-5, "{name}: row {y} cdf[{x}] gpu {a} cpu {b}");
+            }
+        }
+        let pdf = rows + h * (w + 1);
+        for y in 0..h {
+            for x in 0..w {
+                let want = cpu.marginal.bin_pmf(y) as f64 * cpu.conditional[y].bin_pmf(x) as f64 * (w * h) as f64;
+                let got = g[pdf + y * w + x] as f64;
+                assert!(rel(got, want) < 1e-4, "{name}: p(u,v) cell ({x},{y}) gpu {got} cpu {want}");
+            }
+        }
+    }
+}
+
 /// The pool stage alone: the CPU twin draws the pool from the GPU's own tables, so every sample
 /// must match (same hashes, same binary search); the only allowed difference is float rounding.
 #[test]
@@ -154,6 +188,7 @@ fn gpu_render_matches_cpu_same_seed() {
         (Strategy::Paper, Counts::Integer, Heuristic::Power, true),
         (Strategy::Light, Counts::Fractional, Heuristic::Balance, false),
         (Strategy::Brdf, Counts::Fractional, Heuristic::Balance, false),
+        (Strategy::Global, Counts::Fractional, Heuristic::Power, false),
     ];
     for (mname, mat) in mats {
         let gbuf = sphere_gbuffer(size, size, mat);
@@ -299,9 +334,18 @@ fn cli_gpu_backends() {
     if means.len() > 2 {
         assert!(rel(means[2], means[0]) < 0.03, "gpu (bevy) {} vs cpu {}", means[2], means[0]);
     }
-    // `global` is refused on the GPU backends with a one-line error.
-    let o = std::process::Command::new(env!("CARGO_BIN_EXE_envis")).args(["render", "--backend", "wgpu", "--strategy", "global", "--out", "/tmp/x.exr"]).output().unwrap();
-    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("CPU only"));
+    // `global` runs on the GPU too.
+    let (a, b) = (dir.join("g-cpu.exr"), dir.join("g-wgpu.exr"));
+    for (be, out) in [("cpu", &a), ("wgpu", &b)] {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_envis"))
+            .args(["render", "--size", "32", "--face-size", "16", "--strategy", "global", "--backend", be])
+            .arg("--out")
+            .arg(out)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "global on {be}: {}", String::from_utf8_lossy(&o.stderr));
+    }
+    assert!(rel(read_exr_mean(&a), read_exr_mean(&b)) < 1e-3);
 }
 
 #[cfg(feature = "app")]

@@ -260,10 +260,7 @@ fn pick_pixel(mut contexts: EguiContexts, buttons: Res<ButtonInput<MouseButton>>
 /// Recompute the CPU twin's view of the probed pixel when the probe, the frame or the settings change.
 fn update_debug_view(frame: Res<EnvFrame>, settings: Res<EnvisSettings>, probe: Res<EnvisProbe>, mut state: ResMut<DemoState>) {
     let Some(p) = *probe.lock().expect("probe") else { return };
-    let mut s = settings.sampling;
-    if s.strategy == Strategy::Global {
-        s.strategy = Strategy::Paper;
-    }
+    let s = settings.sampling;
     let key = (frame.generation, p.pixel_index, s.light_samples, s.pool_per_face());
     let stale_frame = state.frame.as_ref().is_none_or(|(g, fs, _)| *g != frame.generation || *fs != s);
     if stale_frame {
@@ -435,7 +432,7 @@ fn sampling_ui(ui: &mut egui::Ui, settings: &mut EnvisSettings) {
     }
     ui.horizontal(|ui| {
         ui.label("strategy");
-        for st in [Strategy::Paper, Strategy::Light, Strategy::Brdf] {
+        for st in [Strategy::Paper, Strategy::Global, Strategy::Light, Strategy::Brdf] {
             ui.selectable_value(&mut s.strategy, st, st.name());
         }
     });

@@ -138,6 +138,7 @@ impl LightingPipelines {
                 e(6, buf(BB::Uniform)),
                 e(7, buf(BB::Storage { read_only: false })),
                 e(8, buf(BB::Storage { read_only: false })),
+                e(9, buf(BB::Storage { read_only: true })),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("envis lighting"), bind_group_layouts: &[Some(&layout)], immediate_size: 0 });
@@ -244,8 +245,8 @@ fn mis_lighting(
     let (Some(pipes), Some(sampler)) = (pipes, state.sampler.as_ref()) else { return };
     let (Some(depth), Some(deferred)) = (prepass.depth_view(), prepass.deferred_view()) else { return };
     let mut s = settings.sampling;
-    if s.strategy == Strategy::Global {
-        s.strategy = Strategy::Paper; // `global` is CPU only; the panel does not offer it
+    if s.strategy == Strategy::Global && !sampler.has_global() {
+        return; // its distribution is built from the next frame on
     }
     if s.light_samples + s.brdf_samples == 0 {
         s.light_samples = 1;
@@ -294,6 +295,7 @@ fn mis_lighting(
             wgpu::BindGroupEntry { binding: 6, resource: vbuf.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 7, resource: pipes.probe.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 8, resource: accum.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 9, resource: sampler.gdist.as_entire_binding() },
         ],
     });
     let probing = settings.probe.is_some() && pipes.probe_read.ready();

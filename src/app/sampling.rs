@@ -73,6 +73,13 @@ pub fn prepare_env_sampler(
         }
     }
     let state = &mut *state;
+    if settings.sampling.strategy == crate::render::Strategy::Global && state.sampler.as_ref().is_some_and(|s| !s.has_global()) {
+        let s = state.sampler.as_mut().expect("allocated above");
+        match s.enable_global(device.wgpu_device(), &queue) {
+            Ok(()) => state.dirty = true,
+            Err(e) => error!("envis: {e}"),
+        }
+    }
     let sampler = state.sampler.as_ref().expect("allocated above");
     if state.uploaded != Some(frame.generation) {
         sampler.upload(&queue, &frame.map);

@@ -17,7 +17,7 @@ pub use sampler::{EnvSampler, GpuTables};
 pub use shading::{GpuGPixel, Shader};
 
 use crate::envmap::CubeMap;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::render::{GPixel, PixelStats, RenderStats, Rendered, Settings, Strategy};
 use glam::Vec3;
 
@@ -49,12 +49,12 @@ pub struct GpuTimings {
 /// the same random streams, so the images agree to float rounding).
 pub fn render_gpu(ctx: &GpuContext, map: &CubeMap, gbuf: &[Option<GPixel>], width: usize, height: usize, s: &Settings) -> Result<(Rendered, GpuTimings)> {
     s.validate()?;
-    if s.strategy == Strategy::Global {
-        return Err(Error::invalid("strategy `global` (one lat-long distribution) is CPU only; the GPU backend has paper, light and brdf"));
-    }
     assert_eq!(gbuf.len(), width * height);
     let m = s.pool_per_face();
-    let sampler = EnvSampler::new(ctx, map.size, m)?;
+    let mut sampler = EnvSampler::new(ctx, map.size, m)?;
+    if s.strategy == Strategy::Global {
+        sampler.enable_global(&ctx.device, &ctx.queue)?;
+    }
     sampler.upload(&ctx.queue, map);
     let shader = Shader::new(ctx);
     let pixels: Vec<GpuGPixel> = gbuf.iter().map(GpuGPixel::from).collect();

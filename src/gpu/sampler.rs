@@ -20,6 +20,20 @@ struct Params {
 /// Offset of the column totals in the `totals` buffer (face energies come first).
 pub const TOTALS_COLUMNS: usize = 8;
 
+/// Floats in the `global` distribution buffer for N x N faces (`glen` in global_layout.wgsl):
+/// `[marg: h + 1][rows: h (w + 1)][pdf: w h][rowtot: h][misc: 4]`, `w = 4N`, `h = 2N`.
+pub fn global_len(n: usize) -> usize {
+    let (w, h) = (4 * n, 2 * n);
+    (h + 1) + h * (w + 1) + w * h + h + 4
+}
+
+/// The `global` baseline's build: its own bind group (texels, the distribution, N).
+struct GlobalBuild {
+    bind_group: wgpu::BindGroup,
+    pipelines: [wgpu::ComputePipeline; 6],
+    _params: wgpu::Buffer,
+}
+
 /// GPU buffers and pipelines of the per-frame build for faces of `n x n` texels and `m` pool
 /// samples per face. Re-create it when `n` or `m` change; re-upload and re-encode every frame.
 pub struct EnvSampler {
@@ -35,10 +49,13 @@ pub struct EnvSampler {
     /// Two `vec4` per sample: `(dir, pdf)`, `(radiance, 0)`.
     pub pool: wgpu::Buffer,
     pub problems: wgpu::Buffer,
+    /// The `global` distribution (a 16-byte placeholder until [`Self::enable_global`]).
+    pub gdist: wgpu::Buffer,
     params: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
     pipelines: [wgpu::ComputePipeline; 5],
     timer: Option<super::shading::PassTimer>,
+    global: Option<GlobalBuild>,
 }
 
 fn storage(device: &wgpu::Device, label: &str, size: u64) -> wgpu::Buffer {
@@ -124,7 +141,56 @@ impl EnvSampler {
         };
         let pipelines = [pipe("texel_weights"), pipe("column_cdfs"), pipe("marginal_cdfs"), pipe("pdf_table"), pipe("build_pool")];
         let timer = timestamps.then(|| super::shading::PassTimer::new(device, "envis build timer"));
-        Ok(EnvSampler { n, m, texels, weights, cond_cdf, totals, marg_cdf, pool, problems, params, bind_group, pipelines, timer })
+        let gdist = storage(device, "envis global placeholder", 16);
+        Ok(EnvSampler { n, m, texels, weights, cond_cdf, totals, marg_cdf, pool, problems, gdist, params, bind_group, pipelines, timer, global: None })
+    }
+
+    /// Also build the `global` baseline's lat-long distribution (4N x 2N cells) every frame.
+    pub fn enable_global(&mut self, device: &wgpu::Device, queue: &wgpu::Queue) -> Result<()> {
+        if self.global.is_some() {
+            return Ok(());
+        }
+        let bytes = global_len(self.n) as u64 * 4;
+        check_binding(&device.limits(), "the global distribution (4N x 2N cells)", bytes)?;
+        self.gdist = storage(device, "envis global distribution", bytes);
+        let params = device.create_buffer(&wgpu::BufferDescriptor { label: Some("envis global params"), size: 16, usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST, mapped_at_creation: false });
+        queue.write_buffer(&params, 0, bytemuck::cast_slice(&[self.n as u32, 0, 0, 0]));
+        let e = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer { ty, has_dynamic_offset: false, min_binding_size: None },
+            count: None,
+        };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("envis global layout"),
+            entries: &[e(0, wgpu::BufferBindingType::Storage { read_only: true }), e(1, wgpu::BufferBindingType::Storage { read_only: false }), e(2, wgpu::BufferBindingType::Uniform)],
+        });
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("envis global"),
+            layout: &layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: self.texels.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: self.gdist.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 2, resource: params.as_entire_binding() },
+            ],
+        });
+        let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("envis global"), bind_group_layouts: &[Some(&layout)], immediate_size: 0 });
+        let module = shaders::module(device, "envis global.wgsl", &shaders::global_source());
+        let pipe = |entry: &str| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor { label: Some(entry), layout: Some(&pl), module: &module, entry_point: Some(entry), compilation_options: Default::default(), cache: None })
+        };
+        let pipelines = [pipe("global_cells"), pipe("global_row_sums"), pipe("global_floor"), pipe("global_row_cdfs"), pipe("global_marginal"), pipe("global_pdf_table")];
+        self.global = Some(GlobalBuild { bind_group, pipelines, _params: params });
+        Ok(())
+    }
+
+    pub fn has_global(&self) -> bool {
+        self.global.is_some()
+    }
+
+    /// The `global` distribution buffer, read back (tests).
+    pub fn read_global(&self, ctx: &GpuContext) -> Result<Vec<f32>> {
+        ctx.read(&self.gdist, 0, if self.global.is_some() { global_len(self.n) } else { 4 })
     }
 
     /// Upload a frame's radiance (the `w` channel is written by the build).
@@ -166,6 +232,16 @@ impl EnvSampler {
             grid(&mut pass, &self.pipelines[2], (6, 1));
             grid(&mut pass, &self.pipelines[3], dispatch_size(texels, 256));
             grid(&mut pass, &self.pipelines[4], dispatch_size(6 * self.m as u32, 64));
+            if let Some(g) = &self.global {
+                let (w, h) = (4 * n, 2 * n);
+                pass.set_bind_group(0, &g.bind_group, &[]);
+                grid(&mut pass, &g.pipelines[0], dispatch_size(w * h, 256));
+                grid(&mut pass, &g.pipelines[1], (h, 1));
+                grid(&mut pass, &g.pipelines[2], (1, 1));
+                grid(&mut pass, &g.pipelines[3], (h, 1));
+                grid(&mut pass, &g.pipelines[4], (1, 1));
+                grid(&mut pass, &g.pipelines[5], dispatch_size(w * h, 256));
+            }
         }
     }
 

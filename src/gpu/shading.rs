@@ -55,7 +55,7 @@ impl ShadeParams {
             Strategy::Paper => (s.light_samples, s.brdf_samples, 0),
             Strategy::Light => (s.light_samples + s.brdf_samples, 0, 1),
             Strategy::Brdf => (0, s.light_samples + s.brdf_samples, 2),
-            Strategy::Global => unreachable!("refused by render_gpu"),
+            Strategy::Global => (s.light_samples, s.brdf_samples, 3),
         };
         ShadeParams {
             n: n as u32,
@@ -144,7 +144,7 @@ impl Shader {
         let rw = wgpu::BufferBindingType::Storage { read_only: false };
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("envis shade layout"),
-            entries: &[e(0, ro), e(1, ro), e(2, ro), e(3, ro), e(4, rw), e(5, rw), e(6, wgpu::BufferBindingType::Uniform)],
+            entries: &[e(0, ro), e(1, ro), e(2, ro), e(3, ro), e(4, rw), e(5, rw), e(6, wgpu::BufferBindingType::Uniform), e(7, ro)],
         });
         let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("envis shade"), bind_group_layouts: &[Some(&layout)], immediate_size: 0 });
         let module = shaders::module(device, "envis shade.wgsl", &shaders::shade_source());
@@ -191,6 +191,7 @@ impl Shader {
                 wgpu::BindGroupEntry { binding: 4, resource: color.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 5, resource: stats.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 6, resource: self.params.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 7, resource: sampler.gdist.as_entire_binding() },
             ],
         });
         let mut enc = ctx.device.create_command_encoder(&Default::default());
