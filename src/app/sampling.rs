@@ -23,6 +23,7 @@ pub struct EnvSamplingState {
     /// Last allocation error, reported once.
     failed: Option<(usize, usize)>,
     timer: Option<AsyncTimer>,
+    pool_timer: Option<AsyncTimer>,
 }
 
 pub struct EnvMapSamplingPlugin;
@@ -54,6 +55,9 @@ pub fn prepare_env_sampler(
     if let Some(ms) = state.timer.as_ref().and_then(|t| t.poll()) {
         timings.set(|t| t.build_gpu_ms = Some(ms));
     }
+    if let Some(ms) = state.pool_timer.as_ref().and_then(|t| t.poll()) {
+        timings.set(|t| t.pool_gpu_ms = Some(ms));
+    }
     let (n, m) = (frame.map.size, settings.sampling.pool_per_face());
     if state.sampler.as_ref().is_none_or(|s| s.n != n || s.m != m) {
         if state.failed == Some((n, m)) {
@@ -62,7 +66,8 @@ pub fn prepare_env_sampler(
         match EnvSampler::with_device(device.wgpu_device(), &queue, n, m, false) {
             Ok(s) => {
                 let timer = AsyncTimer::new(device.wgpu_device(), &queue, "envis build timer");
-                *state = EnvSamplingState { sampler: Some(s), timer, ..default() };
+                let pool_timer = AsyncTimer::new(device.wgpu_device(), &queue, "envis pool timer");
+                *state = EnvSamplingState { sampler: Some(s), timer, pool_timer, ..default() };
                 counters.bump(|c| &c.allocations);
             }
             Err(e) => {
@@ -110,9 +115,10 @@ pub fn build_env_distribution(mut ctx: RenderContext, mut state: ResMut<EnvSampl
     let t0 = std::time::Instant::now();
     if let Some(s) = &state.sampler {
         let timer = state.timer.as_ref().filter(|t| t.ready());
+        let pool_timer = state.pool_timer.as_ref().filter(|t| t.ready());
         let enc = ctx.command_encoder();
-        s.encode_with(enc, timer.map(|t| t.compute_writes()));
-        if let Some(t) = timer {
+        s.encode_with(enc, timer.map(|t| t.compute_writes()), pool_timer.map(|t| t.compute_writes()));
+        for t in [timer, pool_timer].into_iter().flatten() {
             t.resolve(enc);
         }
         counters.bump(|c| &c.builds);

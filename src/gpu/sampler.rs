@@ -55,6 +55,7 @@ pub struct EnvSampler {
     bind_group: wgpu::BindGroup,
     pipelines: [wgpu::ComputePipeline; 5],
     timer: Option<super::shading::PassTimer>,
+    pool_timer: Option<super::shading::PassTimer>,
     global: Option<GlobalBuild>,
 }
 
@@ -141,8 +142,9 @@ impl EnvSampler {
         };
         let pipelines = [pipe("texel_weights"), pipe("column_cdfs"), pipe("marginal_cdfs"), pipe("pdf_table"), pipe("build_pool")];
         let timer = timestamps.then(|| super::shading::PassTimer::new(device, "envis build timer"));
+        let pool_timer = timestamps.then(|| super::shading::PassTimer::new(device, "envis pool timer"));
         let gdist = storage(device, "envis global placeholder", 16);
-        Ok(EnvSampler { n, m, texels, weights, cond_cdf, totals, marg_cdf, pool, problems, gdist, params, bind_group, pipelines, timer, global: None })
+        Ok(EnvSampler { n, m, texels, weights, cond_cdf, totals, marg_cdf, pool, problems, gdist, params, bind_group, pipelines, timer, pool_timer, global: None })
     }
 
     /// Also build the `global` baseline's lat-long distribution (4N x 2N cells) every frame.
@@ -206,32 +208,33 @@ impl EnvSampler {
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
     }
 
-    /// Record the whole build (sanitise + weights, column CDFs, marginal CDFs, pdf table, pool)
-    /// as one compute pass: five dispatches, no CPU round trip.
+    /// Record the whole build as two compute passes, no CPU round trip: the distribution
+    /// (sanitise + weights, column CDFs, marginal CDFs, pdf table, and `global`'s when enabled),
+    /// then the light pool.
     pub fn encode(&self, enc: &mut wgpu::CommandEncoder) {
-        self.encode_with(enc, self.timer.as_ref().map(|t| t.writes()));
-        if let Some(t) = &self.timer {
+        self.encode_with(enc, self.timer.as_ref().map(|t| t.writes()), self.pool_timer.as_ref().map(|t| t.writes()));
+        for t in [&self.timer, &self.pool_timer].into_iter().flatten() {
             t.resolve(enc);
         }
     }
 
-    /// [`Self::encode`] with the caller's timestamp writes (the Bevy app times asynchronously).
-    pub fn encode_with(&self, enc: &mut wgpu::CommandEncoder, timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>) {
+    /// [`Self::encode`] with the caller's timestamp writes for the distribution pass and the pool
+    /// pass (the Bevy app times them asynchronously).
+    pub fn encode_with(&self, enc: &mut wgpu::CommandEncoder, dist_writes: Option<wgpu::ComputePassTimestampWrites<'_>>, pool_writes: Option<wgpu::ComputePassTimestampWrites<'_>>) {
         let n = self.n as u32;
         let texels = 6 * n * n;
         enc.clear_buffer(&self.problems, 0, None);
+        let grid = |pass: &mut wgpu::ComputePass, p: &wgpu::ComputePipeline, (x, y): (u32, u32)| {
+            pass.set_pipeline(p);
+            pass.dispatch_workgroups(x, y, 1);
+        };
         {
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("envis build"), timestamp_writes });
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("envis distribution"), timestamp_writes: dist_writes });
             pass.set_bind_group(0, &self.bind_group, &[]);
-            let grid = |pass: &mut wgpu::ComputePass, p: &wgpu::ComputePipeline, (x, y): (u32, u32)| {
-                pass.set_pipeline(p);
-                pass.dispatch_workgroups(x, y, 1);
-            };
             grid(&mut pass, &self.pipelines[0], dispatch_size(texels, 256));
             grid(&mut pass, &self.pipelines[1], dispatch_size(6 * n, 1));
             grid(&mut pass, &self.pipelines[2], (6, 1));
             grid(&mut pass, &self.pipelines[3], dispatch_size(texels, 256));
-            grid(&mut pass, &self.pipelines[4], dispatch_size(6 * self.m as u32, 64));
             if let Some(g) = &self.global {
                 let (w, h) = (4 * n, 2 * n);
                 pass.set_bind_group(0, &g.bind_group, &[]);
@@ -243,6 +246,11 @@ impl EnvSampler {
                 grid(&mut pass, &g.pipelines[5], dispatch_size(w * h, 256));
             }
         }
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("envis pool"), timestamp_writes: pool_writes });
+            pass.set_bind_group(0, &self.bind_group, &[]);
+            grid(&mut pass, &self.pipelines[4], dispatch_size(6 * self.m as u32, 64));
+        }
     }
 
     /// Headless: seed, encode, submit.
@@ -253,9 +261,15 @@ impl EnvSampler {
         ctx.queue.submit([enc.finish()])
     }
 
-    /// GPU milliseconds of the last build pass (when the device has timestamp queries).
+    /// GPU milliseconds of the last build, distribution + pool (when the device has timestamps).
     pub fn last_gpu_ms(&self, ctx: &GpuContext) -> Option<f64> {
-        self.timer.as_ref().and_then(|t| t.read_ms(ctx))
+        let (d, p) = self.last_gpu_ms_split(ctx);
+        Some(d? + p?)
+    }
+
+    /// GPU milliseconds of the last distribution pass and of the last pool pass.
+    pub fn last_gpu_ms_split(&self, ctx: &GpuContext) -> (Option<f64>, Option<f64>) {
+        (self.timer.as_ref().and_then(|t| t.read_ms(ctx)), self.pool_timer.as_ref().and_then(|t| t.read_ms(ctx)))
     }
 
     /// Texels clamped by the GPU sanitise pass of the last build.

@@ -78,7 +78,7 @@ fn bevy_builds_only_when_the_frame_changes() {
     let t = h.app.world().resource::<envis::app::EnvisTimings>().get();
     assert!(t.build_cpu_ms.is_some() && t.lighting_cpu_ms.is_some(), "{t:?}");
     if ctx.timestamps {
-        assert!(t.build_gpu_ms.is_some_and(|x| x > 0.0) && t.lighting_gpu_ms.is_some_and(|x| x > 0.0), "{t:?}");
+        assert!(t.build_gpu_ms.is_some_and(|x| x > 0.0) && t.pool_gpu_ms.is_some_and(|x| x > 0.0) && t.lighting_gpu_ms.is_some_and(|x| x > 0.0), "{t:?}");
     }
     let before = h.capture();
     // Move the sun: exactly one more upload + build, and the image changes.
