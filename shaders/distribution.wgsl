@@ -24,18 +24,21 @@ struct Params {
 @group(0) @binding(1) var<storage, read> solid_angle: array<f32>;
 // Per texel: w = Y * Omega.
 @group(0) @binding(2) var<storage, read_write> weights: array<f32>;
-// Per (face, column): n + 1 CDF values of rows, cdf[0] = 0, cdf[n] = 1.
-@group(0) @binding(3) var<storage, read_write> cond_cdf: array<f32>;
+// All CDFs, each n + 1 values with cdf[0] = 0, cdf[n] = 1: first per (face, column) the CDF of
+// rows (conditional), then from marg_base(n) per face the CDF of columns (marginal).
+@group(0) @binding(3) var<storage, read_write> cdfs: array<f32>;
 // Totals: [0, 8) face energies I_f (6 used), then per (face, column) the column total at 8 + f n + c.
 // (One buffer for both keeps the layout within 8 storage buffers per stage, WebGPU's default.)
 @group(0) @binding(4) var<storage, read_write> totals: array<f32>;
-// Per face: n + 1 CDF values of columns.
-@group(0) @binding(5) var<storage, read_write> marg_cdf: array<f32>;
 // Pool: per sample two vec4: (dir, pdf), (radiance, 0). Face-major: sample i of face f at f M + i.
-@group(0) @binding(6) var<storage, read_write> pool: array<vec4<f32>>;
+@group(0) @binding(5) var<storage, read_write> pool: array<vec4<f32>>;
 // Sanitise counters: NaN, Inf, negative, huge.
-@group(0) @binding(7) var<storage, read_write> problems: array<atomic<u32>, 4>;
-@group(0) @binding(8) var<uniform> params: Params;
+@group(0) @binding(6) var<storage, read_write> problems: array<atomic<u32>, 4>;
+@group(0) @binding(7) var<uniform> params: Params;
+
+fn marg_base(n: u32) -> u32 {
+    return 6u * n * (n + 1u);
+}
 
 const TOTALS_COLUMNS: u32 = 8u;
 
@@ -77,7 +80,7 @@ fn column_cdfs(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw
     let total = partial[WG - 1u];
     let base = col_id * (n + 1u);
     if (t == 0u) {
-        cond_cdf[base] = 0.0;
+        cdfs[base] = 0.0;
         totals[TOTALS_COLUMNS + col_id] = total;
     }
     for (var r = start; r < end; r++) {
@@ -86,7 +89,7 @@ fn column_cdfs(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw
         if (r + 1u == n) {
             v = 1.0;
         }
-        cond_cdf[base + r + 1u] = v;
+        cdfs[base + r + 1u] = v;
     }
 }
 
@@ -103,9 +106,9 @@ fn marginal_cdfs(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation
     }
     var acc = scan_partials(t, s);
     let total = partial[WG - 1u];
-    let base = f * (n + 1u);
+    let base = marg_base(n) + f * (n + 1u);
     if (t == 0u) {
-        marg_cdf[base] = 0.0;
+        cdfs[base] = 0.0;
         totals[f] = total;
     }
     for (var c = start; c < end; c++) {
@@ -114,7 +117,7 @@ fn marginal_cdfs(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation
         if (c + 1u == n) {
             v = 1.0;
         }
-        marg_cdf[base + c + 1u] = v;
+        cdfs[base + c + 1u] = v;
     }
 }
 
@@ -136,13 +139,13 @@ struct BinSample {
     i: u32,
     du: f32,
 }
-fn sample_cdf_cond(base: u32, n: u32, u: f32) -> BinSample {
+fn sample_cdf(base: u32, n: u32, u: f32) -> BinSample {
     // Count of cdf[0..n) values <= u (cdf[0] = 0 <= u always), by binary search.
     var lo = 0u;
     var len = n;
     while (len > 0u) {
         let half = len / 2u;
-        if (cond_cdf[base + lo + half] <= u) {
+        if (cdfs[base + lo + half] <= u) {
             lo = lo + half + 1u;
             len = len - half - 1u;
         } else {
@@ -150,26 +153,8 @@ fn sample_cdf_cond(base: u32, n: u32, u: f32) -> BinSample {
         }
     }
     let i = max(lo, 1u) - 1u;
-    let c0 = cond_cdf[base + i];
-    let w = cond_cdf[base + i + 1u] - c0;
-    let du = select(0.0, clamp((u - c0) / w, 0.0, ONE_MINUS_EPS), w > 0.0);
-    return BinSample(i, du);
-}
-fn sample_cdf_marg(base: u32, n: u32, u: f32) -> BinSample {
-    var lo = 0u;
-    var len = n;
-    while (len > 0u) {
-        let half = len / 2u;
-        if (marg_cdf[base + lo + half] <= u) {
-            lo = lo + half + 1u;
-            len = len - half - 1u;
-        } else {
-            len = half;
-        }
-    }
-    let i = max(lo, 1u) - 1u;
-    let c0 = marg_cdf[base + i];
-    let w = marg_cdf[base + i + 1u] - c0;
+    let c0 = cdfs[base + i];
+    let w = cdfs[base + i + 1u] - c0;
     let du = select(0.0, clamp((u - c0) / w, 0.0, ONE_MINUS_EPS), w > 0.0);
     return BinSample(i, du);
 }
@@ -201,8 +186,8 @@ fn build_pool(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgr
         return;
     }
     let p = pool_point(params.seed, f, i, m);
-    let cs = sample_cdf_marg(f * (n + 1u), n, p.x);
-    let rs = sample_cdf_cond((f * n + cs.i) * (n + 1u), n, p.y);
+    let cs = sample_cdf(marg_base(n) + f * (n + 1u), n, p.x);
+    let rs = sample_cdf((f * n + cs.i) * (n + 1u), n, p.y);
     let h = 2.0 / f32(n);
     let a = -1.0 + (f32(cs.i) + cs.du) * h;
     let b = -1.0 + (f32(rs.i) + rs.du) * h;

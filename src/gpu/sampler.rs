@@ -42,10 +42,11 @@ pub struct EnvSampler {
     /// Per texel `(r, g, b, pdf_area)`: radiance in, sanitised radiance + pdf table out.
     pub texels: wgpu::Buffer,
     pub weights: wgpu::Buffer,
-    pub cond_cdf: wgpu::Buffer,
+    /// All CDFs: per (face, column) the conditional over rows, then per face the marginal over
+    /// columns (each `n + 1` values).
+    pub cdfs: wgpu::Buffer,
     /// Face energies at `[0, 6)`, column totals from [`TOTALS_COLUMNS`].
     pub totals: wgpu::Buffer,
-    pub marg_cdf: wgpu::Buffer,
     /// Two `vec4` per sample: `(dir, pdf)`, `(radiance, 0)`.
     pub pool: wgpu::Buffer,
     pub problems: wgpu::Buffer,
@@ -90,14 +91,13 @@ impl EnvSampler {
         let texel_count = 6 * n * n;
         let limits = device.limits();
         check_binding(&limits, "the texel table (6 N^2 x 16 bytes)", texel_count as u64 * 16)?;
-        check_binding(&limits, "the conditional CDFs", (6 * n * (n + 1)) as u64 * 4)?;
+        check_binding(&limits, "the CDF tables", (6 * (n + 1) * (n + 1)) as u64 * 4)?;
         check_binding(&limits, "the light pool", (6 * m) as u64 * 32)?;
         let texels = storage(device, "envis texels", texel_count as u64 * 16);
         let solid_angle = storage(device, "envis solid angles", (n * n) as u64 * 4);
         let weights = storage(device, "envis weights", texel_count as u64 * 4);
-        let cond_cdf = storage(device, "envis cond cdf", (6 * n * (n + 1)) as u64 * 4);
+        let cdfs = storage(device, "envis cdfs", (6 * (n + 1) * (n + 1)) as u64 * 4);
         let totals = storage(device, "envis totals", (TOTALS_COLUMNS + 6 * n) as u64 * 4);
-        let marg_cdf = storage(device, "envis marg cdf", (6 * (n + 1)) as u64 * 4);
         let pool = storage(device, "envis pool", (6 * m) as u64 * 32);
         let problems = storage(device, "envis sanitise counters", 16);
         let params = device.create_buffer(&wgpu::BufferDescriptor {
@@ -114,15 +114,15 @@ impl EnvSampler {
             ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Storage { read_only }, has_dynamic_offset: false, min_binding_size: None },
             count: None,
         };
-        let mut entries: Vec<wgpu::BindGroupLayoutEntry> = (0..8).map(|b| st(b, b == 1)).collect();
+        let mut entries: Vec<wgpu::BindGroupLayoutEntry> = (0..7).map(|b| st(b, b == 1)).collect();
         entries.push(wgpu::BindGroupLayoutEntry {
-            binding: 8,
+            binding: 7,
             visibility: wgpu::ShaderStages::COMPUTE,
             ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
             count: None,
         });
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("envis build layout"), entries: &entries });
-        let bufs = [&texels, &solid_angle, &weights, &cond_cdf, &totals, &marg_cdf, &pool, &problems, &params];
+        let bufs = [&texels, &solid_angle, &weights, &cdfs, &totals, &pool, &problems, &params];
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("envis build bind group"),
             layout: &layout,
@@ -144,7 +144,7 @@ impl EnvSampler {
         let timer = timestamps.then(|| super::shading::PassTimer::new(device, "envis build timer"));
         let pool_timer = timestamps.then(|| super::shading::PassTimer::new(device, "envis pool timer"));
         let gdist = storage(device, "envis global placeholder", 16);
-        Ok(EnvSampler { n, m, texels, weights, cond_cdf, totals, marg_cdf, pool, problems, gdist, params, bind_group, pipelines, timer, pool_timer, global: None })
+        Ok(EnvSampler { n, m, texels, weights, cdfs, totals, pool, problems, gdist, params, bind_group, pipelines, timer, pool_timer, global: None })
     }
 
     /// Also build the `global` baseline's lat-long distribution (4N x 2N cells) every frame.
@@ -288,8 +288,8 @@ impl EnvSampler {
             n,
             m,
             weights: ctx.read(&self.weights, 0, 6 * n * n)?,
-            cond_cdf: ctx.read(&self.cond_cdf, 0, 6 * n * (n + 1))?,
-            marg_cdf: ctx.read(&self.marg_cdf, 0, 6 * (n + 1))?,
+            cond_cdf: ctx.read(&self.cdfs, 0, 6 * n * (n + 1))?,
+            marg_cdf: ctx.read(&self.cdfs, 6 * n * (n + 1), 6 * (n + 1))?,
             energies: std::array::from_fn(|f| totals[f]),
             col_totals: totals[TOTALS_COLUMNS..].to_vec(),
             radiance: texels.iter().map(|t| Vec3::new(t[0], t[1], t[2])).collect(),
