@@ -133,32 +133,6 @@ fn pdf_table(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg:
     texels[i].w = weights[i] * scale;
 }
 
-// Distribution1D::sample on cdf[base .. base + n + 1]: the largest bin i with cdf[i] <= u, and the
-// offset (u - cdf[i]) / (cdf[i+1] - cdf[i]) in [0, 1). Returns (i, du) with i as f32 bits.
-struct BinSample {
-    i: u32,
-    du: f32,
-}
-fn sample_cdf(base: u32, n: u32, u: f32) -> BinSample {
-    // Count of cdf[0..n) values <= u (cdf[0] = 0 <= u always), by binary search.
-    var lo = 0u;
-    var len = n;
-    while (len > 0u) {
-        let half = len / 2u;
-        if (cdfs[base + lo + half] <= u) {
-            lo = lo + half + 1u;
-            len = len - half - 1u;
-        } else {
-            len = half;
-        }
-    }
-    let i = max(lo, 1u) - 1u;
-    let c0 = cdfs[base + i];
-    let w = cdfs[base + i + 1u] - c0;
-    let du = select(0.0, clamp((u - c0) / w, 0.0, ONE_MINUS_EPS), w > 0.0);
-    return BinSample(i, du);
-}
-
 // sampling::pool::pool_point: Latin hypercube with hash permutations, (p + xi) / M kept below 1.
 fn pool_point(seed: u32, face: u32, i: u32, m: u32) -> vec2<f32> {
     let pu = permute(i, m, hash3(seed, face, 0x5eed0001u));

@@ -1,11 +1,11 @@
 // envis — the `global` baseline's per-frame build on the GPU (twin of sampling::global): one
 // piecewise-constant distribution over the whole sphere in lat-long (Mitsuba 3 convention) at
-// 4N x 2N cells for N x N cube faces. Needs common.wgsl, scan.wgsl and global_layout.wgsl.
+// 4N x 2N cells for N x N cube faces. Needs common.wgsl, scan.wgsl, cdf.wgsl and global_layout.wgsl.
 // Dispatch order: global_cells, global_row_sums, global_floor, global_row_cdfs, global_marginal,
 // global_pdf_table.
 
 @group(0) @binding(0) var<storage, read> texels: array<vec4<f32>>;
-@group(0) @binding(1) var<storage, read_write> gdist: array<f32>;
+@group(0) @binding(1) var<storage, read_write> cdfs: array<f32>;
 @group(0) @binding(2) var<uniform> gparams: vec4<u32>; // x: N
 
 fn cos_band(y: u32, h: u32) -> f32 {
@@ -33,7 +33,7 @@ fn global_cells(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) n
             acc += luminance(texels[(hit.face * gparams.x + hit.row) * gparams.x + hit.col].xyz);
         }
     }
-    gdist[g.pdf + i] = acc / 16.0 * cos_band(y, g.h);
+    cdfs[g.pdf + i] = acc / 16.0 * cos_band(y, g.h);
 }
 
 // Per row: the sum of its raw cells.
@@ -46,11 +46,11 @@ fn global_row_sums(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocati
     let end = min(start + k, g.w);
     var s = 0.0;
     for (var x = start; x < end; x++) {
-        s += gdist[g.pdf + y * g.w + x];
+        s += cdfs[g.pdf + y * g.w + x];
     }
     let _prefix = scan_partials(t, s);
     if (t == 0u) {
-        gdist[g.rowtot + y] = partial[WG - 1u];
+        cdfs[g.rowtot + y] = partial[WG - 1u];
     }
 }
 
@@ -63,12 +63,12 @@ fn global_floor(@builtin(local_invocation_index) t: u32) {
     let end = min(start + k, g.h);
     var s = 0.0;
     for (var y = start; y < end; y++) {
-        s += gdist[g.rowtot + y];
+        s += cdfs[g.rowtot + y];
     }
     let _prefix = scan_partials(t, s);
     if (t == 0u) {
         let mean = partial[WG - 1u] / f32(g.w * g.h);
-        gdist[g.misc] = select(1.0, 0.01 * mean, mean > 0.0);
+        cdfs[g.misc] = select(1.0, 0.01 * mean, mean > 0.0);
     }
 }
 
@@ -77,30 +77,30 @@ fn global_floor(@builtin(local_invocation_index) t: u32) {
 fn global_row_cdfs(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) t: u32) {
     let g = glayout(gparams.x);
     let y = wg.x;
-    let add = gdist[g.misc] * cos_band(y, g.h) * f32(g.h) / 2.0;
+    let add = cdfs[g.misc] * cos_band(y, g.h) * f32(g.h) / 2.0;
     let k = (g.w + WG - 1u) / WG;
     let start = min(t * k, g.w);
     let end = min(start + k, g.w);
     var s = 0.0;
     for (var x = start; x < end; x++) {
-        let c = gdist[g.pdf + y * g.w + x] + add;
-        gdist[g.pdf + y * g.w + x] = c;
+        let c = cdfs[g.pdf + y * g.w + x] + add;
+        cdfs[g.pdf + y * g.w + x] = c;
         s += c;
     }
     var acc = scan_partials(t, s);
     let total = partial[WG - 1u];
     let base = g.rows + y * (g.w + 1u);
     if (t == 0u) {
-        gdist[base] = 0.0;
-        gdist[g.rowtot + y] = total;
+        cdfs[base] = 0.0;
+        cdfs[g.rowtot + y] = total;
     }
     for (var x = start; x < end; x++) {
-        acc += gdist[g.pdf + y * g.w + x];
+        acc += cdfs[g.pdf + y * g.w + x];
         var v = select(f32(x + 1u) / f32(g.w), acc / total, total > 0.0);
         if (x + 1u == g.w) {
             v = 1.0;
         }
-        gdist[base + x + 1u] = v;
+        cdfs[base + x + 1u] = v;
     }
 }
 
@@ -113,21 +113,21 @@ fn global_marginal(@builtin(local_invocation_index) t: u32) {
     let end = min(start + k, g.h);
     var s = 0.0;
     for (var y = start; y < end; y++) {
-        s += gdist[g.rowtot + y];
+        s += cdfs[g.rowtot + y];
     }
     var acc = scan_partials(t, s);
     let total = partial[WG - 1u];
     if (t == 0u) {
-        gdist[g.marg] = 0.0;
-        gdist[g.misc + 1u] = total;
+        cdfs[g.marg] = 0.0;
+        cdfs[g.misc + 1u] = total;
     }
     for (var y = start; y < end; y++) {
-        acc += gdist[g.rowtot + y];
+        acc += cdfs[g.rowtot + y];
         var v = select(f32(y + 1u) / f32(g.h), acc / total, total > 0.0);
         if (y + 1u == g.h) {
             v = 1.0;
         }
-        gdist[g.marg + y + 1u] = v;
+        cdfs[g.marg + y + 1u] = v;
     }
 }
 
@@ -139,6 +139,6 @@ fn global_pdf_table(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroup
     if (i >= g.w * g.h) {
         return;
     }
-    let total = gdist[g.misc + 1u];
-    gdist[g.pdf + i] = select(0.0, gdist[g.pdf + i] / total * f32(g.w * g.h), total > 0.0);
+    let total = cdfs[g.misc + 1u];
+    cdfs[g.pdf + i] = select(0.0, cdfs[g.pdf + i] / total * f32(g.w * g.h), total > 0.0);
 }

@@ -1,6 +1,7 @@
 // envis — layout of the `global` distribution buffer and its sampling (twin of
-// sampling::global::GlobalDistribution::{sample, pdf}); needs common.wgsl and a module-scope
-// `gdist: array<f32>`. For N x N cube faces: w = 4N columns (u), h = 2N rows (v).
+// sampling::global::GlobalDistribution::{sample, pdf}); needs common.wgsl, cdf.wgsl and a
+// module-scope `cdfs: array<f32>` bound to the global distribution.
+// For N x N cube faces: w = 4N columns (u), h = 2N rows (v).
 //   [marg: h + 1][rows: h (w + 1)][pdf: w h][rowtot: h][misc: 4 (floor, total)]
 
 struct GLayout {
@@ -46,43 +47,20 @@ fn dir_to_latlong(d: vec3<f32>) -> vec2<f32> {
     return vec2(u, t / PI);
 }
 
-struct GBin {
-    i: u32,
-    du: f32,
-}
-// Distribution1D::sample on gdist[base .. base + count + 1].
-fn gsample_cdf(base: u32, count: u32, u: f32) -> GBin {
-    var lo = 0u;
-    var len = count;
-    while (len > 0u) {
-        let half = len / 2u;
-        if (gdist[base + lo + half] <= u) {
-            lo = lo + half + 1u;
-            len = len - half - 1u;
-        } else {
-            len = half;
-        }
-    }
-    let i = max(lo, 1u) - 1u;
-    let c0 = gdist[base + i];
-    let w = gdist[base + i + 1u] - c0;
-    return GBin(i, select(0.0, clamp((u - c0) / w, 0.0, ONE_MINUS_EPS), w > 0.0));
-}
-
 // Solid-angle pdf of cell (x, y) at v: p(u, v) / (2 pi^2 sin t).
 fn global_pdf_cell(g: GLayout, x: u32, y: u32, v: f32) -> f32 {
     let st = sin(PI * v);
     if (st <= 0.0) {
         return 0.0;
     }
-    return gdist[g.pdf + y * g.w + x] / (2.0 * PI * PI * st);
+    return cdfs[g.pdf + y * g.w + x] / (2.0 * PI * PI * st);
 }
 
 // GlobalDistribution::sample: (direction, pdf); pdf 0 = no sample.
 fn global_sample(n: u32, u: vec2<f32>) -> vec4<f32> {
     let g = glayout(n);
-    let ys = gsample_cdf(g.marg, g.h, u.y);
-    let xs = gsample_cdf(g.rows + ys.i * (g.w + 1u), g.w, u.x);
+    let ys = sample_cdf(g.marg, g.h, u.y);
+    let xs = sample_cdf(g.rows + ys.i * (g.w + 1u), g.w, u.x);
     let uu = (f32(xs.i) + xs.du) / f32(g.w);
     let vv = (f32(ys.i) + ys.du) / f32(g.h);
     let p = global_pdf_cell(g, xs.i, ys.i, vv);

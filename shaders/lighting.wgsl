@@ -36,7 +36,7 @@ struct LightingView {
 // Running mean of the accumulated frames, one per viewport pixel (bound only when accumulating).
 @group(0) @binding(8) var<storage, read_write> accum: array<vec4<f32>>;
 // The `global` distribution (global_layout.wgsl); a dummy unless the strategy is global.
-@group(0) @binding(9) var<storage, read> gdist: array<f32>;
+@group(0) @binding(9) var<storage, read> cdfs: array<f32>;
 
 // Blue -> cyan -> green -> yellow -> red for t in [0, 1].
 fn heat(t: f32) -> vec3<f32> {

@@ -11,7 +11,7 @@
 @group(0) @binding(5) var<storage, read_write> out_stats: array<vec4<u32>>;
 @group(0) @binding(6) var<uniform> sp: ShadeParams;
 // The `global` distribution (global_layout.wgsl); a dummy unless the strategy is global.
-@group(0) @binding(7) var<storage, read> gdist: array<f32>;
+@group(0) @binding(7) var<storage, read> cdfs: array<f32>;
 
 @compute @workgroup_size(64)
 fn shade_gbuffer(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {

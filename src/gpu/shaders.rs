@@ -6,6 +6,7 @@ pub const SAMPLING: &str = include_str!("../../shaders/sampling.wgsl");
 pub const DISTRIBUTION: &str = include_str!("../../shaders/distribution.wgsl");
 pub const SHADE: &str = include_str!("../../shaders/shade.wgsl");
 pub const SCAN: &str = include_str!("../../shaders/scan.wgsl");
+pub const CDF: &str = include_str!("../../shaders/cdf.wgsl");
 pub const GLOBAL: &str = include_str!("../../shaders/global.wgsl");
 pub const GLOBAL_LAYOUT: &str = include_str!("../../shaders/global_layout.wgsl");
 pub const SHADE_COMPUTE: &str = include_str!("../../shaders/shade_compute.wgsl");
@@ -13,12 +14,12 @@ pub const LIGHTING: &str = include_str!("../../shaders/lighting.wgsl");
 
 /// Distribution build + pool module.
 pub fn distribution_source() -> String {
-    [COMMON, SCAN, DISTRIBUTION].concat()
+    [COMMON, SCAN, CDF, DISTRIBUTION].concat()
 }
 
 /// Per-pixel shading module (compute entry point `shade_gbuffer`).
 pub fn shade_source() -> String {
-    [COMMON, SAMPLING, GLOBAL_LAYOUT, SHADE, SHADE_COMPUTE].concat()
+    [COMMON, SAMPLING, CDF, GLOBAL_LAYOUT, SHADE, SHADE_COMPUTE].concat()
 }
 
 /// Compile a module, turning a WGSL error into a readable panic (a shader that does not compile
@@ -29,10 +30,10 @@ pub fn module(device: &wgpu::Device, label: &str, source: &str) -> wgpu::ShaderM
 
 /// The Bevy deferred lighting pass (fullscreen vertex + fragment `lighting`).
 pub fn lighting_source() -> String {
-    [COMMON, SAMPLING, GLOBAL_LAYOUT, SHADE, LIGHTING].concat()
+    [COMMON, SAMPLING, CDF, GLOBAL_LAYOUT, SHADE, LIGHTING].concat()
 }
 
 /// The `global` baseline's build (lat-long distribution over the sphere).
 pub fn global_source() -> String {
-    [COMMON, SCAN, GLOBAL_LAYOUT, GLOBAL].concat()
+    [COMMON, SCAN, CDF, GLOBAL_LAYOUT, GLOBAL].concat()
 }
