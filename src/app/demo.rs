@@ -260,7 +260,8 @@ fn pick_pixel(mut contexts: EguiContexts, buttons: Res<ButtonInput<MouseButton>>
 /// Recompute the CPU twin's view of the probed pixel when the probe, the frame or the settings change.
 fn update_debug_view(frame: Res<EnvFrame>, settings: Res<EnvisSettings>, probe: Res<EnvisProbe>, mut state: ResMut<DemoState>) {
     let Some(p) = *probe.lock().expect("probe") else { return };
-    let s = settings.sampling;
+    // The seed the GPU used for this frame (it changes per frame while accumulating).
+    let s = Settings { seed: settings.frame_seed(), ..settings.sampling };
     let key = (frame.generation, p.pixel_index, s.light_samples, s.pool_per_face());
     let stale_frame = state.frame.as_ref().is_none_or(|(g, fs, _)| *g != frame.generation || *fs != s);
     if stale_frame {
