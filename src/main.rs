@@ -278,10 +278,20 @@ fn render_wgpu(_: &envis::envmap::CubeMap, _: &[Option<render::GPixel>], _: usiz
 /// `--backend gpu`: the Bevy app headless (no window), sphere mesh + deferred G-buffer. Pixels
 /// off the sphere are 0, as in the CPU contract (the app's sky pass is off).
 #[cfg(feature = "app")]
-fn render_bevy(a: &SceneArgs, s: &Settings) -> Result<(render::Rendered, serde_json::Value)> {
+fn render_bevy(a: &SceneArgs, s: &Settings, scene: Option<&envis::scene::Scene>) -> Result<(render::Rendered, serde_json::Value)> {
     use envis::app::{headless::HeadlessSphere, EnvisMaterial, EnvisSettings};
     use envis::sampling::Lobe;
     use envis::stream::{EnvStream, StreamSource};
+    let settings = EnvisSettings { sampling: *s, show_sky: false, ..Default::default() };
+    if let Some(sc) = scene {
+        let t0 = std::time::Instant::now();
+        let mut app = HeadlessSphere::from_scene(sc, settings, a.size as u32)?;
+        let data = app.capture();
+        let mut stats = render::RenderStats::for_settings(a.size, a.size, s, s.pool_per_face());
+        stats.shade_ms = t0.elapsed().as_secs_f64() * 1e3;
+        let extra = serde_json::json!({ "backend": "gpu", "pipeline": "bevy (offscreen)", "scene": sc.path });
+        return Ok((render::Rendered { image: envis::envmap::Image { width: a.size, height: a.size, data }, stats }, extra));
+    }
     let mat = material(a)?;
     let em = match mat.lobe {
         Lobe::None => EnvisMaterial::Lambert { albedo: mat.kd },
@@ -294,7 +304,7 @@ fn render_bevy(a: &SceneArgs, s: &Settings) -> Result<(render::Rendered, serde_j
     };
     EnvStream::open(source.clone(), a.face_size)?; // refuse a bad source here, with its error
     let t0 = std::time::Instant::now();
-    let mut app = HeadlessSphere::new(source, a.face_size, em, EnvisSettings { sampling: *s, show_sky: false, ..Default::default() }, a.size as u32);
+    let mut app = HeadlessSphere::new(source, a.face_size, em, settings, a.size as u32);
     let data = app.capture();
     let mut stats = render::RenderStats::for_settings(a.size, a.size, s, s.pool_per_face());
     stats.shade_ms = t0.elapsed().as_secs_f64() * 1e3;
@@ -313,7 +323,7 @@ fn render_bevy(a: &SceneArgs, s: &Settings) -> Result<(render::Rendered, serde_j
 }
 
 #[cfg(not(feature = "app"))]
-fn render_bevy(_: &SceneArgs, _: &Settings) -> Result<(render::Rendered, serde_json::Value)> {
+fn render_bevy(_: &SceneArgs, _: &Settings, _: Option<&envis::scene::Scene>) -> Result<(render::Rendered, serde_json::Value)> {
     Err(Error::invalid("--backend gpu: this envis was built without the `app` feature (cargo build --features app)"))
 }
 
@@ -391,13 +401,10 @@ fn run(cli: Cli) -> Result<()> {
             // A scene file supplies the sampling settings too.
             let settings = scene.as_ref().map_or(settings, |sc| sc.settings);
             let size = r.scene.size;
-            if scene.is_some() && matches!(r.backend, BackendArg::Gpu) {
-                return Err(Error::invalid("--backend gpu renders the sphere scene; render scene files with --backend cpu or wgpu, or open them in the demo (envis --scene FILE)"));
-            }
             let (mut out, extra) = match r.backend {
                 BackendArg::Cpu => (render::render(&env.cube, &gbuf, size, size, &settings)?, serde_json::json!({ "backend": "cpu" })),
                 BackendArg::Wgpu => render_wgpu(&env.cube, &gbuf, size, &settings)?,
-                BackendArg::Gpu => render_bevy(&r.scene, &settings)?,
+                BackendArg::Gpu => render_bevy(&r.scene, &settings, scene.as_ref())?,
             };
             // What the loader clamped, plus anything the GPU's own sanitise pass found.
             out.stats.clamped_texels.add(env.report);

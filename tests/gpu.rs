@@ -334,6 +334,20 @@ fn cli_gpu_backends() {
     if means.len() > 2 {
         assert!(rel(means[2], means[0]) < 0.03, "gpu (bevy) {} vs cpu {}", means[2], means[0]);
     }
+    // A scene file (perspective camera, sphere / glTF bunny / torus / plane) on each backend.
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes/showcase.toml");
+    let mut scene_means = Vec::new();
+    for b in &backends {
+        let out = dir.join(format!("scene-{b}.exr"));
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_envis")).args(["render", "--size", "48", "--backend", b, "--scene"]).arg(&scene).arg("--out").arg(&out).output().unwrap();
+        assert!(o.status.success(), "scene on {b}: {}", String::from_utf8_lossy(&o.stderr));
+        scene_means.push(read_exr_mean(&out));
+    }
+    assert!(rel(scene_means[1], scene_means[0]) < 1e-3, "scene: wgpu {} vs cpu {}", scene_means[1], scene_means[0]);
+    if scene_means.len() > 2 {
+        // Meshes and 8-bit materials in the G-buffer, and silhouettes rasterised rather than ray cast.
+        assert!(rel(scene_means[2], scene_means[0]) < 0.05, "scene: gpu (bevy) {} vs cpu {}", scene_means[2], scene_means[0]);
+    }
     // `global` runs on the GPU too.
     let (a, b) = (dir.join("g-cpu.exr"), dir.join("g-wgpu.exr"));
     for (be, out) in [("cpu", &a), ("wgpu", &b)] {

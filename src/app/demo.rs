@@ -3,6 +3,7 @@
 //! full-screen overlays. `--script DIR` runs a scripted sequence (for CI under Xvfb): it takes
 //! screenshots, writes `report.json` and exits.
 
+use super::scene_objects::{spawn_scene_objects, SceneObject};
 use super::{EnvFrame, EnvMapSamplingPlugin, EnvMapStream, EnvMapStreamPlugin, EnvisCamera, EnvisCounters, EnvisMaterial, EnvisProbe, EnvisSettings, EnvisTimings, MisLightingPlugin, Overlay};
 use crate::envmap::{dir_to_face_ab, CubeMap, CROSS_BLOCKS};
 use crate::render::{debug_pixel, FrameData, PixelDebug, SampleKind, Settings, Strategy};
@@ -79,13 +80,6 @@ pub fn asset_root() -> String {
     concat!(env!("CARGO_MANIFEST_DIR"), "/assets").into()
 }
 
-/// One object of the scene and its material.
-#[derive(Component)]
-pub struct DemoObject {
-    pub name: &'static str,
-    pub material: EnvisMaterial,
-    handle: Handle<StandardMaterial>,
-}
 
 #[derive(Component)]
 struct Orbit {
@@ -124,62 +118,23 @@ impl FrameDataOwned {
     }
 }
 
-/// The envis material that writes `m` into the G-buffer.
-pub fn envis_material(m: &crate::sampling::Material) -> EnvisMaterial {
-    use crate::sampling::Lobe;
-    match m.lobe {
-        Lobe::None => EnvisMaterial::Lambert { albedo: m.kd },
-        Lobe::Phong { exponent } => EnvisMaterial::Phong { albedo: m.ks + m.kd, exponent },
-        Lobe::Ggx { alpha } if m.kd.max_element() <= 0.0 => EnvisMaterial::Ggx { albedo: m.ks, alpha },
-        Lobe::Ggx { alpha } => {
-            let all = m.kd + m.ks;
-            let lum = crate::envmap::luminance;
-            EnvisMaterial::Mix { albedo: all, specular: lum(m.ks) / lum(all).max(1e-6), alpha }
-        }
-    }
-}
-
-/// A Bevy mesh of world-space triangles.
-fn bevy_mesh(m: &crate::scene::TriMesh) -> Mesh {
-    use bevy::asset::RenderAssetUsages;
-    use bevy::mesh::{Indices, PrimitiveTopology};
-    Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default())
-        .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, m.positions.iter().map(|p| p.to_array()).collect::<Vec<_>>())
-        .with_inserted_attribute(Mesh::ATTRIBUTE_NORMAL, m.normals.iter().map(|p| p.to_array()).collect::<Vec<_>>())
-        .with_inserted_indices(Indices::U32(m.indices.iter().flatten().copied().collect()))
-}
-
 fn setup_scene(mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>, mut materials: ResMut<Assets<StandardMaterial>>, assets: Res<AssetServer>, scene: Option<Res<SceneResource>>) {
-    let mut spawn = |name: &'static str, mesh: Handle<Mesh>, material: EnvisMaterial, transform: Transform| {
+    let mut spawn = |name: &str, mesh: Handle<Mesh>, material: EnvisMaterial, transform: Transform| {
         let handle = materials.add(material.standard());
-        commands.spawn((Mesh3d(mesh), MeshMaterial3d(handle.clone()), transform, DemoObject { name, material, handle }));
+        commands.spawn((Mesh3d(mesh), MeshMaterial3d(handle.clone()), transform, SceneObject { name: name.into(), material, handle }));
     };
     if let Some(sc) = scene {
-        use crate::scene::Shape;
-        for o in &sc.0.objects {
-            let name: &'static str = Box::leak(o.name.clone().into_boxed_str());
-            let mat = envis_material(&o.material);
-            match &o.shape {
-                Shape::Sphere { center, radius } => spawn(name, meshes.add(Sphere::new(*radius).mesh().ico(6).expect("icosphere")), mat, Transform::from_translation(*center)),
-                Shape::Plane { center, normal, u, half, .. } => {
-                    let rot = Quat::from_mat3(&Mat3::from_cols(*u, *normal, u.cross(*normal)));
-                    spawn(name, meshes.add(Plane3d::default().mesh().size(2.0 * half, 2.0 * half)), mat, Transform::from_translation(*center).with_rotation(rot))
-                }
-                Shape::Mesh(m) => spawn(name, meshes.add(bevy_mesh(m)), mat, Transform::IDENTITY),
-            }
-        }
-        let c = &sc.0.file.camera;
-        let (eye, target) = (Vec3::from(c.position), Vec3::from(c.target));
-        let d = eye - target;
+        let cam = spawn_scene_objects(&mut commands, &mut meshes, &mut materials, &sc.0);
+        let d = cam.eye - cam.target;
         let distance = d.length().max(0.1);
         commands.spawn((
             Camera3d::default(),
-            Projection::Perspective(PerspectiveProjection { fov: c.fov.to_radians(), ..default() }),
+            Projection::Perspective(PerspectiveProjection { fov: cam.fov, ..default() }),
             bevy::camera::Hdr,
             Msaa::Off,
             Tonemapping::TonyMcMapface,
             EnvisCamera,
-            Orbit { yaw: d.x.atan2(d.z), pitch: (d.y / distance).asin(), distance, target },
+            Orbit { yaw: d.x.atan2(d.z), pitch: (d.y / distance).asin(), distance, target: cam.target },
             Transform::default(),
         ));
         return;
@@ -330,7 +285,7 @@ fn panel(
     timings: Res<EnvisTimings>,
     counters: Res<EnvisCounters>,
     time: Res<Time<Real>>,
-    mut objects: Query<&mut DemoObject>,
+    mut objects: Query<&mut SceneObject>,
     mut materials: ResMut<Assets<StandardMaterial>>,
     windows: Query<&Window, With<PrimaryWindow>>,
     diagnostics: Res<bevy::diagnostic::DiagnosticsStore>,
@@ -346,7 +301,7 @@ fn panel(
             egui::CollapsingHeader::new("Sampling").default_open(true).show(ui, |ui| sampling_ui(ui, &mut settings));
             ui.collapsing("Materials", |ui| {
                 for mut o in &mut objects {
-                    if material_ui(ui, o.name, &mut o.material) {
+                    if material_ui(ui, &o.name.clone(), &mut o.material) {
                         if let Some(mut m) = materials.get_mut(&o.handle) {
                             *m = o.material.standard();
                         }
@@ -567,7 +522,7 @@ fn run_script(
     mut stream: ResMut<EnvMapStream>,
     mut state: ResMut<DemoState>,
     mut settings: ResMut<EnvisSettings>,
-    mut objects: Query<&mut DemoObject>,
+    mut objects: Query<&mut SceneObject>,
     mut materials: ResMut<Assets<StandardMaterial>>,
     windows: Query<&Window, With<PrimaryWindow>>,
     cams: Query<(&Camera, &GlobalTransform), With<EnvisCamera>>,

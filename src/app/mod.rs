@@ -17,6 +17,7 @@ pub mod demo;
 pub mod headless;
 pub mod lighting;
 pub mod sampling;
+pub mod scene_objects;
 pub mod stream;
 pub mod timing;
 
