@@ -775,7 +775,12 @@ fn bench_accuracy_quick_smoke() {
         let svg = std::fs::read_to_string(dir.join(envis::bench::accuracy::plot_name(m))).unwrap();
         assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>") && svg.matches("<polyline").count() >= 6, "{m}");
         assert!(!svg.contains("NaN") && !svg.contains("inf"), "{m}: non-finite coordinates");
+        let samples = std::fs::read_to_string(dir.join(envis::bench::accuracy::samples_plot_name(m))).unwrap();
+        assert!(samples.starts_with("<svg") && samples.matches("<polyline").count() >= 5 && !samples.contains("NaN"), "{m}: error-vs-samples plot");
     }
+    let wasted = std::fs::read_to_string(dir.join("accuracy-wasted.svg")).unwrap();
+    assert!(wasted.starts_with("<svg") && wasted.matches("<polyline").count() >= 3 && !wasted.contains("NaN"), "wasted plot");
+    assert!(md.contains("accuracy-wasted.svg"));
 }
 
 #[test]

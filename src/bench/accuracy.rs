@@ -288,52 +288,140 @@ pub fn csv(pts: &[Point]) -> String {
     s
 }
 
+/// One line of a chart: its points (in data units), colour, and whether it is dashed.
+pub struct Series {
+    pub name: String,
+    pub color: &'static str,
+    pub points: Vec<(f64, f64)>,
+    pub dashed: bool,
+    /// Hover text per point.
+    pub tips: Vec<String>,
+}
+
+/// A line chart as standalone SVG, log or linear on each axis, legend on the right.
+pub struct Chart<'a> {
+    pub title: &'a str,
+    pub xlabel: &'a str,
+    pub ylabel: &'a str,
+    pub xlog: bool,
+    pub ylog: bool,
+    pub series: Vec<Series>,
+}
+
+impl Chart<'_> {
+    pub fn svg(&self) -> String {
+        let (w, h, ml, mr, mt, mb) = (640.0, 440.0, 70.0, 170.0, 40.0, 50.0);
+        let fx = |x: f64| if self.xlog { x.max(1e-12).log10() } else { x };
+        let fy = |y: f64| if self.ylog { y.max(1e-12).log10() } else { y };
+        let all = || self.series.iter().flat_map(|s| s.points.iter());
+        let range = |v: Vec<f64>, log: bool| {
+            let (lo, hi) = (v.iter().copied().fold(f64::INFINITY, f64::min), v.iter().copied().fold(f64::NEG_INFINITY, f64::max));
+            if log { (lo.floor(), hi.ceil().max(lo.floor() + 1.0)) } else { (lo.min(0.0), if hi > lo.min(0.0) { hi * 1.05 } else { 1.0 }) }
+        };
+        let (x0, x1) = range(all().map(|p| fx(p.0)).collect(), self.xlog);
+        let (y0, y1) = range(all().map(|p| fy(p.1)).collect(), self.ylog);
+        let sx = |x: f64| ml + (fx(x) - x0) / (x1 - x0).max(1e-9) * (w - ml - mr);
+        let sy = |y: f64| mt + (y1 - fy(y)) / (y1 - y0).max(1e-9) * (h - mt - mb);
+        let mut s = String::new();
+        let _ = writeln!(s, r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" font-family="sans-serif" font-size="12">"#);
+        let _ = writeln!(s, r#"<rect width="100%" height="100%" fill="white"/>"#);
+        let _ = writeln!(s, r#"<text x="{}" y="22" font-size="15" text-anchor="middle">{}</text>"#, (w - mr + ml) / 2.0, self.title);
+        let ticks = |lo: f64, hi: f64, log: bool| -> Vec<(f64, String)> {
+            if log {
+                ((lo as i64)..=(hi as i64)).map(|d| (10f64.powi(d as i32), format!("1e{d}"))).collect()
+            } else {
+                (0..=5).map(|k| lo + (hi - lo) * k as f64 / 5.0).map(|v| (v, format!("{v:.2}"))).collect()
+            }
+        };
+        for (v, label) in ticks(x0, x1, self.xlog) {
+            let x = sx(v);
+            let _ = writeln!(s, r##"<line x1="{x:.1}" y1="{mt}" x2="{x:.1}" y2="{}" stroke="#ddd"/><text x="{x:.1}" y="{}" text-anchor="middle">{label}</text>"##, h - mb, h - mb + 16.0);
+        }
+        for (v, label) in ticks(y0, y1, self.ylog) {
+            let y = sy(v);
+            let _ = writeln!(s, r##"<line x1="{ml}" y1="{y:.1}" x2="{}" y2="{y:.1}" stroke="#ddd"/><text x="{}" y="{:.1}" text-anchor="end">{label}</text>"##, w - mr, ml - 6.0, y + 4.0);
+        }
+        let _ = writeln!(s, r#"<text x="{}" y="{}" text-anchor="middle">{}</text>"#, (w - mr + ml) / 2.0, h - 12.0, self.xlabel);
+        let _ = writeln!(s, r#"<text x="16" y="{}" transform="rotate(-90 16 {})" text-anchor="middle">{}</text>"#, (h - mb + mt) / 2.0, (h - mb + mt) / 2.0, self.ylabel);
+        for (k, se) in self.series.iter().enumerate() {
+            let dash = if se.dashed { r#" stroke-dasharray="4 3""# } else { "" };
+            let width = if se.dashed { 1 } else { 2 };
+            let path: Vec<String> = se.points.iter().map(|p| format!("{:.1},{:.1}", sx(p.0), sy(p.1))).collect();
+            let _ = writeln!(s, r#"<polyline points="{}" fill="none" stroke="{}" stroke-width="{width}"{dash}/>"#, path.join(" "), se.color);
+            if !se.dashed {
+                for (i, p) in se.points.iter().enumerate() {
+                    let tip = se.tips.get(i).cloned().unwrap_or_default();
+                    let _ = writeln!(s, r#"<circle cx="{:.1}" cy="{:.1}" r="3" fill="{}"><title>{tip}</title></circle>"#, sx(p.0), sy(p.1), se.color);
+                }
+            }
+            let ly = mt + 10.0 + 18.0 * k as f64;
+            let _ = writeln!(s, r#"<line x1="{}" y1="{ly}" x2="{}" y2="{ly}" stroke="{}" stroke-width="{width}"{dash}/><text x="{}" y="{}">{}</text>"#, w - mr + 10.0, w - mr + 30.0, se.color, w - mr + 35.0, ly + 4.0, se.name);
+        }
+        s.push_str("</svg>\n");
+        s
+    }
+}
+
+const MAIN: [(&str, &str); 5] = [("paper-fractional", "#d62728"), ("paper-integer", "#ff9896"), ("global", "#1f77b4"), ("light", "#2ca02c"), ("brdf", "#9467bd")];
+
+/// One series per main strategy through its budgets, `(x, y)` picked from the pooled points.
+fn strategy_series(pool: &[Point], x: impl Fn(&Point) -> f64, y: impl Fn(&Point) -> f64) -> Vec<Series> {
+    MAIN.iter()
+        .map(|(name, color)| {
+            let mut line: Vec<&Point> = pool.iter().filter(|p| p.strategy == *name).collect();
+            line.sort_by_key(|p| p.budget);
+            Series {
+                name: name.to_string(),
+                color,
+                points: line.iter().map(|p| (x(p), y(p))).collect(),
+                dashed: false,
+                tips: line.iter().map(|p| format!("{name} N={}: relMSE {:.3e}, {:.2} ms, wasted {:.1}%", p.budget, p.relmse, p.build_ms + p.shade_ms, 100.0 * p.wasted)).collect(),
+            }
+        })
+        .collect()
+}
+
 /// An error-vs-time plot (log-log) of one material as standalone SVG: one polyline per main
 /// strategy through its budgets (geometric means over environments), the Pareto front dashed.
 pub fn svg_plot(pts: &[Point], material: &str) -> String {
     let pool = pooled(pts, material);
-    let main = [("paper-fractional", "#d62728"), ("paper-integer", "#ff9896"), ("global", "#1f77b4"), ("light", "#2ca02c"), ("brdf", "#9467bd")];
-    let (w, h, ml, mr, mt, mb) = (640.0, 440.0, 70.0, 170.0, 40.0, 50.0);
-    let t = |p: &Point| (p.build_ms + p.shade_ms).max(1e-6).log10();
-    let e = |p: &Point| p.relmse.max(1e-12).log10();
-    let (tx0, tx1) = (pool.iter().map(t).fold(f64::INFINITY, f64::min).floor(), pool.iter().map(t).fold(f64::NEG_INFINITY, f64::max).ceil());
-    let (ey0, ey1) = (pool.iter().map(e).fold(f64::INFINITY, f64::min).floor(), pool.iter().map(e).fold(f64::NEG_INFINITY, f64::max).ceil());
-    let sx = |x: f64| ml + (x - tx0) / (tx1 - tx0).max(1e-9) * (w - ml - mr);
-    let sy = |y: f64| mt + (ey1 - y) / (ey1 - ey0).max(1e-9) * (h - mt - mb);
-    let mut s = String::new();
-    let _ = writeln!(s, r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" font-family="sans-serif" font-size="12">"#);
-    let _ = writeln!(s, r#"<rect width="100%" height="100%" fill="white"/>"#);
-    let _ = writeln!(s, r#"<text x="{}" y="22" font-size="15" text-anchor="middle">{material}: relMSE vs time (geometric mean over environments)</text>"#, (w - mr + ml) / 2.0);
-    for d in (tx0 as i64)..=(tx1 as i64) {
-        let x = sx(d as f64);
-        let _ = writeln!(s, r##"<line x1="{x:.1}" y1="{mt}" x2="{x:.1}" y2="{}" stroke="#ddd"/><text x="{x:.1}" y="{}" text-anchor="middle">1e{d}</text>"##, h - mb, h - mb + 16.0);
-    }
-    for d in (ey0 as i64)..=(ey1 as i64) {
-        let y = sy(d as f64);
-        let _ = writeln!(s, r##"<line x1="{ml}" y1="{y:.1}" x2="{}" y2="{y:.1}" stroke="#ddd"/><text x="{}" y="{:.1}" text-anchor="end">1e{d}</text>"##, w - mr, ml - 6.0, y + 4.0);
-    }
-    let _ = writeln!(s, r#"<text x="{}" y="{}" text-anchor="middle">time per frame, ms (build + shade, CPU)</text>"#, (w - mr + ml) / 2.0, h - 12.0);
-    let _ = writeln!(s, r#"<text x="16" y="{}" transform="rotate(-90 16 {})" text-anchor="middle">relMSE</text>"#, (h - mb + mt) / 2.0, (h - mb + mt) / 2.0);
-    for (k, (name, color)) in main.iter().enumerate() {
-        let mut line: Vec<&Point> = pool.iter().filter(|p| p.strategy == *name).collect();
-        line.sort_by_key(|p| p.budget);
-        let path: Vec<String> = line.iter().map(|p| format!("{:.1},{:.1}", sx(t(p)), sy(e(p)))).collect();
-        let _ = writeln!(s, r#"<polyline points="{}" fill="none" stroke="{color}" stroke-width="2"/>"#, path.join(" "));
-        for p in &line {
-            let _ = writeln!(s, r#"<circle cx="{:.1}" cy="{:.1}" r="3" fill="{color}"><title>{name} N={}: {:.3e} in {:.2} ms</title></circle>"#, sx(t(p)), sy(e(p)), p.budget, p.relmse, p.build_ms + p.shade_ms);
-        }
-        let ly = mt + 10.0 + 18.0 * k as f64;
-        let _ = writeln!(s, r#"<line x1="{}" y1="{ly}" x2="{}" y2="{ly}" stroke="{color}" stroke-width="2"/><text x="{}" y="{}">{name}</text>"#, w - mr + 10.0, w - mr + 30.0, w - mr + 35.0, ly + 4.0);
-    }
-    let front: Vec<String> = pareto_front(&pool).into_iter().map(|i| format!("{:.1},{:.1}", sx(t(&pool[i])), sy(e(&pool[i])))).collect();
-    let _ = writeln!(s, r#"<polyline points="{}" fill="none" stroke="black" stroke-width="1" stroke-dasharray="4 3"/>"#, front.join(" "));
-    let ly = mt + 10.0 + 18.0 * main.len() as f64;
-    let _ = writeln!(s, r#"<line x1="{}" y1="{ly}" x2="{}" y2="{ly}" stroke="black" stroke-dasharray="4 3"/><text x="{}" y="{}">Pareto front (all)</text>"#, w - mr + 10.0, w - mr + 30.0, w - mr + 35.0, ly + 4.0);
-    s.push_str("</svg>\n");
-    s
+    let t = |p: &Point| p.build_ms + p.shade_ms;
+    let mut series = strategy_series(&pool, t, |p| p.relmse);
+    let front = pareto_front(&pool).into_iter().map(|i| (t(&pool[i]), pool[i].relmse)).collect();
+    series.push(Series { name: "Pareto front (all)".into(), color: "black", points: front, dashed: true, tips: Vec::new() });
+    let title = format!("{material}: relMSE vs time (geometric mean over environments)");
+    Chart { title: &title, xlabel: "time per frame, ms (build + shade, CPU)", ylabel: "relMSE", xlog: true, ylog: true, series }.svg()
+}
+
+/// Error against the sample budget N = N_L + N_B (log-log) for one material.
+pub fn svg_error_vs_samples(pts: &[Point], material: &str) -> String {
+    let pool = pooled(pts, material);
+    let title = format!("{material}: relMSE vs samples per pixel");
+    Chart { title: &title, xlabel: "samples per pixel, N = N_L + N_B", ylabel: "relMSE", xlog: true, ylog: true, series: strategy_series(&pool, |p| p.budget as f64, |p| p.relmse) }.svg()
+}
+
+/// The fraction of light samples wasted on negative cosines, against the budget, per strategy
+/// (mean over materials and environments).
+pub fn svg_wasted(pts: &[Point]) -> String {
+    let keys: std::collections::BTreeSet<(String, usize)> = pts.iter().map(|p| (p.strategy.clone(), p.budget)).collect();
+    let pool: Vec<Point> = keys
+        .into_iter()
+        .map(|(st, n)| {
+            let sel: Vec<&Point> = pts.iter().filter(|p| p.strategy == st && p.budget == n).collect();
+            Point { wasted: mean(sel.iter().map(|p| p.wasted)), ..sel[0].clone() }
+        })
+        .filter(|p| p.strategy != "brdf")
+        .collect();
+    let series = strategy_series(&pool, |p| p.budget as f64, |p| 100.0 * p.wasted).into_iter().filter(|s| !s.points.is_empty()).collect();
+    Chart { title: "Light samples wasted on negative cosines (mean over materials and maps)", xlabel: "samples per pixel, N = N_L + N_B", ylabel: "wasted light samples, %", xlog: true, ylog: false, series }.svg()
 }
 
 /// File name of a material's plot: `accuracy-<material>.svg` with spaces and dots made dashes.
 pub fn plot_name(material: &str) -> String {
     format!("accuracy-{}.svg", material.replace([' ', '.'], "-"))
+}
+
+/// File name of a material's error-vs-samples plot.
+pub fn samples_plot_name(material: &str) -> String {
+    format!("accuracy-{}-samples.svg", material.replace([' ', '.'], "-"))
 }

@@ -179,8 +179,12 @@ fn accuracy_suite(a: BenchArgs, dir: PathBuf) -> Result<()> {
     for (mname, _) in &cfg.materials {
         let name = accuracy::plot_name(mname);
         write(&name, accuracy::svg_plot(&points, mname))?;
-        md.push_str(&format!("![{mname}]({name})\n\n"));
+        let samples = accuracy::samples_plot_name(mname);
+        write(&samples, accuracy::svg_error_vs_samples(&points, mname))?;
+        md.push_str(&format!("![{mname}: error vs time]({name}) ![{mname}: error vs samples]({samples})\n\n"));
     }
+    write("accuracy-wasted.svg", accuracy::svg_wasted(&points))?;
+    md.push_str("![wasted light samples](accuracy-wasted.svg)\n\n");
     md.push_str(&format!("Sweep time: {:.0} s.\n", start.elapsed().as_secs_f64()));
     write("accuracy-vs-time.md", md)?;
     eprintln!("wrote accuracy.csv, accuracy.json, accuracy-vs-time.md to {} in {:.0} s", dir.display(), start.elapsed().as_secs_f64());
@@ -300,6 +304,22 @@ fn speed(a: BenchArgs, dir: PathBuf) -> Result<()> {
     });
     let path = dir.join("bench-speed.json");
     std::fs::write(&path, serde_json::to_string_pretty(&report).unwrap() + "\n").map_err(|e| Error::file(&path, format!("cannot write: {e}")))?;
-    eprintln!("wrote {}", path.display());
+    let plot = dir.join("build-scaling.svg");
+    std::fs::write(&plot, scaling_plot(&scaling)).map_err(|e| Error::file(&plot, format!("cannot write: {e}")))?;
+    eprintln!("wrote {} and {}", path.display(), plot.display());
     Ok(())
+}
+
+/// Build time against texel count (log-log): the CDF build, the pool and one plain streaming
+/// pass over the same texels (the memory-bound limit), from the speed suite's scaling rows.
+fn scaling_plot(rows: &[serde_json::Value]) -> String {
+    use accuracy::{Chart, Series};
+    let col = |k: &str| -> Vec<(f64, f64)> { rows.iter().map(|r| (r["texels"].as_f64().unwrap_or(0.0), r[k].as_f64().unwrap_or(0.0))).collect() };
+    let tips = |k: &str| -> Vec<String> { rows.iter().map(|r| format!("6 x {}^2: {:.3} ms", r["face_size"], r[k].as_f64().unwrap_or(0.0))).collect() };
+    let series = vec![
+        Series { name: "CDF build".into(), color: "#d62728", points: col("cdf_ms"), dashed: false, tips: tips("cdf_ms") },
+        Series { name: "light pool".into(), color: "#2ca02c", points: col("pool_ms"), dashed: false, tips: tips("pool_ms") },
+        Series { name: "streaming pass".into(), color: "#1f77b4", points: col("stream_ms"), dashed: false, tips: tips("stream_ms") },
+    ];
+    Chart { title: "Per-frame build time vs texels (CPU)", xlabel: "texels (6 N^2)", ylabel: "ms (median)", xlog: true, ylog: true, series }.svg()
 }
