@@ -69,11 +69,9 @@ fn column_cdfs(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw
     }
     let f = col_id / n;
     let c = col_id % n;
-    let k = (n + WG - 1u) / WG;
-    let start = min(t * k, n);
-    let end = min(start + k, n);
+    let run = serial_run(t, n);
     var s = 0.0;
-    for (var r = start; r < end; r++) {
+    for (var r = run.x; r < run.y; r++) {
         s += weights[(f * n + r) * n + c];
     }
     var acc = scan_partials(t, s);
@@ -83,7 +81,7 @@ fn column_cdfs(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw
         cdfs[base] = 0.0;
         totals[TOTALS_COLUMNS + col_id] = total;
     }
-    for (var r = start; r < end; r++) {
+    for (var r = run.x; r < run.y; r++) {
         acc += weights[(f * n + r) * n + c];
         var v = select(f32(r + 1u) / f32(n), acc / total, total > 0.0);
         if (r + 1u == n) {
@@ -97,11 +95,9 @@ fn column_cdfs(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw
 fn marginal_cdfs(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) t: u32) {
     let n = params.n;
     let f = wg.x;
-    let k = (n + WG - 1u) / WG;
-    let start = min(t * k, n);
-    let end = min(start + k, n);
+    let run = serial_run(t, n);
     var s = 0.0;
-    for (var c = start; c < end; c++) {
+    for (var c = run.x; c < run.y; c++) {
         s += totals[TOTALS_COLUMNS + f * n + c];
     }
     var acc = scan_partials(t, s);
@@ -111,7 +107,7 @@ fn marginal_cdfs(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation
         cdfs[base] = 0.0;
         totals[f] = total;
     }
-    for (var c = start; c < end; c++) {
+    for (var c = run.x; c < run.y; c++) {
         acc += totals[TOTALS_COLUMNS + f * n + c];
         var v = select(f32(c + 1u) / f32(n), acc / total, total > 0.0);
         if (c + 1u == n) {

@@ -41,11 +41,9 @@ fn global_cells(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) n
 fn global_row_sums(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) t: u32) {
     let g = glayout(gparams.x);
     let y = wg.x;
-    let k = (g.w + WG - 1u) / WG;
-    let start = min(t * k, g.w);
-    let end = min(start + k, g.w);
+    let run = serial_run(t, g.w);
     var s = 0.0;
-    for (var x = start; x < end; x++) {
+    for (var x = run.x; x < run.y; x++) {
         s += cdfs[g.pdf + y * g.w + x];
     }
     let _prefix = scan_partials(t, s);
@@ -58,11 +56,9 @@ fn global_row_sums(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocati
 @compute @workgroup_size(256)
 fn global_floor(@builtin(local_invocation_index) t: u32) {
     let g = glayout(gparams.x);
-    let k = (g.h + WG - 1u) / WG;
-    let start = min(t * k, g.h);
-    let end = min(start + k, g.h);
+    let run = serial_run(t, g.h);
     var s = 0.0;
-    for (var y = start; y < end; y++) {
+    for (var y = run.x; y < run.y; y++) {
         s += cdfs[g.rowtot + y];
     }
     let _prefix = scan_partials(t, s);
@@ -78,11 +74,9 @@ fn global_row_cdfs(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocati
     let g = glayout(gparams.x);
     let y = wg.x;
     let add = cdfs[g.misc] * cos_band(y, g.h) * f32(g.h) / 2.0;
-    let k = (g.w + WG - 1u) / WG;
-    let start = min(t * k, g.w);
-    let end = min(start + k, g.w);
+    let run = serial_run(t, g.w);
     var s = 0.0;
-    for (var x = start; x < end; x++) {
+    for (var x = run.x; x < run.y; x++) {
         let c = cdfs[g.pdf + y * g.w + x] + add;
         cdfs[g.pdf + y * g.w + x] = c;
         s += c;
@@ -94,7 +88,7 @@ fn global_row_cdfs(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocati
         cdfs[base] = 0.0;
         cdfs[g.rowtot + y] = total;
     }
-    for (var x = start; x < end; x++) {
+    for (var x = run.x; x < run.y; x++) {
         acc += cdfs[g.pdf + y * g.w + x];
         var v = select(f32(x + 1u) / f32(g.w), acc / total, total > 0.0);
         if (x + 1u == g.w) {
@@ -108,11 +102,9 @@ fn global_row_cdfs(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocati
 @compute @workgroup_size(256)
 fn global_marginal(@builtin(local_invocation_index) t: u32) {
     let g = glayout(gparams.x);
-    let k = (g.h + WG - 1u) / WG;
-    let start = min(t * k, g.h);
-    let end = min(start + k, g.h);
+    let run = serial_run(t, g.h);
     var s = 0.0;
-    for (var y = start; y < end; y++) {
+    for (var y = run.x; y < run.y; y++) {
         s += cdfs[g.rowtot + y];
     }
     var acc = scan_partials(t, s);
@@ -121,7 +113,7 @@ fn global_marginal(@builtin(local_invocation_index) t: u32) {
         cdfs[g.marg] = 0.0;
         cdfs[g.misc + 1u] = total;
     }
-    for (var y = start; y < end; y++) {
+    for (var y = run.x; y < run.y; y++) {
         acc += cdfs[g.rowtot + y];
         var v = select(f32(y + 1u) / f32(g.h), acc / total, total > 0.0);
         if (y + 1u == g.h) {

@@ -5,6 +5,13 @@
 const WG: u32 = 256u;
 var<workgroup> partial: array<f32, 256>;
 
+// The run [x, y) of `count` elements that thread t sums serially before the workgroup scan.
+fn serial_run(t: u32, count: u32) -> vec2<u32> {
+    let k = (count + WG - 1u) / WG;
+    let start = min(t * k, count);
+    return vec2(start, min(start + k, count));
+}
+
 // Inclusive scan of partial[] across the workgroup (Hillis-Steele); returns the exclusive prefix of
 // thread t, and leaves the total in partial[WG - 1]. Call from uniform control flow.
 fn scan_partials(t: u32, s: f32) -> f32 {

@@ -96,26 +96,14 @@ pub struct DemoState {
     pub debug: bool,
     /// The CPU twin's view of the probed pixel, with the key it was computed for.
     pub pixel: Option<(PixelDebug, crate::render::GPixel, Vec3)>,
-    key: Option<(u64, u32, usize, usize)>,
-    frame: Option<(u64, Settings, std::sync::Arc<FrameDataOwned>)>,
+    /// What `pixel` was computed from: frame generation, settings (with the frame's seed), pixel.
+    key: Option<(u64, Settings, u32, Vec3)>,
     cross: Option<(u64, egui::TextureHandle)>,
     script: Option<PathBuf>,
     script_frame: u32,
     face_size: usize,
     env_text: String,
     fps: f32,
-}
-
-/// `FrameData` that owns its map (the demo keeps one per environment generation).
-pub struct FrameDataOwned {
-    map: std::sync::Arc<CubeMap>,
-    settings: Settings,
-}
-
-impl FrameDataOwned {
-    fn data(&self) -> FrameData<'_> {
-        FrameData::prepare(&self.map, &self.settings)
-    }
 }
 
 fn setup_scene(mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>, mut materials: ResMut<Assets<StandardMaterial>>, assets: Res<AssetServer>, scene: Option<Res<SceneResource>>) {
@@ -217,16 +205,11 @@ fn update_debug_view(frame: Res<EnvFrame>, settings: Res<EnvisSettings>, probe: 
     let Some(p) = *probe.lock().expect("probe") else { return };
     // The seed the GPU used for this frame (it changes per frame while accumulating).
     let s = Settings { seed: settings.frame_seed(), ..settings.sampling };
-    let key = (frame.generation, p.pixel_index, s.light_samples, s.pool_per_face());
-    let stale_frame = state.frame.as_ref().is_none_or(|(g, fs, _)| *g != frame.generation || *fs != s);
-    if stale_frame {
-        state.frame = Some((frame.generation, s, std::sync::Arc::new(FrameDataOwned { map: frame.map.clone(), settings: s })));
-    }
-    if state.key == Some(key) && !stale_frame && state.pixel.as_ref().is_some_and(|(_, g, _)| g.n == p.gpixel.n) {
+    let key = (frame.generation, s, p.pixel_index, p.gpixel.n);
+    if state.key == Some(key) {
         return;
     }
-    let owned = state.frame.as_ref().expect("set above").2.clone();
-    let fd = owned.data();
+    let fd = FrameData::prepare(&frame.map, &s);
     let d = debug_pixel(&fd, &s, &p.gpixel, p.pixel_index);
     state.pixel = Some((d, p.gpixel, p.estimate));
     state.key = Some(key);
@@ -284,14 +267,12 @@ fn panel(
     frame: Res<EnvFrame>,
     timings: Res<EnvisTimings>,
     counters: Res<EnvisCounters>,
-    time: Res<Time<Real>>,
     mut objects: Query<&mut SceneObject>,
     mut materials: ResMut<Assets<StandardMaterial>>,
     windows: Query<&Window, With<PrimaryWindow>>,
     diagnostics: Res<bevy::diagnostic::DiagnosticsStore>,
 ) -> Result {
     let ctx = contexts.ctx_mut()?.clone();
-    let _ = time;
     if state.cross.as_ref().is_none_or(|(g, _)| *g != frame.generation) {
         state.cross = Some((frame.generation, cross_texture(&ctx, &frame.map)));
     }
