@@ -6,6 +6,7 @@
 //! direction. Back-facing views (`<n, o> <= 0`) reflect nothing.
 
 use super::warp::*;
+use super::rng::{to_unit, Rng};
 use crate::envmap::luminance;
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, PI};
@@ -35,11 +36,123 @@ pub struct Material {
     pub lobe: Lobe,
 }
 
+/// The three calls the renderer's hot loops make on a BRDF, in the shading frame (z = normal).
+/// [`Material`] implements them for every lobe; [`Lambert`] implements them for a material with
+/// no glossy lobe, so that a diffuse pixel's loops compile without the lobe dispatch. Both give
+/// bit-identical values for the same diffuse material.
+pub trait LocalBsdf {
+    /// `f(o, i)` without the cosine.
+    fn eval_local(&self, ol: Vec3, il: Vec3) -> Vec3;
+    /// Solid-angle pdf of [`LocalBsdf::sample_local`] choosing `il`.
+    fn pdf_local(&self, ol: Vec3, il: Vec3) -> f32;
+    /// `(i_local, pdf)` from `u`, or `None` for an invalid sample.
+    fn sample_local(&self, ol: Vec3, u: Vec2) -> Option<(Vec3, f32)>;
+    /// `count` (at most [`LANES`]) samples, each from the next two draws of `rng` in order, into
+    /// `out` (pdf 0 marks an invalid sample). The same values as `count` calls of
+    /// [`LocalBsdf::sample_local`]; a BRDF with a branch-free sampler overrides it with a loop
+    /// that vectorises.
+    #[inline(always)]
+    fn sample_lanes(&self, ol: Vec3, rng: &mut Rng, count: usize, out: &mut SampleLanes) {
+        for k in 0..count {
+            let u = Vec2::new(rng.next_f32(), rng.next_f32());
+            let (il, p) = self.sample_local(ol, u).unwrap_or((Vec3::ZERO, 0.0));
+            out.set(k, il, p);
+        }
+    }
+}
+
+/// Lanes per chunk of BRDF samples.
+pub const LANES: usize = 16;
+
+/// A chunk of local-frame BRDF samples, structure of arrays.
+#[derive(Clone, Debug, Default)]
+pub struct SampleLanes {
+    pub x: [f32; LANES],
+    pub y: [f32; LANES],
+    pub z: [f32; LANES],
+    /// Solid-angle pdf; 0 for an invalid sample.
+    pub pdf: [f32; LANES],
+}
+
+impl SampleLanes {
+    #[inline(always)]
+    pub fn set(&mut self, k: usize, il: Vec3, pdf: f32) {
+        (self.x[k], self.y[k], self.z[k], self.pdf[k]) = (il.x, il.y, il.z, pdf);
+    }
+    #[inline(always)]
+    pub fn dir(&self, k: usize) -> Vec3 {
+        Vec3::new(self.x[k], self.y[k], self.z[k])
+    }
+}
+
+/// A Lambert-only material: `f = kd / pi`, cosine sampling, pdf = `cos / pi`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lambert {
+    pub kd: Vec3,
+}
+
+impl LocalBsdf for Lambert {
+    #[inline(always)]
+    fn eval_local(&self, ol: Vec3, il: Vec3) -> Vec3 {
+        if ol.z <= 0.0 || il.z <= 0.0 { Vec3::ZERO } else { self.kd * FRAC_1_PI }
+    }
+    #[inline(always)]
+    fn pdf_local(&self, ol: Vec3, il: Vec3) -> f32 {
+        if ol.z <= 0.0 { 0.0 } else { cosine_hemisphere_pdf(il) }
+    }
+    #[inline(always)]
+    fn sample_local(&self, ol: Vec3, u: Vec2) -> Option<(Vec3, f32)> {
+        if ol.z <= 0.0 {
+            return None;
+        }
+        let il = sample_cosine_hemisphere(Vec2::new(u.x.min(1.0 - f32::EPSILON / 2.0), u.y));
+        if il.z <= 0.0 {
+            return None;
+        }
+        let p = cosine_hemisphere_pdf(il);
+        if p > 0.0 && p.is_finite() { Some((il, p)) } else { None }
+    }
+    /// [`LocalBsdf::sample_local`] on all lanes at once: the random draws come from one
+    /// jump-ahead fill and the warp is branch-free, so the loop vectorises.
+    #[inline(always)]
+    fn sample_lanes(&self, ol: Vec3, rng: &mut Rng, count: usize, out: &mut SampleLanes) {
+        let mut r = [0u32; 2 * LANES];
+        rng.fill_u32(&mut r[..2 * count]);
+        let live = ol.z > 0.0;
+        for k in 0..LANES {
+            let u = Vec2::new(to_unit(r[2 * k]).min(1.0 - f32::EPSILON / 2.0), to_unit(r[2 * k + 1]));
+            let il = sample_cosine_hemisphere(u);
+            let p = cosine_hemisphere_pdf(il);
+            let ok = live & (il.z > 0.0) & (p > 0.0) & p.is_finite();
+            out.set(k, il, if ok { p } else { 0.0 });
+        }
+    }
+}
+
+impl LocalBsdf for Material {
+    #[inline(always)]
+    fn eval_local(&self, ol: Vec3, il: Vec3) -> Vec3 {
+        Material::eval_local(self, ol, il)
+    }
+    #[inline(always)]
+    fn pdf_local(&self, ol: Vec3, il: Vec3) -> f32 {
+        Material::pdf_local(self, ol, il)
+    }
+    #[inline(always)]
+    fn sample_local(&self, ol: Vec3, u: Vec2) -> Option<(Vec3, f32)> {
+        Material::sample_local(self, ol, u)
+    }
+}
+
 /// Smallest Phong exponent / GGX roughness used for evaluation; inputs are clamped into range.
 pub const MIN_ALPHA: f32 = 1e-4;
 pub const MAX_EXPONENT: f32 = 1e6;
 
 impl Material {
+    /// The material as a [`Lambert`] when it has no glossy lobe.
+    pub fn as_lambert(&self) -> Option<Lambert> {
+        (self.lobe == Lobe::None).then_some(Lambert { kd: self.kd })
+    }
     pub fn diffuse(albedo: f32) -> Self {
         Material { kd: Vec3::splat(albedo), ks: Vec3::ZERO, lobe: Lobe::None }
     }

@@ -11,7 +11,7 @@ pub mod pool;
 pub mod rng;
 pub mod warp;
 
-pub use brdf::{Lobe, Material};
+pub use brdf::{Lambert, LocalBsdf, Lobe, Material, SampleLanes, LANES};
 pub use distribution::{CubeDistribution, Distribution1D, FaceDistribution};
 pub use faceweights::{face_count, face_weights, Counts, FaceWeights};
 pub use global::GlobalDistribution;

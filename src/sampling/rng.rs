@@ -43,14 +43,56 @@ impl Rng {
     }
     #[inline]
     pub fn next_u32(&mut self) -> u32 {
-        self.state = self.state.wrapping_mul(747796405).wrapping_add(2891336453);
-        let s = self.state;
-        let word = ((s >> ((s >> 28) + 4)) ^ s).wrapping_mul(277803737);
-        (word >> 22) ^ word
+        self.state = self.state.wrapping_mul(LCG_A).wrapping_add(LCG_C);
+        pcg_output(self.state)
     }
     #[inline]
     pub fn next_f32(&mut self) -> f32 {
         to_unit(self.next_u32())
+    }
+}
+
+/// LCG multiplier and increment of [`Rng`] (and of [`hash`]).
+const LCG_A: u32 = 747796405;
+const LCG_C: u32 = 2891336453;
+/// The most outputs [`Rng::fill_u32`] draws at once.
+pub const FILL_MAX: usize = 32;
+/// Jump-ahead table: `state_j = A[j] state_0 + C[j]` after `j + 1` LCG steps
+/// (`A[j] = a^(j+1)`, `C[j] = c (a^j + ... + 1)`, mod 2^32).
+const JUMP: ([u32; FILL_MAX], [u32; FILL_MAX]) = {
+    let (mut a, mut c) = ([0u32; FILL_MAX], [0u32; FILL_MAX]);
+    let (mut aj, mut cj) = (LCG_A, LCG_C);
+    let mut j = 0;
+    while j < FILL_MAX {
+        a[j] = aj;
+        c[j] = cj;
+        aj = aj.wrapping_mul(LCG_A);
+        cj = cj.wrapping_mul(LCG_A).wrapping_add(LCG_C);
+        j += 1;
+    }
+    (a, c)
+};
+
+/// The PCG-RXS-M-XS output permutation of an LCG state.
+#[inline(always)]
+fn pcg_output(s: u32) -> u32 {
+    let word = ((s >> ((s >> 28) + 4)) ^ s).wrapping_mul(277803737);
+    (word >> 22) ^ word
+}
+
+impl Rng {
+    /// The next `out.len()` (at most [`FILL_MAX`]) outputs, exactly as that many
+    /// [`Rng::next_u32`] calls give them, but computed independently of each other (LCG
+    /// jump-ahead), so the loop vectorises.
+    #[inline(always)]
+    pub fn fill_u32(&mut self, out: &mut [u32]) {
+        let n = out.len();
+        assert!((1..=FILL_MAX).contains(&n));
+        let s0 = self.state;
+        for (j, o) in out.iter_mut().enumerate() {
+            *o = pcg_output(JUMP.0[j].wrapping_mul(s0).wrapping_add(JUMP.1[j]));
+        }
+        self.state = JUMP.0[n - 1].wrapping_mul(s0).wrapping_add(JUMP.1[n - 1]);
     }
 }
 
@@ -95,6 +137,21 @@ mod tests {
                     seen[p] = true;
                 }
             }
+        }
+    }
+
+    #[test]
+    fn fill_matches_sequential_draws() {
+        for n in 1..=FILL_MAX {
+            let (mut a, mut b) = (Rng::new(5, n as u32), Rng::new(5, n as u32));
+            for _round in 0..3 {
+                let mut out = [0u32; FILL_MAX];
+                a.fill_u32(&mut out[..n]);
+                for (j, &x) in out[..n].iter().enumerate() {
+                    assert_eq!(x, b.next_u32(), "n={n} j={j}");
+                }
+            }
+            assert_eq!(a.next_u32(), b.next_u32());
         }
     }
 
