@@ -761,26 +761,54 @@ fn bench_accuracy_quick_smoke() {
     let csv = std::fs::read_to_string(dir.join("accuracy.csv")).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
     assert_eq!(lines.len(), n + 1, "one header + one row per point");
+    // With the GPU backend compiled in, CI (which has lavapipe) must time every point on it too.
+    let gpu_required = cfg!(feature = "gpu") && std::env::var_os("CI").is_some();
     for l in &lines[1..] {
         let cols: Vec<&str> = l.split(',').collect();
-        assert_eq!(cols.len(), 11, "{l}");
+        assert_eq!(cols.len(), 14, "{l}");
         let relmse: f64 = cols[6].parse().unwrap();
         assert!(relmse.is_finite() && relmse >= 0.0, "{l}");
+        let flip: f64 = cols[11].parse().unwrap();
+        assert!((0.0..=1.0).contains(&flip) && flip > 0.0, "FLIP of a noisy render: {l}");
+        if gpu_required {
+            for c in &cols[12..14] {
+                let ms: f64 = c.parse().unwrap_or_else(|_| panic!("GPU timing missing: {l}"));
+                assert!(ms.is_finite() && ms > 0.0, "{l}");
+            }
+        }
     }
     let js: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("accuracy.json")).unwrap()).unwrap();
     assert_eq!(js["points"].as_array().unwrap().len(), n);
     let md = std::fs::read_to_string(dir.join("accuracy-vs-time.md")).unwrap();
-    assert!(md.contains("## diffuse") && md.contains("Pareto front") && md.contains("envis bench --suite accuracy --quick"), "{md}");
+    assert!(md.contains("## diffuse") && md.contains("Pareto front") && md.contains("Mean HDR-FLIP") && md.contains("envis bench --suite accuracy --quick"), "{md}");
     for (m, _) in &cfg.materials {
-        let svg = std::fs::read_to_string(dir.join(envis::bench::accuracy::plot_name(m))).unwrap();
-        assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>") && svg.matches("<polyline").count() >= 6, "{m}");
-        assert!(!svg.contains("NaN") && !svg.contains("inf"), "{m}: non-finite coordinates");
-        let samples = std::fs::read_to_string(dir.join(envis::bench::accuracy::samples_plot_name(m))).unwrap();
-        assert!(samples.starts_with("<svg") && samples.matches("<polyline").count() >= 5 && !samples.contains("NaN"), "{m}: error-vs-samples plot");
+        let stem = envis::bench::accuracy::plot_stem(m);
+        check_plot(&dir, &stem, &["paper-fractional", "global", "Pareto front"]);
+        check_plot(&dir, &format!("{stem}-samples"), &["paper-fractional", "brdf"]);
+        assert!(md.contains(&format!("{stem}.png")), "{m}");
     }
-    let wasted = std::fs::read_to_string(dir.join("accuracy-wasted.svg")).unwrap();
-    assert!(wasted.starts_with("<svg") && wasted.matches("<polyline").count() >= 3 && !wasted.contains("NaN"), "wasted plot");
-    assert!(md.contains("accuracy-wasted.svg"));
+    check_plot(&dir, "accuracy-wasted", &["paper-fractional", "light"]);
+    assert!(md.contains("accuracy-wasted.png"));
+}
+
+/// A chart written by `envis bench`: an SVG naming every series and with no non-finite
+/// coordinates, and a PNG of the chart's size that is not blank.
+fn check_plot(dir: &std::path::Path, stem: &str, series: &[&str]) {
+    let svg = std::fs::read_to_string(dir.join(format!("{stem}.svg"))).unwrap_or_else(|e| panic!("{stem}.svg: {e}"));
+    assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"), "{stem}.svg");
+    assert!(!svg.contains("NaN") && !svg.contains("inf"), "{stem}.svg: non-finite coordinates");
+    assert!(svg.matches("<polyline").count() >= series.len(), "{stem}.svg: too few lines");
+    for name in series {
+        assert!(svg.contains(name), "{stem}.svg: no series '{name}'");
+    }
+    let file = std::fs::File::open(dir.join(format!("{stem}.png"))).unwrap_or_else(|e| panic!("{stem}.png: {e}"));
+    let mut reader = png::Decoder::new(std::io::BufReader::new(file)).read_info().unwrap();
+    let mut buf = vec![0u8; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    assert_eq!((info.width, info.height), (800, 520), "{stem}.png");
+    let pixels = &buf[..info.buffer_size()];
+    let coloured = pixels.chunks(3).filter(|p| p[0] != p[1] || p[1] != p[2]).count();
+    assert!(coloured > 500, "{stem}.png: only {coloured} coloured pixels");
 }
 
 #[test]
@@ -798,6 +826,7 @@ fn bench_popping_quick_smoke() {
     for m in ["fractional", "integer"] {
         assert!(dir.join(format!("popping-strip-{m}.png")).exists());
     }
+    check_plot(&dir, "popping", &["reference", "fractional counts", "integer counts"]);
 }
 
 fn envis_cmd(args: &[&str]) -> std::process::Output {
@@ -966,4 +995,69 @@ fn scene_files_load_render_and_report_errors() {
         }
         assert_eq!(e.lines().count(), 1, "{file}: not one line: {e}");
     }
+}
+
+/// envis's FLIP / HDR-FLIP against NVIDIA's `flip-evaluator` 1.7 on the images that
+/// `docs/bench/flip_reference.py` builds (rebuilt here from the same formulas): exposure range,
+/// mean and every pixel of the error map.
+#[test]
+fn flip_matches_flip_evaluator() {
+    use envis::bench::flip::{exposure_range, hdr_flip, ldr_flip};
+    let js: serde_json::Value = serde_json::from_str(include_str!("data/flip_reference.json")).unwrap();
+    let (w, h) = (js["width"].as_u64().unwrap() as usize, js["height"].as_u64().unwrap() as usize);
+    let mut reference = vec![Vec3::ZERO; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            if (x as i64 - 12).pow(2) + (y as i64 - 10).pow(2) > 100 {
+                continue;
+            }
+            for c in 0..3 {
+                reference[y * w + x][c] = (4.0 * (0.5 + 0.5 * (0.7 * x as f64 + 1.3 * y as f64 + 2.0 * c as f64).sin()).powi(3)) as f32;
+            }
+        }
+    }
+    reference[7 * w + 5] += Vec3::splat(1000.0);
+    let mut checked = 0;
+    for case in js["cases"].as_array().unwrap() {
+        let amp = case["amp"].as_f64().unwrap();
+        let want: Vec<f32> = case["map"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap() as f32).collect();
+        let (got, mean) = if case["kind"] == "hdr" {
+            let mut test = reference.clone();
+            for y in 0..h {
+                for x in 0..w {
+                    for c in 0..3 {
+                        let r = reference[y * w + x][c] as f64;
+                        test[y * w + x][c] = (r * (1.0 + amp * (2.1 * (x * x) as f64 + 3.7 * y as f64 + c as f64).sin())).max(0.0) as f32;
+                    }
+                }
+            }
+            let (start, stop, count) = exposure_range(&reference);
+            assert!((start as f64 - case["start"].as_f64().unwrap()).abs() < 1e-4, "start {start} vs {}", case["start"]);
+            assert!((stop as f64 - case["stop"].as_f64().unwrap()).abs() < 1e-4, "stop {stop} vs {}", case["stop"]);
+            assert_eq!(count as u64, case["count"].as_u64().unwrap());
+            hdr_flip(&reference, &test, w, h)
+        } else {
+            let (mut r, mut t) = (vec![Vec3::ZERO; w * h], vec![Vec3::ZERO; w * h]);
+            for y in 0..h {
+                for x in 0..w {
+                    for c in 0..3 {
+                        let v = 0.5 + 0.4 * (0.3 * x as f64 - 0.5 * y as f64 + c as f64).sin();
+                        r[y * w + x][c] = v as f32;
+                        t[y * w + x][c] = (v + 0.15 * (1.7 * (x * y) as f64 + c as f64).sin()).clamp(0.0, 1.0) as f32;
+                    }
+                }
+            }
+            let m = ldr_flip(&r, &t, w, h, envis::bench::flip::default_ppd());
+            let mean = m.iter().sum::<f32>() / m.len() as f32;
+            (m, mean)
+        };
+        let worst = got.iter().zip(&want).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+        let want_mean = case["mean"].as_f64().unwrap() as f32;
+        assert!((mean - want_mean).abs() <= 1e-4 + 1e-3 * want_mean, "{} amp {amp}: mean {mean} vs flip-evaluator {want_mean}", case["kind"]);
+        assert!(worst < 2e-3, "{} amp {amp}: a pixel differs by {worst}", case["kind"]);
+        if want_mean > 0.0 {
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 3, "expected three cases with a nonzero error");
 }

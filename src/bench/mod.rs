@@ -16,6 +16,8 @@
 //! Suite `accuracy`: error vs time over strategies, budgets, materials and maps (see [`accuracy`]).
 
 pub mod accuracy;
+pub mod chart;
+pub mod flip;
 #[cfg(feature = "gpu")]
 pub mod gpu;
 
@@ -61,6 +63,9 @@ pub struct BenchArgs {
     /// Accuracy suite: a small sweep (a smoke test, under a minute).
     #[arg(long)]
     pub quick: bool,
+    /// Accuracy suite: do not also time each point on the GPU backend.
+    #[arg(long)]
+    pub cpu_only: bool,
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -97,8 +102,8 @@ pub fn run(a: BenchArgs) -> Result<()> {
 /// same seed, so frame-to-frame change comes only from the environment and the counts. For each
 /// mode: mean |change| per pixel relative to the reference's own mean |change| (1 = as smooth as
 /// the truth), and the fraction of (pixel, frame) pairs that jump by more than 10% of the pixel
-/// while the reference moves by less than 1% (discontinuities). Writes `popping.json` and PNG
-/// strips of 6 frames per mode.
+/// while the reference moves by less than 1% (discontinuities). Writes `popping.json`, a plot of
+/// the change per frame (`popping.svg` / `.png`) and PNG strips of 6 frames per mode.
 fn popping(a: BenchArgs, dir: PathBuf) -> Result<()> {
     let frames = if a.quick { 8 } else { 48 };
     let (size, face) = (a.size.min(64), a.face_size.min(32));
@@ -110,8 +115,11 @@ fn popping(a: BenchArgs, dir: PathBuf) -> Result<()> {
     let maps: Vec<crate::envmap::CubeMap> = (0..frames).map(|t| crate::envmap::sky::sky_cube(face, hours(t))).collect();
     let refs: Vec<Vec<f64>> = maps.iter().map(|m| crate::render::reference::reference_image(m, &gbuf, size, size, 1.0).1.iter().map(|&c| crate::envmap::luminance_f64(c)).collect()).collect();
     let ref_change: f64 = (1..frames).map(|t| idx.iter().map(|&i| (refs[t][i] - refs[t - 1][i]).abs()).sum::<f64>()).sum::<f64>();
+    let np = idx.len().max(1) as f64;
+    let per_frame = |f: &dyn Fn(usize) -> f64| -> Vec<(f64, f64)> { (1..frames).map(|t| (t as f64, f(t) / np)).collect() };
+    let mut series = vec![accuracy::Series { name: "reference".into(), color: "#000000", points: per_frame(&|t| idx.iter().map(|&i| (refs[t][i] - refs[t - 1][i]).abs()).sum()), dashed: true }];
     let mut rows = Vec::new();
-    for (name, counts) in [("fractional", crate::sampling::Counts::Fractional), ("integer", crate::sampling::Counts::Integer)] {
+    for (name, counts, color) in [("fractional", crate::sampling::Counts::Fractional, "#d62728"), ("integer", crate::sampling::Counts::Integer, "#ff7f0e")] {
         let s = Settings { light_samples: a.light_samples, brdf_samples: a.brdf_samples, counts, seed: 1, ..Default::default() };
         let imgs: Vec<crate::envmap::Image> = maps.iter().map(|m| render::render(m, &gbuf, size, size, &s).map(|o| o.image)).collect::<Result<_>>()?;
         let (mut change, mut jumps, mut pairs) = (0.0, 0usize, 0usize);
@@ -127,6 +135,7 @@ fn popping(a: BenchArgs, dir: PathBuf) -> Result<()> {
                 }
             }
         }
+        series.push(accuracy::Series { name: format!("{name} counts"), color, points: per_frame(&|t| idx.iter().map(|&i| (lum(imgs[t].data[i]) - lum(imgs[t - 1].data[i])).abs()).sum()), dashed: false });
         let ratio = change / ref_change.max(1e-12);
         let jump_frac = jumps as f64 / pairs.max(1) as f64;
         eprintln!("  {name:10}: mean |frame change| = {ratio:.2} x the reference's; discontinuities {:.3}% of pixel-frames", 100.0 * jump_frac);
@@ -146,7 +155,9 @@ fn popping(a: BenchArgs, dir: PathBuf) -> Result<()> {
     let report = serde_json::json!({ "suite": "popping", "frames": frames, "hours": [9.0, 11.0], "size": size, "face_size": face, "light_samples": a.light_samples, "brdf_samples": a.brdf_samples, "seed": "1 for every frame", "rows": rows });
     let path = dir.join("popping.json");
     std::fs::write(&path, serde_json::to_string_pretty(&report).unwrap() + "\n").map_err(|e| Error::file(&path, format!("cannot write: {e}")))?;
-    eprintln!("wrote {} and popping-strip-*.png", path.display());
+    let chart = accuracy::Chart { title: "Frame-to-frame change, sun moving 9h -> 11h (same seed every frame)".into(), xlabel: "frame", ylabel: "mean |luminance change| per pixel", xlog: false, ylog: false, series };
+    let (svg, png) = chart.write(&dir, "popping")?;
+    eprintln!("wrote {}, {svg}, {png} and popping-strip-*.png", path.display());
     Ok(())
 }
 
@@ -156,11 +167,32 @@ fn accuracy_suite(a: BenchArgs, dir: PathBuf) -> Result<()> {
     let start = Instant::now();
     let total = accuracy::point_count(&cfg);
     eprintln!("envis bench accuracy: {} environments x {} materials, {total} points", cfg.envs.len(), cfg.materials.len());
-    let points = accuracy::sweep(&cfg, |done, total, p| {
+    let report_progress = |done: usize, total: usize, p: &accuracy::Point| {
         if done % 20 == 0 || done == total {
-            eprintln!("  [{done:>5}/{total}] {:.0} s  {} / {} / {} N={}: relMSE {:.3e}", start.elapsed().as_secs_f64(), p.env, p.material, p.strategy, p.budget, p.relmse);
+            eprintln!("  [{done:>5}/{total}] {:.0} s  {} / {} / {} N={}: relMSE {:.3e}, FLIP {:.4}", start.elapsed().as_secs_f64(), p.env, p.material, p.strategy, p.budget, p.relmse, p.flip);
         }
-    })?;
+    };
+    // The GPU backend, when this build has it and a device is there (`--cpu-only` skips it).
+    #[cfg(feature = "gpu")]
+    let gpu_ctx = if a.cpu_only { None } else { crate::gpu::GpuContext::new().map_err(|e| eprintln!("accuracy: no GPU backend ({e}); CPU only")).ok() };
+    #[cfg(feature = "gpu")]
+    let gpu_device = gpu_ctx.as_ref().map(|c| format!("{} ({:?})", c.info.name, c.info.backend));
+    #[cfg(not(feature = "gpu"))]
+    let gpu_device: Option<String> = None;
+    #[cfg(feature = "gpu")]
+    let points = match &gpu_ctx {
+        Some(ctx) => {
+            let mut renderer = crate::gpu::GpuRenderer::new(ctx);
+            let mut time = |map: &CubeMap, gbuf: &[Option<render::GPixel>], size: usize, s: &Settings| -> Result<(f64, f64)> {
+                let (_, t) = renderer.render(map, gbuf, size, size, s)?;
+                Ok((t.build_gpu_ms.unwrap_or(t.build_wall_ms), t.shade_gpu_ms.unwrap_or(t.shade_wall_ms)))
+            };
+            accuracy::sweep(&cfg, Some(&mut time), report_progress)?
+        }
+        None => accuracy::sweep(&cfg, None, report_progress)?,
+    };
+    #[cfg(not(feature = "gpu"))]
+    let points = accuracy::sweep(&cfg, None, report_progress)?;
     let mut command = String::from("envis bench --suite accuracy");
     if a.quick {
         command.push_str(" --quick");
@@ -174,17 +206,17 @@ fn accuracy_suite(a: BenchArgs, dir: PathBuf) -> Result<()> {
     };
     write("accuracy.csv", accuracy::csv(&points))?;
     write("accuracy.json", serde_json::to_string_pretty(&serde_json::json!({ "command": command, "points": points })).unwrap() + "\n")?;
-    let mut md = accuracy::report(&cfg, &points, &command);
+    let mut md = accuracy::report(&cfg, &points, &command, gpu_device.as_deref());
     md.push_str("## Plots\n\n");
+    md.push_str("Each plot is written as SVG and PNG (plotters); the PNGs are shown here.\n\n");
     for (mname, _) in &cfg.materials {
-        let name = accuracy::plot_name(mname);
-        write(&name, accuracy::svg_plot(&points, mname))?;
-        let samples = accuracy::samples_plot_name(mname);
-        write(&samples, accuracy::svg_error_vs_samples(&points, mname))?;
-        md.push_str(&format!("![{mname}: error vs time]({name}) ![{mname}: error vs samples]({samples})\n\n"));
+        let stem = accuracy::plot_stem(mname);
+        let (_, time_png) = accuracy::plot_error_vs_time(&points, mname).write(&dir, &stem)?;
+        let (_, samples_png) = accuracy::plot_error_vs_samples(&points, mname).write(&dir, &format!("{stem}-samples"))?;
+        md.push_str(&format!("![{mname}: error vs time]({time_png}) ![{mname}: error vs samples]({samples_png})\n\n"));
     }
-    write("accuracy-wasted.svg", accuracy::svg_wasted(&points))?;
-    md.push_str("![wasted light samples](accuracy-wasted.svg)\n\n");
+    let (_, wasted_png) = accuracy::plot_wasted(&points).write(&dir, "accuracy-wasted")?;
+    md.push_str(&format!("![wasted light samples]({wasted_png})\n\n"));
     md.push_str(&format!("Sweep time: {:.0} s.\n", start.elapsed().as_secs_f64()));
     write("accuracy-vs-time.md", md)?;
     eprintln!("wrote accuracy.csv, accuracy.json, accuracy-vs-time.md to {} in {:.0} s", dir.display(), start.elapsed().as_secs_f64());
@@ -304,22 +336,20 @@ fn speed(a: BenchArgs, dir: PathBuf) -> Result<()> {
     });
     let path = dir.join("bench-speed.json");
     std::fs::write(&path, serde_json::to_string_pretty(&report).unwrap() + "\n").map_err(|e| Error::file(&path, format!("cannot write: {e}")))?;
-    let plot = dir.join("build-scaling.svg");
-    std::fs::write(&plot, scaling_plot(&scaling)).map_err(|e| Error::file(&plot, format!("cannot write: {e}")))?;
-    eprintln!("wrote {} and {}", path.display(), plot.display());
+    let (svg, png) = scaling_plot(&scaling).write(&dir, "build-scaling")?;
+    eprintln!("wrote {}, {svg} and {png}", path.display());
     Ok(())
 }
 
 /// Build time against texel count (log-log): the CDF build, the pool and one plain streaming
 /// pass over the same texels (the memory-bound limit), from the speed suite's scaling rows.
-fn scaling_plot(rows: &[serde_json::Value]) -> String {
+fn scaling_plot(rows: &[serde_json::Value]) -> accuracy::Chart {
     use accuracy::{Chart, Series};
     let col = |k: &str| -> Vec<(f64, f64)> { rows.iter().map(|r| (r["texels"].as_f64().unwrap_or(0.0), r[k].as_f64().unwrap_or(0.0))).collect() };
-    let tips = |k: &str| -> Vec<String> { rows.iter().map(|r| format!("6 x {}^2: {:.3} ms", r["face_size"], r[k].as_f64().unwrap_or(0.0))).collect() };
     let series = vec![
-        Series { name: "CDF build".into(), color: "#d62728", points: col("cdf_ms"), dashed: false, tips: tips("cdf_ms") },
-        Series { name: "light pool".into(), color: "#2ca02c", points: col("pool_ms"), dashed: false, tips: tips("pool_ms") },
-        Series { name: "streaming pass".into(), color: "#1f77b4", points: col("stream_ms"), dashed: false, tips: tips("stream_ms") },
+        Series { name: "CDF build".into(), color: "#d62728", points: col("cdf_ms"), dashed: false },
+        Series { name: "light pool".into(), color: "#2ca02c", points: col("pool_ms"), dashed: false },
+        Series { name: "streaming pass".into(), color: "#1f77b4", points: col("stream_ms"), dashed: false },
     ];
-    Chart { title: "Per-frame build time vs texels (CPU)", xlabel: "texels (6 N^2)", ylabel: "ms (median)", xlog: true, ylog: true, series }.svg()
+    Chart { title: "Per-frame build time vs texels (CPU)".into(), xlabel: "texels (6 N^2)", ylabel: "ms (median)", xlog: true, ylog: true, series }
 }

@@ -48,40 +48,70 @@ pub struct GpuTimings {
 /// Render a G-buffer on the GPU: the same contract as [`crate::render::render`] (same seed gives
 /// the same random streams, so the images agree to float rounding).
 pub fn render_gpu(ctx: &GpuContext, map: &CubeMap, gbuf: &[Option<GPixel>], width: usize, height: usize, s: &Settings) -> Result<(Rendered, GpuTimings)> {
-    s.validate()?;
-    assert_eq!(gbuf.len(), width * height);
-    let m = s.pool_per_face();
-    let mut sampler = EnvSampler::new(ctx, map.size, m)?;
-    if s.strategy == Strategy::Global {
-        sampler.enable_global(&ctx.device, &ctx.queue)?;
+    GpuRenderer::new(ctx).render(map, gbuf, width, height, s)
+}
+
+/// A headless GPU renderer that keeps its pipelines between frames: one shader, and one sampler
+/// per (face size, pool size, global table) it has been asked for.
+pub struct GpuRenderer<'c> {
+    ctx: &'c GpuContext,
+    shader: Shader,
+    samplers: std::collections::HashMap<(usize, usize, bool), EnvSampler>,
+}
+
+impl<'c> GpuRenderer<'c> {
+    pub fn new(ctx: &'c GpuContext) -> Self {
+        GpuRenderer { ctx, shader: Shader::new(ctx), samplers: Default::default() }
     }
-    sampler.upload(&ctx.queue, map);
-    let shader = Shader::new(ctx);
-    let pixels: Vec<GpuGPixel> = gbuf.iter().map(GpuGPixel::from).collect();
 
-    let mut timings = GpuTimings::default();
-    let t0 = std::time::Instant::now();
-    let build_q = sampler.run(ctx, crate::render::pool_seed(s.seed));
-    ctx.wait(build_q)?;
-    timings.build_wall_ms = t0.elapsed().as_secs_f64() * 1e3;
-    timings.build_gpu_ms = sampler.last_gpu_ms(ctx);
+    /// [`render_gpu`] with the cached pipelines.
+    pub fn render(&mut self, map: &CubeMap, gbuf: &[Option<GPixel>], width: usize, height: usize, s: &Settings) -> Result<(Rendered, GpuTimings)> {
+        s.validate()?;
+        assert_eq!(gbuf.len(), width * height);
+        let ctx = self.ctx;
+        let m = s.pool_per_face();
+        let global = s.strategy == Strategy::Global;
+        let key = (map.size, m, global);
+        let pixels: Vec<GpuGPixel> = gbuf.iter().map(GpuGPixel::from).collect();
+        if !self.samplers.contains_key(&key) {
+            let mut sampler = EnvSampler::new(ctx, map.size, m)?;
+            if global {
+                sampler.enable_global(&ctx.device, &ctx.queue)?;
+            }
+            // Some drivers (lavapipe among them) compile a pipeline at its first dispatch: run the
+            // new pipelines once, untimed, so that the timings below are steady-state frames.
+            sampler.upload(&ctx.queue, map);
+            ctx.wait(sampler.run(ctx, crate::render::pool_seed(s.seed)))?;
+            self.shader.shade(ctx, &sampler, &pixels, s)?;
+            self.samplers.insert(key, sampler);
+        }
+        let sampler = &self.samplers[&key];
+        sampler.upload(&ctx.queue, map);
 
-    let t1 = std::time::Instant::now();
-    let job = shader.shade(ctx, &sampler, &pixels, s)?;
-    timings.shade_wall_ms = t1.elapsed().as_secs_f64() * 1e3;
-    timings.shade_gpu_ms = job.gpu_ms;
+        let mut timings = GpuTimings::default();
+        let t0 = std::time::Instant::now();
+        let build_q = sampler.run(ctx, crate::render::pool_seed(s.seed));
+        ctx.wait(build_q)?;
+        timings.build_wall_ms = t0.elapsed().as_secs_f64() * 1e3;
+        timings.build_gpu_ms = sampler.last_gpu_ms(ctx);
 
-    let mut stats = RenderStats::for_settings(width, height, s, m);
-    stats.build_ms = timings.build_wall_ms;
-    stats.shade_ms = timings.shade_wall_ms;
-    let per_pixel: Vec<Option<PixelStats>> = job
-        .stats
-        .iter()
-        .zip(gbuf)
-        .map(|(q, g)| g.as_ref().map(|_| PixelStats { available: q[0], green: q[1], yellow: q[2], brdf: q[3] }))
-        .collect();
-    stats.accumulate(&per_pixel);
-    stats.clamped_texels = sampler.read_problems(ctx)?;
-    let image = crate::envmap::Image { width, height, data: job.color.iter().map(|c| Vec3::new(c[0], c[1], c[2])).collect() };
-    Ok((Rendered { image, stats }, timings))
+        let t1 = std::time::Instant::now();
+        let job = self.shader.shade(ctx, sampler, &pixels, s)?;
+        timings.shade_wall_ms = t1.elapsed().as_secs_f64() * 1e3;
+        timings.shade_gpu_ms = job.gpu_ms;
+
+        let mut stats = RenderStats::for_settings(width, height, s, m);
+        stats.build_ms = timings.build_wall_ms;
+        stats.shade_ms = timings.shade_wall_ms;
+        let per_pixel: Vec<Option<PixelStats>> = job
+            .stats
+            .iter()
+            .zip(gbuf)
+            .map(|(q, g)| g.as_ref().map(|_| PixelStats { available: q[0], green: q[1], yellow: q[2], brdf: q[3] }))
+            .collect();
+        stats.accumulate(&per_pixel);
+        stats.clamped_texels = sampler.read_problems(ctx)?;
+        let image = crate::envmap::Image { width, height, data: job.color.iter().map(|c| Vec3::new(c[0], c[1], c[2])).collect() };
+        Ok((Rendered { image, stats }, timings))
+    }
 }
