@@ -811,6 +811,47 @@ fn check_plot(dir: &std::path::Path, stem: &str, series: &[&str]) {
     assert!(coloured > 500, "{stem}.png: only {coloured} coloured pixels");
 }
 
+/// An interrupted sweep resumes: the points in `accuracy.partial.jsonl` (same configuration) are
+/// taken as they are, a line cut short is measured again, and the journal is removed at the end.
+#[test]
+fn bench_accuracy_resumes() {
+    let dir = tempdir();
+    let out = dir.to_str().unwrap();
+    let args = ["bench", "--suite", "accuracy", "--quick", "--cpu-only", "--out", out];
+    let r = envis_cmd(&args);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert!(!dir.join("accuracy.partial.jsonl").exists(), "journal left behind");
+    let js: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("accuracy.json")).unwrap()).unwrap();
+    let mut pts: Vec<serde_json::Value> = js["points"].as_array().unwrap().clone();
+    let n = pts.len();
+    // Journal of an interrupted run: 10 finished points (the first marked) and a torn line.
+    pts[0]["relmse"] = serde_json::json!(123.0);
+    let cfg = envis::bench::accuracy::Config::new(true, None).unwrap();
+    let mut journal = serde_json::to_string(&envis::bench::accuracy::fingerprint(&cfg, None)).unwrap() + "\n";
+    for p in &pts[..10] {
+        journal += &(p.to_string() + "\n");
+    }
+    journal += "{\"env\":\"builtin:sk";
+    std::fs::write(dir.join("accuracy.partial.jsonl"), &journal).unwrap();
+    let r = envis_cmd(&args);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success() && err.contains(&format!("resuming 10 of {n} points")), "{err}");
+    let csv = std::fs::read_to_string(dir.join("accuracy.csv")).unwrap();
+    assert_eq!(csv.lines().count(), n + 1);
+    let first: Vec<&str> = csv.lines().nth(1).unwrap().split(',').collect();
+    assert_eq!(first[6].parse::<f64>().unwrap(), 123.0, "the resumed point was measured again");
+    let md = std::fs::read_to_string(dir.join("accuracy-vs-time.md")).unwrap();
+    assert!(md.contains(&format!("10 of {n} points resumed")), "{md}");
+    assert!(!dir.join("accuracy.partial.jsonl").exists());
+    // A journal from another configuration is not used.
+    std::fs::write(dir.join("accuracy.partial.jsonl"), journal.replace("size=16", "size=17")).unwrap();
+    let r = envis_cmd(&args);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success() && err.contains("different configuration"), "{err}");
+    let csv = std::fs::read_to_string(dir.join("accuracy.csv")).unwrap();
+    assert_ne!(csv.lines().nth(1).unwrap().split(',').nth(6).unwrap().parse::<f64>().unwrap(), 123.0);
+}
+
 #[test]
 fn bench_popping_quick_smoke() {
     let dir = tempdir();

@@ -17,7 +17,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 /// One measured point of the sweep.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Point {
     pub env: String,
     pub material: String,
@@ -114,21 +114,54 @@ pub fn point_count(cfg: &Config) -> usize {
     cfg.envs.len() * cfg.materials.len() * cfg.budgets.iter().map(|&n| strategies(n).len()).sum::<usize>()
 }
 
-/// Run the sweep, calling `progress(done, total, point)` after each point; with `gpu`, each point
-/// is also rendered (seed 0) and timed on the GPU backend.
-pub fn sweep(cfg: &Config, mut gpu: Option<&mut GpuTimer>, mut progress: impl FnMut(usize, usize, &Point)) -> Result<Vec<Point>> {
+/// A fingerprint of everything that decides the sweep's points: a resumed sweep must match it.
+pub fn fingerprint(cfg: &Config, gpu_device: Option<&str>) -> String {
+    let mats: Vec<String> = cfg.materials.iter().map(|(n, m)| format!("{n}={m:?}")).collect();
+    format!("envs={:?} materials={:?} budgets={:?} size={} face={} seeds={} gpu={gpu_device:?} version={}", cfg.envs, mats, cfg.budgets, cfg.size, cfg.face_size, cfg.seeds, env!("CARGO_PKG_VERSION"))
+}
+
+/// Key of a point within a sweep.
+fn key(env: &str, material: &str, strategy: &str, budget: usize) -> (String, String, String, usize) {
+    (env.to_string(), material.to_string(), strategy.to_string(), budget)
+}
+
+/// Run the sweep, calling `progress(done, total, point, resumed)` after each point. Points found
+/// in `resume` (from an interrupted run with the same [`fingerprint`]) are taken as they are,
+/// not measured again. With `gpu`, each measured point is also rendered (seed 0) and timed on
+/// the GPU backend.
+pub fn sweep(cfg: &Config, resume: &[Point], mut gpu: Option<&mut GpuTimer>, mut progress: impl FnMut(usize, usize, &Point, bool)) -> Result<Vec<Point>> {
     let total = point_count(cfg);
     let mut points = Vec::with_capacity(total);
+    let saved: std::collections::HashMap<_, &Point> = resume.iter().map(|p| (key(&p.env, &p.material, &p.strategy, p.budget), p)).collect();
     for env_name in &cfg.envs {
+        let todo = |mname: &str| cfg.budgets.iter().any(|&n| strategies(n).iter().any(|(label, _)| !saved.contains_key(&key(env_name, mname, label, n))));
+        // A fully resumed environment is not even loaded.
+        if cfg.materials.iter().all(|(m, _)| !todo(m)) {
+            for (mname, _) in &cfg.materials {
+                for &n in &cfg.budgets {
+                    for (label, _) in strategies(n) {
+                        let p = saved[&key(env_name, mname, &label, n)].clone();
+                        progress(points.len() + 1, total, &p, true);
+                        points.push(p);
+                    }
+                }
+            }
+            continue;
+        }
         let src: EnvSource = env_name.parse()?;
         let env = load_env(&src, cfg.face_size)?;
         for (mname, mat) in &cfg.materials {
             let gbuf = render::sphere_gbuffer(cfg.size, cfg.size, *mat);
-            let (_, refimg) = reference::reference_image(&env.cube, &gbuf, cfg.size, cfg.size, 1.0);
+            let refimg = if todo(mname) { reference::reference_image(&env.cube, &gbuf, cfg.size, cfg.size, 1.0).1 } else { Vec::new() };
             let ref_rgb: Vec<glam::Vec3> = refimg.iter().map(|c| c.as_vec3()).collect();
             let idx: Vec<usize> = (0..gbuf.len()).filter(|&i| gbuf[i].is_some()).collect();
             for &n in &cfg.budgets {
                 for (label, s) in strategies(n) {
+                    if let Some(p) = saved.get(&key(env_name, mname, &label, n)) {
+                        progress(points.len() + 1, total, p, true);
+                        points.push((*p).clone());
+                        continue;
+                    }
                     let (mut relmse, mut mse, mut build, mut shade, mut wasted, mut flip) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
                     for seed in 0..cfg.seeds {
                         let out = render::render(&env.cube, &gbuf, cfg.size, cfg.size, &Settings { seed, ..s })?;
@@ -173,7 +206,7 @@ pub fn sweep(cfg: &Config, mut gpu: Option<&mut GpuTimer>, mut progress: impl Fn
                         gpu_build_ms,
                         gpu_shade_ms,
                     };
-                    progress(points.len() + 1, total, &p);
+                    progress(points.len() + 1, total, &p, false);
                     points.push(p);
                 }
             }

@@ -161,17 +161,36 @@ fn popping(a: BenchArgs, dir: PathBuf) -> Result<()> {
     Ok(())
 }
 
+/// One progress line on stderr: a bar, the count, the time so far and an estimate of the time
+/// left. On a terminal it redraws in place; otherwise (logs, CI) it prints a line every 5%.
+fn progress_bar(done: usize, total: usize, start: Instant, what: &str) {
+    use std::io::IsTerminal;
+    let tty = std::io::stderr().is_terminal();
+    if !tty && done % (total / 20).max(1) != 0 && done != total {
+        return;
+    }
+    const WIDTH: usize = 30;
+    let frac = done as f64 / total.max(1) as f64;
+    let filled = ((frac * WIDTH as f64).round() as usize).min(WIDTH);
+    let elapsed = start.elapsed().as_secs_f64();
+    let left = if done > 0 { elapsed / done as f64 * (total - done) as f64 } else { 0.0 };
+    let line = format!("[{}{}] {done}/{total} {:3.0}%  {elapsed:.0} s, ~{left:.0} s left  {what}", "#".repeat(filled), ".".repeat(WIDTH - filled), 100.0 * frac);
+    if tty {
+        eprint!("\r{line:<110.110}");
+        if done == total {
+            eprintln!();
+        }
+    } else {
+        eprintln!("{line}");
+    }
+}
+
 /// Suite `accuracy`: writes `accuracy.csv`, `accuracy.json` and `accuracy-vs-time.md` to `dir`.
 fn accuracy_suite(a: BenchArgs, dir: PathBuf) -> Result<()> {
     let cfg = accuracy::Config::new(a.quick, a.maps.as_deref())?;
     let start = Instant::now();
     let total = accuracy::point_count(&cfg);
     eprintln!("envis bench accuracy: {} environments x {} materials, {total} points", cfg.envs.len(), cfg.materials.len());
-    let report_progress = |done: usize, total: usize, p: &accuracy::Point| {
-        if done % 20 == 0 || done == total {
-            eprintln!("  [{done:>5}/{total}] {:.0} s  {} / {} / {} N={}: relMSE {:.3e}, FLIP {:.4}", start.elapsed().as_secs_f64(), p.env, p.material, p.strategy, p.budget, p.relmse, p.flip);
-        }
-    };
     // The GPU backend, when this build has it and a device is there (`--cpu-only` skips it).
     #[cfg(feature = "gpu")]
     let gpu_ctx = if a.cpu_only { None } else { crate::gpu::GpuContext::new().map_err(|e| eprintln!("accuracy: no GPU backend ({e}); CPU only")).ok() };
@@ -179,6 +198,46 @@ fn accuracy_suite(a: BenchArgs, dir: PathBuf) -> Result<()> {
     let gpu_device = gpu_ctx.as_ref().map(|c| format!("{} ({:?})", c.info.name, c.info.backend));
     #[cfg(not(feature = "gpu"))]
     let gpu_device: Option<String> = None;
+
+    // Resumable: every finished point is appended to `accuracy.partial.jsonl` (first line: the
+    // sweep's fingerprint). A rerun with the same configuration takes those points and measures
+    // only the rest; the file is removed once the outputs are written.
+    let fingerprint = accuracy::fingerprint(&cfg, gpu_device.as_deref());
+    let partial = dir.join("accuracy.partial.jsonl");
+    let resume: Vec<accuracy::Point> = match std::fs::read_to_string(&partial) {
+        Ok(text) => {
+            let mut lines = text.lines();
+            if lines.next() == Some(serde_json::to_string(&fingerprint).unwrap().as_str()) {
+                // A line cut short by the interruption is dropped (and measured again).
+                let pts: Vec<accuracy::Point> = lines.filter_map(|l| serde_json::from_str(l).ok()).collect();
+                eprintln!("accuracy: resuming {} of {total} points from {}", pts.len(), partial.display());
+                pts
+            } else {
+                eprintln!("accuracy: {} is from a different configuration; starting over", partial.display());
+                Vec::new()
+            }
+        }
+        Err(_) => Vec::new(),
+    };
+    let mut journal = {
+        let mut text = serde_json::to_string(&fingerprint).unwrap() + "\n";
+        for p in &resume {
+            text += &(serde_json::to_string(p).unwrap() + "\n");
+        }
+        std::fs::write(&partial, text).map_err(|e| Error::file(&partial, format!("cannot write: {e}")))?;
+        std::fs::OpenOptions::new().append(true).open(&partial).map_err(|e| Error::file(&partial, format!("cannot append: {e}")))?
+    };
+    let resumed = resume.len();
+    let mut journal_error = None;
+    let report_progress = |done: usize, total: usize, p: &accuracy::Point, was_resumed: bool| {
+        use std::io::Write as _;
+        if !was_resumed {
+            if let Err(e) = writeln!(journal, "{}", serde_json::to_string(p).unwrap()) {
+                journal_error.get_or_insert(e);
+            }
+        }
+        progress_bar(done, total, start, &format!("{} / {} / {} N={}", p.env, p.material, p.strategy, p.budget));
+    };
     #[cfg(feature = "gpu")]
     let points = match &gpu_ctx {
         Some(ctx) => {
@@ -187,12 +246,15 @@ fn accuracy_suite(a: BenchArgs, dir: PathBuf) -> Result<()> {
                 let (_, t) = renderer.render(map, gbuf, size, size, s)?;
                 Ok((t.build_gpu_ms.unwrap_or(t.build_wall_ms), t.shade_gpu_ms.unwrap_or(t.shade_wall_ms)))
             };
-            accuracy::sweep(&cfg, Some(&mut time), report_progress)?
+            accuracy::sweep(&cfg, &resume, Some(&mut time), report_progress)?
         }
-        None => accuracy::sweep(&cfg, None, report_progress)?,
+        None => accuracy::sweep(&cfg, &resume, None, report_progress)?,
     };
     #[cfg(not(feature = "gpu"))]
-    let points = accuracy::sweep(&cfg, None, report_progress)?;
+    let points = accuracy::sweep(&cfg, &resume, None, report_progress)?;
+    if let Some(e) = journal_error {
+        eprintln!("accuracy: could not append to {} ({e}); this run is not resumable", partial.display());
+    }
     let mut command = String::from("envis bench --suite accuracy");
     if a.quick {
         command.push_str(" --quick");
@@ -217,8 +279,9 @@ fn accuracy_suite(a: BenchArgs, dir: PathBuf) -> Result<()> {
     }
     let (_, wasted_png) = accuracy::plot_wasted(&points).write(&dir, "accuracy-wasted")?;
     md.push_str(&format!("![wasted light samples]({wasted_png})\n\n"));
-    md.push_str(&format!("Sweep time: {:.0} s.\n", start.elapsed().as_secs_f64()));
+    md.push_str(&format!("Sweep time: {:.0} s{}.\n", start.elapsed().as_secs_f64(), if resumed > 0 { format!(" ({resumed} of {} points resumed from an interrupted run)", points.len()) } else { String::new() }));
     write("accuracy-vs-time.md", md)?;
+    let _ = std::fs::remove_file(&partial);
     eprintln!("wrote accuracy.csv, accuracy.json, accuracy-vs-time.md to {} in {:.0} s", dir.display(), start.elapsed().as_secs_f64());
     Ok(())
 }
