@@ -49,7 +49,7 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = 32)]
     pub brdf_samples: usize,
     /// Largest face size in the build-time scaling sweep.
-    #[arg(long, default_value_t = 512)]
+    #[arg(long, default_value_t = 1024)]
     pub max_face: usize,
     /// Runs per figure (the median is reported).
     #[arg(long, default_value_t = 5)]
@@ -392,15 +392,42 @@ fn speed(a: BenchArgs, dir: PathBuf) -> Result<()> {
         }));
         n *= 2;
     }
+    // The pool against M (samples per face) on a fixed 64^2 map: linear in 6 M once M passes the
+    // per-face setup.
+    let map = crate::envmap::sky::sky_cube(64, 10.0);
+    let dist = CubeDistribution::build(&map);
+    let mut pool_scaling = Vec::new();
+    for m in [8usize, 32, 128, 512, 2048, 8192] {
+        let times: Vec<f64> = (0..repeat)
+            .map(|r| {
+                let t = Instant::now();
+                std::hint::black_box(LightPool::build(&map, &dist, m, r as u32));
+                t.elapsed().as_secs_f64() * 1e3
+            })
+            .collect();
+        let ms = median(times);
+        eprintln!("  pool M = {m:>5} per face (64^2 faces): {ms:8.3} ms  {:.1} ns/sample", ms * 1e6 / (6 * m) as f64);
+        pool_scaling.push(serde_json::json!({ "pool_per_face": m, "samples": 6 * m, "pool_ms": ms, "ns_per_sample": ms * 1e6 / (6 * m) as f64 }));
+    }
     let report = serde_json::json!({
         "suite": "speed", "threads": threads, "env": a.env, "face_size": a.face_size, "size": a.size,
         "light_samples": a.light_samples, "brdf_samples": a.brdf_samples, "repeat": repeat,
-        "shading": shading, "build_scaling": scaling,
+        "shading": shading, "build_scaling": scaling, "pool_scaling": pool_scaling,
     });
     let path = dir.join("bench-speed.json");
     std::fs::write(&path, serde_json::to_string_pretty(&report).unwrap() + "\n").map_err(|e| Error::file(&path, format!("cannot write: {e}")))?;
     let (svg, png) = scaling_plot(&scaling).write(&dir, "build-scaling")?;
-    eprintln!("wrote {}, {svg} and {png}", path.display());
+    let pool_points = pool_scaling.iter().map(|r| (r["samples"].as_f64().unwrap_or(0.0), r["pool_ms"].as_f64().unwrap_or(0.0))).collect();
+    let pool_chart = accuracy::Chart {
+        title: "Light-sample pool build vs pool size (CPU, 64^2 faces)".into(),
+        xlabel: "pool samples (6 M)",
+        ylabel: "ms (median)",
+        xlog: true,
+        ylog: true,
+        series: vec![accuracy::Series { name: "pool build".into(), color: "#2ca02c", points: pool_points, dashed: false }],
+    };
+    let (psvg, ppng) = pool_chart.write(&dir, "pool-scaling")?;
+    eprintln!("wrote {}, {svg}, {png}, {psvg} and {ppng}", path.display());
     Ok(())
 }
 
