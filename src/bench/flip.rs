@@ -238,15 +238,16 @@ pub fn hdr_flip(reference: &[Vec3], test: &[Vec3], w: usize, h: usize) -> (Vec<f
     let (start, stop, count) = exposure_range(reference);
     let step = (stop - start) / (count - 1).max(1) as f32;
     let ppd = default_ppd();
-    let mut map = vec![0.0f32; w * h];
-    for k in 0..count {
-        let scale = (start + k as f32 * step).exp2();
-        let ldr = |img: &[Vec3]| -> Vec<Vec3> { img.iter().map(|c| (*c * scale).to_array().map(|x| linear_to_srgb(aces(x))).into()).collect() };
-        let e = ldr_flip(&ldr(reference), &ldr(test), w, h, ppd);
-        for (m, e) in map.iter_mut().zip(e) {
-            *m = m.max(e);
-        }
-    }
+    // The exposures are independent: one task each, then the per-pixel maximum.
+    use rayon::prelude::*;
+    let map = (0..count)
+        .into_par_iter()
+        .map(|k| {
+            let scale = (start + k as f32 * step).exp2();
+            let ldr = |img: &[Vec3]| -> Vec<Vec3> { img.iter().map(|c| (*c * scale).to_array().map(|x| linear_to_srgb(aces(x))).into()).collect() };
+            ldr_flip(&ldr(reference), &ldr(test), w, h, ppd)
+        })
+        .reduce(|| vec![0.0f32; w * h], |a, b| a.iter().zip(&b).map(|(a, b)| a.max(*b)).collect());
     let mean = map.iter().map(|&e| e as f64).sum::<f64>() / map.len().max(1) as f64;
     (map, mean as f32)
 }

@@ -66,14 +66,27 @@ impl GpuContext {
 
     /// Copy `size` bytes of `src` (from `offset`) to the CPU.
     pub fn read_buffer(&self, src: &wgpu::Buffer, offset: u64, size: u64) -> Result<Vec<u8>> {
+        Ok(self.read_many(&[(src, offset, size)])?.remove(0))
+    }
+
+    /// Copy several buffer ranges `(buffer, offset, size)` to the CPU with one staging buffer,
+    /// one submission and one wait (each round trip to the device costs latency, which adds up
+    /// on a software driver).
+    pub fn read_many(&self, parts: &[(&wgpu::Buffer, u64, u64)]) -> Result<Vec<Vec<u8>>> {
+        let align = |x: u64| x.div_ceil(8) * 8;
+        let total: u64 = parts.iter().map(|p| align(p.2)).sum::<u64>().max(8);
         let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("envis readback"),
-            size,
+            size: total,
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         let mut enc = self.device.create_command_encoder(&Default::default());
-        enc.copy_buffer_to_buffer(src, offset, &staging, 0, size);
+        let mut at = 0;
+        for &(src, offset, size) in parts {
+            enc.copy_buffer_to_buffer(src, offset, &staging, at, size);
+            at += align(size);
+        }
         let idx = self.queue.submit([enc.finish()]);
         let (tx, rx) = std::sync::mpsc::channel();
         staging.slice(..).map_async(wgpu::MapMode::Read, move |r| {
@@ -85,7 +98,13 @@ impl GpuContext {
             .map_err(|e| Error::invalid(format!("GPU readback failed: {e}")))?;
         let data = staging.slice(..).get_mapped_range().to_vec();
         staging.unmap();
-        Ok(data)
+        let mut out = Vec::with_capacity(parts.len());
+        let mut at = 0usize;
+        for p in parts {
+            out.push(data[at..at + p.2 as usize].to_vec());
+            at += align(p.2) as usize;
+        }
+        Ok(out)
     }
 
     /// Read back a buffer of plain values.

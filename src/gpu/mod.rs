@@ -93,7 +93,8 @@ impl<'c> GpuRenderer<'c> {
         let build_q = sampler.run(ctx, crate::render::pool_seed(s.seed));
         ctx.wait(build_q)?;
         timings.build_wall_ms = t0.elapsed().as_secs_f64() * 1e3;
-        timings.build_gpu_ms = sampler.last_gpu_ms(ctx);
+        let (build_gpu_ms, clamped) = sampler.read_report(ctx)?;
+        timings.build_gpu_ms = build_gpu_ms;
 
         let t1 = std::time::Instant::now();
         let job = self.shader.shade(ctx, sampler, &pixels, s)?;
@@ -110,7 +111,7 @@ impl<'c> GpuRenderer<'c> {
             .map(|(q, g)| g.as_ref().map(|_| PixelStats { available: q[0], green: q[1], yellow: q[2], brdf: q[3] }))
             .collect();
         stats.accumulate(&per_pixel);
-        stats.clamped_texels = sampler.read_problems(ctx)?;
+        stats.clamped_texels = clamped;
         let image = crate::envmap::Image { width, height, data: job.color.iter().map(|c| Vec3::new(c[0], c[1], c[2])).collect() };
         Ok((Rendered { image, stats }, timings))
     }

@@ -272,6 +272,20 @@ impl EnvSampler {
         (self.timer.as_ref().and_then(|t| t.read_ms(ctx)), self.pool_timer.as_ref().and_then(|t| t.read_ms(ctx)))
     }
 
+    /// The last build's GPU milliseconds (distribution + pool, when the device has timestamps)
+    /// and clamped-texel counts, in one readback.
+    pub fn read_report(&self, ctx: &GpuContext) -> Result<(Option<f64>, SanitizeReport)> {
+        let mut parts = vec![(&self.problems, 0, 16)];
+        parts.extend([&self.timer, &self.pool_timer].into_iter().flatten().map(|t| t.part()));
+        let data = ctx.read_many(&parts)?;
+        let c: Vec<u32> = bytemuck::pod_collect_to_vec(&data[0]);
+        let ms = match (data.get(1), data.get(2)) {
+            (Some(d), Some(p)) => super::shading::PassTimer::ms(ctx, d).zip(super::shading::PassTimer::ms(ctx, p)).map(|(d, p)| d + p),
+            _ => None,
+        };
+        Ok((ms, SanitizeReport { nan: c[0] as u64, inf: c[1] as u64, negative: c[2] as u64, huge: c[3] as u64 }))
+    }
+
     /// Texels clamped by the GPU sanitise pass of the last build.
     pub fn read_problems(&self, ctx: &GpuContext) -> Result<SanitizeReport> {
         let c: Vec<u32> = ctx.read(&self.problems, 0, 4)?;

@@ -107,8 +107,16 @@ impl PassTimer {
     }
     /// Milliseconds between the two timestamps of the last resolved pass.
     pub fn read_ms(&self, ctx: &GpuContext) -> Option<f64> {
-        let t: Vec<u64> = ctx.read(&self.readback, 0, 2).ok()?;
-        (t[1] > t[0]).then(|| (t[1] - t[0]) as f64 * ctx.queue.get_timestamp_period() as f64 * 1e-6)
+        Self::ms(ctx, &ctx.read_buffer(&self.readback, 0, 16).ok()?)
+    }
+    /// The readback range to pass to [`GpuContext::read_many`]; [`PassTimer::ms`] decodes it.
+    pub fn part(&self) -> (&wgpu::Buffer, u64, u64) {
+        (&self.readback, 0, 16)
+    }
+    /// Milliseconds from the 16 bytes of a resolved pass.
+    pub fn ms(ctx: &GpuContext, bytes: &[u8]) -> Option<f64> {
+        let t: Vec<u64> = bytemuck::pod_collect_to_vec(bytes);
+        (t.len() == 2 && t[1] > t[0]).then(|| (t[1] - t[0]) as f64 * ctx.queue.get_timestamp_period() as f64 * 1e-6)
     }
 }
 
@@ -207,7 +215,11 @@ impl Shader {
         }
         let idx = ctx.queue.submit([enc.finish()]);
         ctx.wait(idx)?;
-        let gpu_ms = self.timer.as_ref().and_then(|t| t.read_ms(ctx));
-        Ok(ShadeJob { color: ctx.read(&color, 0, count)?, stats: ctx.read(&stats, 0, count)?, gpu_ms })
+        // One readback for the image, the per-pixel statistics and the pass timer.
+        let mut parts = vec![(&color, 0, count as u64 * 16), (&stats, 0, count as u64 * 16)];
+        parts.extend(self.timer.as_ref().map(|t| t.part()));
+        let data = ctx.read_many(&parts)?;
+        let gpu_ms = data.get(2).and_then(|b| PassTimer::ms(ctx, b));
+        Ok(ShadeJob { color: bytemuck::pod_collect_to_vec(&data[0]), stats: bytemuck::pod_collect_to_vec(&data[1]), gpu_ms })
     }
 }

@@ -17,36 +17,76 @@ use std::f64::consts::PI;
 
 /// f64 BRDF value `f(o, i)` (no cosine) for unit `n`, `o`, `i`.
 pub fn eval_brdf_f64(m: &Material, n: DVec3, o: DVec3, i: DVec3) -> DVec3 {
-    let (no, ni) = (n.dot(o), n.dot(i));
-    if no <= 0.0 || ni <= 0.0 {
-        return DVec3::ZERO;
-    }
-    let mut v = m.kd.as_dvec3() / PI;
-    match m.lobe {
-        Lobe::None => {}
-        Lobe::Phong { exponent } => {
-            let e = exponent as f64;
-            let r = 2.0 * no * n - o;
-            let c = r.dot(i);
-            if c > 0.0 {
-                v += m.ks.as_dvec3() * ((e + 2.0) / (2.0 * PI) * c.powf(e));
+    BrdfF64::new(m, n, o).eval(i)
+}
+
+/// [`eval_brdf_f64`] with everything that depends only on the pixel (`n`, `o`, the material)
+/// computed once: the quadrature calls it for every sub-texel sample of every texel.
+struct BrdfF64 {
+    m: Material,
+    n: DVec3,
+    o: DVec3,
+    no: f64,
+    /// Phong: the mirror direction; GGX: unused.
+    r: DVec3,
+    /// GGX: alpha^2 and Smith's lambda of the view direction.
+    a2: f64,
+    lambda_o: f64,
+}
+
+impl BrdfF64 {
+    fn new(m: &Material, n: DVec3, o: DVec3) -> Self {
+        let no = n.dot(o);
+        let (mut r, mut a2, mut lambda_o) = (DVec3::ZERO, 0.0, 0.0);
+        match m.lobe {
+            Lobe::None => {}
+            Lobe::Phong { .. } => r = 2.0 * no * n - o,
+            Lobe::Ggx { alpha } => {
+                a2 = (alpha as f64) * (alpha as f64);
+                lambda_o = ggx_lambda(a2, no);
             }
         }
-        Lobe::Ggx { alpha } => {
-            let a2 = (alpha as f64) * (alpha as f64);
-            let h = (o + i).normalize();
-            let nh = n.dot(h);
-            if nh > 0.0 {
-                let sin2 = (1.0 - nh * nh).max(0.0);
-                let t = sin2 + a2 * nh * nh;
-                let d = a2 / (PI * t * t);
-                let lambda = |z: f64| ((1.0 + a2 * (1.0 - z * z) / (z * z)).sqrt() - 1.0) / 2.0;
-                let g2 = 1.0 / (1.0 + lambda(no) + lambda(ni));
-                v += m.ks.as_dvec3() * (d * g2 / (4.0 * no * ni));
+        BrdfF64 { m: *m, n, o, no, r, a2, lambda_o }
+    }
+
+    #[inline]
+    fn eval(&self, i: DVec3) -> DVec3 {
+        let (m, n, no) = (&self.m, self.n, self.no);
+        let ni = n.dot(i);
+        if no <= 0.0 || ni <= 0.0 {
+            return DVec3::ZERO;
+        }
+        let mut v = m.kd.as_dvec3() / PI;
+        match m.lobe {
+            Lobe::None => {}
+            Lobe::Phong { exponent } => {
+                let e = exponent as f64;
+                let c = self.r.dot(i);
+                if c > 0.0 {
+                    v += m.ks.as_dvec3() * ((e + 2.0) / (2.0 * PI) * c.powf(e));
+                }
+            }
+            Lobe::Ggx { .. } => {
+                let a2 = self.a2;
+                let h = (self.o + i).normalize();
+                let nh = n.dot(h);
+                if nh > 0.0 {
+                    let sin2 = (1.0 - nh * nh).max(0.0);
+                    let t = sin2 + a2 * nh * nh;
+                    let d = a2 / (PI * t * t);
+                    let g2 = 1.0 / (1.0 + self.lambda_o + ggx_lambda(a2, ni));
+                    v += m.ks.as_dvec3() * (d * g2 / (4.0 * no * ni));
+                }
             }
         }
+        v
     }
-    v
+}
+
+/// Smith's lambda for GGX: `(sqrt(1 + a^2 tan^2) - 1) / 2` with `tan^2 = (1 - z^2) / z^2`.
+#[inline]
+fn ggx_lambda(a2: f64, z: f64) -> f64 {
+    ((1.0 + a2 * (1.0 - z * z) / (z * z)).sqrt() - 1.0) / 2.0
 }
 
 /// Sub-texel resolution `k` for a face of `n` texels and a material.
@@ -56,16 +96,84 @@ pub fn subdivision(n: usize, m: &Material, refine: f64) -> usize {
     k.clamp(2, 48)
 }
 
+/// Sub-texel resolution for texels that straddle the horizon.
+fn horizon_subdivision(k0: usize) -> usize {
+    (k0 * 4).min(96)
+}
+
+/// What the quadrature needs per texel, independent of the pixel: exact solid angles, the
+/// directions of the texel corners, and (when it fits in 64 MiB) the unit directions and weights
+/// of the `k x k` sub-texel midpoints with each texel's weight sum.
+pub struct Quadrature {
+    size: usize,
+    k: usize,
+    omega: Vec<f64>,
+    /// Per face, `(size + 1)^2` corner directions (not normalised; only their sign against `n` is used).
+    corners: Vec<DVec3>,
+    /// Per texel, `k^2` (direction, weight); empty when too large.
+    samples: Vec<(DVec3, f64)>,
+    /// Per texel, the sum of its `k^2` weights.
+    wsum: Vec<f64>,
+}
+
+impl Quadrature {
+    /// Tables for a map of face size `size` at sub-texel resolution `k`.
+    pub fn new(size: usize, k: usize) -> Self {
+        let h = 2.0 / size as f64;
+        let omega = (0..size * size).map(|i| texel_solid_angle(i % size, i / size, size)).collect();
+        let corners = (0..6 * (size + 1) * (size + 1))
+            .map(|i| {
+                let (f, j) = (i / ((size + 1) * (size + 1)), i % ((size + 1) * (size + 1)));
+                face_ab_to_dvec(f, -1.0 + (j % (size + 1)) as f64 * h, -1.0 + (j / (size + 1)) as f64 * h)
+            })
+            .collect();
+        let fits = 6 * size * size * k * k * std::mem::size_of::<(DVec3, f64)>() <= 64 << 20;
+        let (samples, wsum) = if fits {
+            let per_texel: Vec<Vec<(DVec3, f64)>> = (0..6 * size * size).into_par_iter().map(|t| subsamples(t / (size * size), t % size, (t / size) % size, h, k)).collect();
+            let wsum = per_texel.iter().map(|sub| sub.iter().map(|s| s.1).sum()).collect();
+            (per_texel.into_iter().flatten().collect(), wsum)
+        } else {
+            (Vec::new(), Vec::new())
+        };
+        Quadrature { size, k, omega, corners, samples, wsum }
+    }
+}
+
+/// The `k x k` midpoints of texel `(c, r)` of face `f`: unit direction and `1 / q^(3/2)` weight.
+fn subsamples(f: usize, c: usize, r: usize, h: f64, k: usize) -> Vec<(DVec3, f64)> {
+    let (a0, b0) = (-1.0 + c as f64 * h, -1.0 + r as f64 * h);
+    let mut out = Vec::with_capacity(k * k);
+    for sy in 0..k {
+        for sx in 0..k {
+            let a = a0 + (sx as f64 + 0.5) / k as f64 * h;
+            let b = b0 + (sy as f64 + 0.5) / k as f64 * h;
+            let q = 1.0 + a * a + b * b;
+            out.push((face_ab_to_dvec(f, a, b) / q.sqrt(), 1.0 / (q * q.sqrt())));
+        }
+    }
+    out
+}
+
 /// Reference radiance of one G-buffer pixel.
 pub fn reference_pixel(map: &CubeMap, px: &GPixel, refine: f64) -> DVec3 {
+    let q = Quadrature::new(map.size, subdivision(map.size, &px.material, refine));
+    reference_pixel_with(map, px, &q)
+}
+
+/// [`reference_pixel`] with tables built once for the image (`q.k` must be this pixel's
+/// [`subdivision`]).
+pub fn reference_pixel_with(map: &CubeMap, px: &GPixel, q: &Quadrature) -> DVec3 {
     let n = px.n.as_dvec3().normalize_or_zero();
     let o = px.o.as_dvec3().normalize_or_zero();
     if n == DVec3::ZERO || o == DVec3::ZERO || n.dot(o) <= 0.0 {
         return DVec3::ZERO;
     }
     let size = map.size;
+    assert_eq!(q.size, size);
     let h = 2.0 / size as f64;
-    let k0 = subdivision(size, &px.material, refine);
+    let brdf = BrdfF64::new(&px.material, n, o);
+    let (k0, kh) = (q.k, horizon_subdivision(q.k));
+    let side = size + 1;
     let mut sum = DVec3::ZERO;
     for f in 0..6 {
         for r in 0..size {
@@ -74,30 +182,35 @@ pub fn reference_pixel(map: &CubeMap, px: &GPixel, refine: f64) -> DVec3 {
                 if l.max_element() <= 0.0 {
                     continue;
                 }
-                let (a0, b0) = (-1.0 + c as f64 * h, -1.0 + r as f64 * h);
-                let corners = [(a0, b0), (a0 + h, b0), (a0, b0 + h), (a0 + h, b0 + h)];
-                let cos: Vec<f64> = corners.iter().map(|&(a, b)| n.dot(face_ab_to_dvec(f, a, b))).collect();
+                let at = |dc: usize, dr: usize| n.dot(q.corners[f * side * side + (r + dr) * side + c + dc]);
+                let cos = [at(0, 0), at(1, 0), at(0, 1), at(1, 1)];
                 if cos.iter().all(|&x| x <= 0.0) {
                     continue;
                 }
-                let k = if cos.iter().any(|&x| x <= 0.0) { (k0 * 4).min(96) } else { k0 };
+                let t = (f * size + r) * size + c;
                 let mut acc = DVec3::ZERO;
-                let mut wsum = 0.0;
-                for sy in 0..k {
-                    for sx in 0..k {
-                        let a = a0 + (sx as f64 + 0.5) / k as f64 * h;
-                        let b = b0 + (sy as f64 + 0.5) / k as f64 * h;
-                        let q = 1.0 + a * a + b * b;
-                        let w = 1.0 / (q * q.sqrt());
-                        wsum += w;
-                        let d = face_ab_to_dvec(f, a, b) / q.sqrt();
-                        let ct = n.dot(d);
-                        if ct > 0.0 {
-                            acc += eval_brdf_f64(&px.material, n, o, d) * (ct * w);
-                        }
+                let mut add = |d: DVec3, w: f64| {
+                    let ct = n.dot(d);
+                    if ct > 0.0 {
+                        acc += brdf.eval(d) * (ct * w);
                     }
-                }
-                sum += l.as_dvec3() * acc * (texel_solid_angle(c, r, size) / wsum);
+                };
+                let wsum = if cos.iter().any(|&x| x <= 0.0) || q.samples.is_empty() {
+                    // Horizon texels (and maps too large for the table): midpoints on the fly.
+                    let k = if cos.iter().any(|&x| x <= 0.0) { kh } else { k0 };
+                    let mut wsum = 0.0;
+                    for (d, w) in subsamples(f, c, r, h, k) {
+                        wsum += w;
+                        add(d, w);
+                    }
+                    wsum
+                } else {
+                    for &(d, w) in &q.samples[t * k0 * k0..(t + 1) * k0 * k0] {
+                        add(d, w);
+                    }
+                    q.wsum[t]
+                };
+                sum += l.as_dvec3() * acc * (q.omega[r * size + c] / wsum);
             }
         }
     }
@@ -106,7 +219,13 @@ pub fn reference_pixel(map: &CubeMap, px: &GPixel, refine: f64) -> DVec3 {
 
 /// Reference image of a G-buffer (f64 internally, stored as f32 RGB).
 pub fn reference_image(map: &CubeMap, gbuf: &[Option<GPixel>], width: usize, height: usize, refine: f64) -> (Image, Vec<DVec3>) {
-    let px: Vec<DVec3> = gbuf.par_iter().map(|p| p.as_ref().map_or(DVec3::ZERO, |p| reference_pixel(map, p, refine))).collect();
+    // One table per sub-texel resolution in use (one per material).
+    let mut tables: std::collections::HashMap<usize, Quadrature> = Default::default();
+    for p in gbuf.iter().flatten() {
+        let k = subdivision(map.size, &p.material, refine);
+        tables.entry(k).or_insert_with(|| Quadrature::new(map.size, k));
+    }
+    let px: Vec<DVec3> = gbuf.par_iter().map(|p| p.as_ref().map_or(DVec3::ZERO, |p| reference_pixel_with(map, p, &tables[&subdivision(map.size, &p.material, refine)]))).collect();
     let img = Image { width, height, data: px.iter().map(|c| c.as_vec3()).collect() };
     (img, px)
 }
