@@ -223,7 +223,10 @@ fn material(a: &SceneArgs) -> Result<Material> {
 
 /// The environment, G-buffer and material of `--scene`: `sphere` (with the command-line
 /// environment and material), or a TOML scene file, which supplies everything but the size.
-fn setup(a: &SceneArgs) -> Result<(LoadedEnv, Vec<Option<render::GPixel>>, Material, Option<envis::scene::Scene>)> {
+/// What [`setup`] returns: the environment, the G-buffer, the material and the scene file.
+type Setup = (LoadedEnv, Vec<Option<render::GPixel>>, Material, Option<envis::scene::Scene>);
+
+fn setup(a: &SceneArgs) -> Result<Setup> {
     if a.size == 0 || a.size > 16384 {
         return Err(Error::invalid(format!("--size {} out of range 1..=16384", a.size)));
     }

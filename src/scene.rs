@@ -528,7 +528,7 @@ pub fn load_glb(path: &Path) -> Result<TriMesh> {
             _ => (0..n).map(|k| u32::from_le_bytes(b[4 * k..4 * k + 4].try_into().unwrap())).collect(),
         }
     };
-    if flat.iter().any(|&i| i as usize >= positions.len()) || normals.len() != positions.len() || flat.len() % 3 != 0 {
+    if flat.iter().any(|&i| i as usize >= positions.len()) || normals.len() != positions.len() || !flat.len().is_multiple_of(3) {
         return Err(bad("indices or normals do not match the positions"));
     }
     Ok(TriMesh { positions, normals: normals.into_iter().map(|n| n.normalize_or(Vec3::Y)).collect(), indices: flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect() })

@@ -357,8 +357,8 @@ fn face_weighted_mixture_chi2_for_several_normals() {
         let c = chi_square(&obs, &exp, 5.0, true);
         assert!(c.p_value > P_MIN, "normal {nrm}: {c:?}");
         // Faces entirely below the horizon are never used (exact skip), others are.
-        for f in 0..6 {
-            let corners_up = envis::sampling::faceweights::FACE_CORNERS[f].iter().any(|&c| nrm.dot(envis::sampling::faceweights::corner(c)) > 0.0);
+        for (f, corners) in envis::sampling::faceweights::FACE_CORNERS.iter().enumerate() {
+            let corners_up = corners.iter().any(|&c| nrm.dot(envis::sampling::faceweights::corner(c)) > 0.0);
             assert_eq!(fw.mu[f] > 0.0, corners_up && e[f] > 0.0, "normal {nrm} face {f}");
         }
         // And over the sphere, with the solid-angle pdf mu_f p_f(w), on the smooth map.
@@ -524,7 +524,8 @@ impl Check {
 /// Image mean and quadrant means (luminance) of `k` renders with different seeds vs the reference.
 fn unbiased_checks(map: &CubeMap, mat: Material, s: Settings, k: u32, size: usize, reference: &[DVec3]) -> Vec<Check> {
     let gbuf = sphere_gbuffer(size, size, mat);
-    let regions: Vec<(String, Box<dyn Fn(usize, usize) -> bool>)> = vec![
+    type Region = (String, Box<dyn Fn(usize, usize) -> bool>);
+    let regions: Vec<Region> = vec![
         ("image".into(), Box::new(|_, _| true)),
         ("top-left".into(), Box::new(move |x, y| x < size / 2 && y < size / 2)),
         ("top-right".into(), Box::new(move |x, y| x >= size / 2 && y < size / 2)),
@@ -1052,9 +1053,7 @@ fn flip_matches_flip_evaluator() {
             if (x as i64 - 12).pow(2) + (y as i64 - 10).pow(2) > 100 {
                 continue;
             }
-            for c in 0..3 {
-                reference[y * w + x][c] = (4.0 * (0.5 + 0.5 * (0.7 * x as f64 + 1.3 * y as f64 + 2.0 * c as f64).sin()).powi(3)) as f32;
-            }
+            reference[y * w + x] = Vec3::from_array(std::array::from_fn(|c| (4.0 * (0.5 + 0.5 * (0.7 * x as f64 + 1.3 * y as f64 + 2.0 * c as f64).sin()).powi(3)) as f32));
         }
     }
     reference[7 * w + 5] += Vec3::splat(1000.0);

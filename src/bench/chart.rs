@@ -70,16 +70,21 @@ impl Chart {
             .y_label_area_size(64)
             .build_cartesian_2d(x0..x1, y0..y1)
             .map_err(e)?;
-        let decade = |v: &f64| if (v - v.round()).abs() < 1e-6 { format!("1e{}", v.round() as i64) } else { String::new() };
-        let plain = |v: &f64| format!("{v:.3}").trim_end_matches('0').trim_end_matches('.').to_string();
-        let (xf, yf): (&dyn Fn(&f64) -> String, &dyn Fn(&f64) -> String) = (if self.xlog { &decade } else { &plain }, if self.ylog { &decade } else { &plain });
+        fn decade(v: &f64) -> String {
+            if (v - v.round()).abs() < 1e-6 { format!("1e{}", v.round() as i64) } else { String::new() }
+        }
+        fn plain(v: &f64) -> String {
+            format!("{v:.3}").trim_end_matches('0').trim_end_matches('.').to_string()
+        }
+        let pick = |log: bool| if log { decade as fn(&f64) -> String } else { plain };
+        let (xf, yf) = (pick(self.xlog), pick(self.ylog));
         cc.configure_mesh()
             .x_desc(self.xlabel)
             .y_desc(self.ylabel)
             .x_labels(if self.xlog { (x1 - x0) as usize + 1 } else { 8 })
             .y_labels(if self.ylog { (y1 - y0) as usize + 1 } else { 8 })
-            .x_label_formatter(xf)
-            .y_label_formatter(yf)
+            .x_label_formatter(&xf)
+            .y_label_formatter(&yf)
             .light_line_style(WHITE)
             .bold_line_style(RGBColor(221, 221, 221))
             .label_style(("sans-serif", 13))

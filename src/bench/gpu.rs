@@ -3,6 +3,7 @@
 //! - distribution build + light pool for 6 x N^2 faces (N = 16 .. 1024, or what the device binds);
 //! - a full frame (`--size` / `--height`, default 1920 x 1080) of the sphere G-buffer at
 //!   `N_L + N_B` samples (default 32 + 32).
+//!
 //! GPU figures are timestamp queries around each compute pass (when the device has them) and wall
 //! time from submission to completion; each is the median of `--repeat` runs after one warm-up.
 
@@ -107,8 +108,8 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
             let wall = t.elapsed().as_secs_f64() * 1e3;
             let cpu = render::render(&map, &gbuf, width, height, &s)?.stats.shade_ms;
             if k > 0 {
-                b.map(|x| gb.push(x));
-                job.gpu_ms.map(|x| gs.push(x));
+                if let Some(x) = b { gb.push(x) }
+                if let Some(x) = job.gpu_ms { gs.push(x) }
                 gw.push(wall);
                 cs.push(cpu);
             }

@@ -6,6 +6,7 @@
 //! - per-frame build time (CDF tables + face energies + pool) for face sizes 16..=`--max-face`,
 //!   as a ratio to one plain streaming pass (sum of luminance) over the same texels, the
 //!   memory-bound limit.
+//!
 //! Each figure is the median of `--repeat` runs. Results go to `DIR/bench-speed.json`.
 //!
 //! Suite `offset`: the effect of the per-pixel random start offset into the pool (`DIR/bench-offset.json`).
@@ -166,7 +167,7 @@ fn popping(a: BenchArgs, dir: PathBuf) -> Result<()> {
 fn progress_bar(done: usize, total: usize, start: Instant, what: &str) {
     use std::io::IsTerminal;
     let tty = std::io::stderr().is_terminal();
-    if !tty && done % (total / 20).max(1) != 0 && done != total {
+    if !tty && !done.is_multiple_of((total / 20).max(1)) && done != total {
         return;
     }
     const WIDTH: usize = 30;
@@ -231,11 +232,10 @@ fn accuracy_suite(a: BenchArgs, dir: PathBuf) -> Result<()> {
     let mut journal_error = None;
     let report_progress = |done: usize, total: usize, p: &accuracy::Point, was_resumed: bool| {
         use std::io::Write as _;
-        if !was_resumed {
-            if let Err(e) = writeln!(journal, "{}", serde_json::to_string(p).unwrap()) {
+        if !was_resumed
+            && let Err(e) = writeln!(journal, "{}", serde_json::to_string(p).unwrap()) {
                 journal_error.get_or_insert(e);
             }
-        }
         progress_bar(done, total, start, &format!("{} / {} / {} N={}", p.env, p.material, p.strategy, p.budget));
     };
     #[cfg(feature = "gpu")]

@@ -30,9 +30,9 @@ pub enum Layout {
 pub fn detect_layout(width: usize, height: usize) -> std::result::Result<Layout, String> {
     if width == 2 * height && height > 0 {
         Ok(Layout::LatLong)
-    } else if width * 3 == height * 4 && width % 4 == 0 && width > 0 {
+    } else if width * 3 == height * 4 && width.is_multiple_of(4) && width > 0 {
         Ok(Layout::HorizontalCross)
-    } else if width * 4 == height * 3 && width % 3 == 0 && width > 0 {
+    } else if width * 4 == height * 3 && width.is_multiple_of(3) && width > 0 {
         Ok(Layout::VerticalCross)
     } else {
         Err(format!(
@@ -127,11 +127,10 @@ pub fn read_hdr_bytes(bytes: &[u8]) -> std::result::Result<Image, String> {
         if l.is_empty() {
             break;
         }
-        if let Some(fmt) = l.strip_prefix("FORMAT=") {
-            if fmt.trim() != "32-bit_rle_rgbe" {
+        if let Some(fmt) = l.strip_prefix("FORMAT=")
+            && fmt.trim() != "32-bit_rle_rgbe" {
                 return Err(format!("unsupported Radiance pixel format '{}' (needs 32-bit_rle_rgbe)", fmt.trim()));
             }
-        }
     }
     let res = line(&mut pos)?;
     let parts: Vec<&str> = res.split_whitespace().collect();
@@ -152,8 +151,8 @@ pub fn read_hdr_bytes(bytes: &[u8]) -> std::result::Result<Image, String> {
     let mut scan = vec![[0u8; 4]; w];
     for y in 0..h {
         read_hdr_scanline(bytes, &mut pos, &mut scan).map_err(|e| format!("scanline {y}: {e}"))?;
-        for x in 0..w {
-            img.data[y * w + x] = rgbe_to_rgb(scan[x]);
+        for (out, &px) in img.data[y * w..(y + 1) * w].iter_mut().zip(&scan) {
+            *out = rgbe_to_rgb(px);
         }
     }
     Ok(img)

@@ -71,7 +71,7 @@ fn storage(device: &wgpu::Device, label: &str, size: u64) -> wgpu::Buffer {
 
 /// Refuse a buffer the device cannot bind, naming it, before allocating anything.
 pub fn check_binding(limits: &wgpu::Limits, what: &str, bytes: u64) -> Result<()> {
-    let max = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
+    let max = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
     if bytes > max {
         return Err(Error::invalid(format!("GPU: {what} needs {bytes} bytes, above this device's storage-binding limit of {max} bytes")));
     }

@@ -73,6 +73,7 @@ pub const NEAR_MIRROR_ALPHA: f32 = 0.02;
 /// - a near-mirror lobe with no diffuse part: all samples from the BRDF. Light samples almost never
 ///   land in the lobe, and the BRDF pdf covers its whole support.
 /// - otherwise the user's split, combined by MIS.
+///
 /// Each choice is an unbiased estimator on its own, so mixing them per pixel stays unbiased.
 #[inline]
 pub fn budget_for(m: &crate::sampling::Material, nl: usize, nb: usize) -> (usize, usize) {
@@ -250,9 +251,9 @@ fn shade_with<B: LocalBsdf>(fd: &FrameData, s: &Settings, material: &crate::samp
             st.available = (6 * m) as u32;
             let fw = face_weights(n, &fd.energies, s.strategy == Strategy::Paper);
             let offset = if s.pixel_offset && m > 0 { rng.next_u32() as usize % m } else { 0 };
-            for f in 0..6 {
+            for (f, dens) in density.iter_mut().enumerate() {
                 let c = face_count(fw.mu[f] * nl as f32, m, s.counts);
-                density[f] = c.density;
+                *dens = c.density;
                 // Pool index (offset + k) mod m, kept in range without a division per sample.
                 let mut idx = offset;
                 for k in 0..c.taken {

@@ -144,7 +144,7 @@ fn stream_soak_child() {
         if !s.advance(1e-3) {
             std::thread::sleep(std::time::Duration::from_micros(50));
         }
-        if s.stats().frames % 1000 == 0 && rss.len() < (s.stats().frames / 1000) as usize {
+        if s.stats().frames.is_multiple_of(1000) && rss.len() < (s.stats().frames / 1000) as usize {
             rss.push(rss_bytes().expect("/proc/self/statm"));
         }
         assert!(t0.elapsed().as_secs() < 120, "soak too slow: {:?}", s.stats());
