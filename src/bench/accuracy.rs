@@ -275,6 +275,23 @@ fn pooled(pts: &[Point], material: &str) -> Vec<Point> {
         .collect()
 }
 
+/// A Markdown table: one row per budget, one column per strategy, `cell` for each pooled point.
+fn strategy_table(md: &mut String, budgets: &[usize], pool: &[Point], strategies: &[&str], cell: impl Fn(&Point) -> String) {
+    let _ = writeln!(md, "| N | {} |\n|---:|{}", strategies.join(" | "), "---:|".repeat(strategies.len()));
+    for &n in budgets {
+        let _ = write!(md, "| {n} |");
+        for s in strategies {
+            match pool.iter().find(|p| p.strategy == *s && p.budget == n) {
+                Some(p) => {
+                    let _ = write!(md, " {} |", cell(p));
+                }
+                None => md.push_str(" — |"),
+            }
+        }
+        md.push('\n');
+    }
+}
+
 /// The generated report: tables per material, the paper-vs-global comparison, Pareto fronts.
 pub fn report(cfg: &Config, pts: &[Point], command: &str, gpu_device: Option<&str>) -> String {
     let mut md = String::new();
@@ -297,37 +314,12 @@ pub fn report(cfg: &Config, pts: &[Point], command: &str, gpu_device: Option<&st
     for (mname, _) in &cfg.materials {
         let pool = pooled(pts, mname);
         let _ = writeln!(md, "## {mname}\n\nGeometric mean over environments of relMSE (time in ms). N_L = N_B = N/2 where both are used:\n");
-        let _ = writeln!(md, "| N | {} |\n|---:|{}", main.join(" | "), "---:|".repeat(main.len()));
-        for &n in &cfg.budgets {
-            let _ = write!(md, "| {n} |");
-            for s in main {
-                match pool.iter().find(|p| p.strategy == s && p.budget == n) {
-                    Some(p) => {
-                        let _ = write!(md, " {:.3e} ({:.2}) |", p.relmse, p.build_ms + p.shade_ms);
-                    }
-                    None => md.push_str(" — |"),
-                }
-            }
-            md.push('\n');
-        }
+        strategy_table(&mut md, &cfg.budgets, &pool, &main, |p| format!("{:.3e} ({:.2})", p.relmse, p.build_ms + p.shade_ms));
         let _ = writeln!(md, "\nMean HDR-FLIP{}:\n", if gpu_device.is_some() { " (GPU build + shade ms)" } else { "" });
-        let _ = writeln!(md, "| N | {} |\n|---:|{}", main.join(" | "), "---:|".repeat(main.len()));
-        for &n in &cfg.budgets {
-            let _ = write!(md, "| {n} |");
-            for s in main {
-                match pool.iter().find(|p| p.strategy == s && p.budget == n) {
-                    Some(p) => {
-                        let _ = write!(md, " {:.4}", p.flip);
-                        if let (Some(b), Some(t)) = (p.gpu_build_ms, p.gpu_shade_ms) {
-                            let _ = write!(md, " ({:.2})", b + t);
-                        }
-                        md.push_str(" |");
-                    }
-                    None => md.push_str(" — |"),
-                }
-            }
-            md.push('\n');
-        }
+        strategy_table(&mut md, &cfg.budgets, &pool, &main, |p| match (p.gpu_build_ms, p.gpu_shade_ms) {
+            (Some(b), Some(t)) => format!("{:.4} ({:.2})", p.flip, b + t),
+            _ => format!("{:.4}", p.flip),
+        });
         let (mut wins, mut cases) = (0, 0);
         for env in &cfg.envs {
             for &n in &cfg.budgets {

@@ -95,28 +95,28 @@ struct Separable {
 /// Correlate one channel with a sum of separable kernels, replicating edge pixels.
 fn filter(src: &[f32], w: usize, h: usize, terms: &[Separable]) -> Vec<f32> {
     let mut out = vec![0.0f32; w * h];
-    let mut tmp = vec![0.0f32; w * h];
     for t in terms {
-        let (rx, ry) = ((t.kx.len() / 2) as isize, (t.ky.len() / 2) as isize);
-        for y in 0..h {
-            for x in 0..w {
-                let mut s = 0.0;
-                for (i, k) in t.kx.iter().enumerate() {
-                    let xx = (x as isize + i as isize - rx).clamp(0, w as isize - 1) as usize;
-                    s += k * src[y * w + xx];
-                }
-                tmp[y * w + x] = s;
-            }
+        let rows = correlate_1d(src, w, h, &t.kx, (1, 0));
+        for (o, v) in out.iter_mut().zip(correlate_1d(&rows, w, h, &t.ky, (0, 1))) {
+            *o += v;
         }
-        for y in 0..h {
-            for x in 0..w {
-                let mut s = 0.0;
-                for (j, k) in t.ky.iter().enumerate() {
-                    let yy = (y as isize + j as isize - ry).clamp(0, h as isize - 1) as usize;
-                    s += k * tmp[yy * w + x];
-                }
-                out[y * w + x] += s;
+    }
+    out
+}
+
+/// Correlate with a centred 1D kernel along `step` = (1, 0) (rows) or (0, 1) (columns).
+fn correlate_1d(src: &[f32], w: usize, h: usize, k: &[f32], step: (isize, isize)) -> Vec<f32> {
+    let r = (k.len() / 2) as isize;
+    let mut out = vec![0.0f32; w * h];
+    for y in 0..h as isize {
+        for x in 0..w as isize {
+            let mut s = 0.0;
+            for (i, kv) in k.iter().enumerate() {
+                let d = i as isize - r;
+                let (xx, yy) = ((x + d * step.0).clamp(0, w as isize - 1), (y + d * step.1).clamp(0, h as isize - 1));
+                s += kv * src[yy as usize * w + xx as usize];
             }
+            out[y as usize * w + x as usize] = s;
         }
     }
     out
