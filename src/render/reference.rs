@@ -117,8 +117,19 @@ pub struct Quadrature {
 }
 
 impl Quadrature {
-    /// Tables for a map of face size `size` at sub-texel resolution `k`.
+    /// Tables for a map of face size `size` at sub-texel resolution `k`, for a whole image:
+    /// with the sub-texel table when it fits (see [`Quadrature::for_one_pixel`]).
     pub fn new(size: usize, k: usize) -> Self {
+        Self::build(size, k, true)
+    }
+
+    /// The cheap tables only (solid angles, corners): for a single pixel, where building the
+    /// sub-texel table would cost more than it saves.
+    pub fn for_one_pixel(size: usize, k: usize) -> Self {
+        Self::build(size, k, false)
+    }
+
+    fn build(size: usize, k: usize, with_samples: bool) -> Self {
         let h = 2.0 / size as f64;
         let omega = (0..size * size).map(|i| texel_solid_angle(i % size, i / size, size)).collect();
         let corners = (0..6 * (size + 1) * (size + 1))
@@ -127,7 +138,7 @@ impl Quadrature {
                 face_ab_to_dvec(f, -1.0 + (j % (size + 1)) as f64 * h, -1.0 + (j / (size + 1)) as f64 * h)
             })
             .collect();
-        let fits = 6 * size * size * k * k * std::mem::size_of::<(DVec3, f64)>() <= 64 << 20;
+        let fits = with_samples && 6 * size * size * k * k * std::mem::size_of::<(DVec3, f64)>() <= 64 << 20;
         let (samples, wsum) = if fits {
             let per_texel: Vec<Vec<(DVec3, f64)>> = (0..6 * size * size).into_par_iter().map(|t| subsamples(t / (size * size), t % size, (t / size) % size, h, k)).collect();
             let wsum = per_texel.iter().map(|sub| sub.iter().map(|s| s.1).sum()).collect();
@@ -156,7 +167,7 @@ fn subsamples(f: usize, c: usize, r: usize, h: f64, k: usize) -> Vec<(DVec3, f64
 
 /// Reference radiance of one G-buffer pixel.
 pub fn reference_pixel(map: &CubeMap, px: &GPixel, refine: f64) -> DVec3 {
-    let q = Quadrature::new(map.size, subdivision(map.size, &px.material, refine));
+    let q = Quadrature::for_one_pixel(map.size, subdivision(map.size, &px.material, refine));
     reference_pixel_with(map, px, &q)
 }
 
