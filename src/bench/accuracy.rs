@@ -135,24 +135,14 @@ pub fn sweep(cfg: &Config, resume: &[Point], mut gpu: Option<&mut GpuTimer>, mut
     let saved: std::collections::HashMap<_, &Point> = resume.iter().map(|p| (key(&p.env, &p.material, &p.strategy, p.budget), p)).collect();
     for env_name in &cfg.envs {
         let todo = |mname: &str| cfg.budgets.iter().any(|&n| strategies(n).iter().any(|(label, _)| !saved.contains_key(&key(env_name, mname, label, n))));
-        // A fully resumed environment is not even loaded.
-        if cfg.materials.iter().all(|(m, _)| !todo(m)) {
-            for (mname, _) in &cfg.materials {
-                for &n in &cfg.budgets {
-                    for (label, _) in strategies(n) {
-                        let p = saved[&key(env_name, mname, &label, n)].clone();
-                        progress(points.len() + 1, total, &p, true);
-                        points.push(p);
-                    }
-                }
-            }
-            continue;
-        }
-        let src: EnvSource = env_name.parse()?;
-        let env = load_env(&src, cfg.face_size)?;
+        // An environment whose points were all resumed is not even loaded.
+        let env = if cfg.materials.iter().any(|(m, _)| todo(m)) { Some(load_env(&env_name.parse::<EnvSource>()?, cfg.face_size)?) } else { None };
         for (mname, mat) in &cfg.materials {
             let gbuf = render::sphere_gbuffer(cfg.size, cfg.size, *mat);
-            let refimg = if todo(mname) { reference::reference_image(&env.cube, &gbuf, cfg.size, cfg.size, 1.0).1 } else { Vec::new() };
+            let refimg = match &env {
+                Some(env) if todo(mname) => reference::reference_image(&env.cube, &gbuf, cfg.size, cfg.size, 1.0).1,
+                _ => Vec::new(),
+            };
             let ref_rgb: Vec<glam::Vec3> = refimg.iter().map(|c| c.as_vec3()).collect();
             let idx: Vec<usize> = (0..gbuf.len()).filter(|&i| gbuf[i].is_some()).collect();
             for &n in &cfg.budgets {
@@ -162,6 +152,7 @@ pub fn sweep(cfg: &Config, resume: &[Point], mut gpu: Option<&mut GpuTimer>, mut
                         points.push((*p).clone());
                         continue;
                     }
+                    let Some(env) = &env else { unreachable!("a point to measure means its environment was loaded") };
                     let (mut relmse, mut mse, mut build, mut shade, mut wasted, mut flip) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
                     for seed in 0..cfg.seeds {
                         let out = render::render(&env.cube, &gbuf, cfg.size, cfg.size, &Settings { seed, ..s })?;

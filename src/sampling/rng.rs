@@ -10,9 +10,7 @@
 /// `x -> PCG-RXS-M-XS(747796405 x + 2891336453)`.
 #[inline]
 pub fn hash(x: u32) -> u32 {
-    let state = x.wrapping_mul(747796405).wrapping_add(2891336453);
-    let word = ((state >> ((state >> 28) + 4)) ^ state).wrapping_mul(277803737);
-    (word >> 22) ^ word
+    pcg_output(x.wrapping_mul(LCG_A).wrapping_add(LCG_C))
 }
 
 /// Hash of several words (order matters).
@@ -50,6 +48,20 @@ impl Rng {
     pub fn next_f32(&mut self) -> f32 {
         to_unit(self.next_u32())
     }
+
+    /// The next `out.len()` (at most [`FILL_MAX`]) outputs, exactly as that many
+    /// [`Rng::next_u32`] calls give them, but computed independently of each other (LCG
+    /// jump-ahead), so the loop vectorises.
+    #[inline(always)]
+    pub fn fill_u32(&mut self, out: &mut [u32]) {
+        let n = out.len();
+        assert!((1..=FILL_MAX).contains(&n));
+        let s0 = self.state;
+        for (j, o) in out.iter_mut().enumerate() {
+            *o = pcg_output(JUMP.0[j].wrapping_mul(s0).wrapping_add(JUMP.1[j]));
+        }
+        self.state = JUMP.0[n - 1].wrapping_mul(s0).wrapping_add(JUMP.1[n - 1]);
+    }
 }
 
 /// LCG multiplier and increment of [`Rng`] (and of [`hash`]).
@@ -78,22 +90,6 @@ const JUMP: ([u32; FILL_MAX], [u32; FILL_MAX]) = {
 fn pcg_output(s: u32) -> u32 {
     let word = ((s >> ((s >> 28) + 4)) ^ s).wrapping_mul(277803737);
     (word >> 22) ^ word
-}
-
-impl Rng {
-    /// The next `out.len()` (at most [`FILL_MAX`]) outputs, exactly as that many
-    /// [`Rng::next_u32`] calls give them, but computed independently of each other (LCG
-    /// jump-ahead), so the loop vectorises.
-    #[inline(always)]
-    pub fn fill_u32(&mut self, out: &mut [u32]) {
-        let n = out.len();
-        assert!((1..=FILL_MAX).contains(&n));
-        let s0 = self.state;
-        for (j, o) in out.iter_mut().enumerate() {
-            *o = pcg_output(JUMP.0[j].wrapping_mul(s0).wrapping_add(JUMP.1[j]));
-        }
-        self.state = JUMP.0[n - 1].wrapping_mul(s0).wrapping_add(JUMP.1[n - 1]);
-    }
 }
 
 /// Element `i` of a pseudo-random permutation of `0..n` chosen by `seed` (`i < n`).
