@@ -13,7 +13,10 @@ pub enum Error {
 
 impl Error {
     pub fn file(path: impl AsRef<Path>, problem: impl Into<String>) -> Self {
-        Error::File { path: path.as_ref().to_path_buf(), problem: one_line(problem.into()) }
+        Error::File {
+            path: path.as_ref().to_path_buf(),
+            problem: one_line(problem.into()),
+        }
     }
     pub fn invalid(msg: impl Into<String>) -> Self {
         Error::Invalid(one_line(msg.into()))

@@ -2,14 +2,19 @@
 //! (outside checks call them): keep them stable.
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
-use envis::envmap::load::{load_env, EnvSource, LoadedEnv};
+use envis::envmap::load::{EnvSource, LoadedEnv, load_env};
 use envis::error::{Error, Result};
-use envis::render::{self, output, reference, Settings, Strategy};
+use envis::render::{self, Settings, Strategy, output, reference};
 use envis::sampling::{Counts, Heuristic, Material};
 use std::path::PathBuf;
 
 #[derive(Parser)]
-#[command(name = "envis", version, about = "Real-time, unbiased importance sampling of dynamic HDR environment maps", args_conflicts_with_subcommands = true)]
+#[command(
+    name = "envis",
+    version,
+    about = "Real-time, unbiased importance sampling of dynamic HDR environment maps",
+    args_conflicts_with_subcommands = true
+)]
 struct Cli {
     #[command(subcommand)]
     cmd: Option<Cmd>,
@@ -202,19 +207,28 @@ struct CrossArgs {
 
 fn material(a: &SceneArgs) -> Result<Material> {
     if !(a.albedo.is_finite() && a.albedo >= 0.0) {
-        return Err(Error::invalid(format!("--albedo {} must be finite and >= 0", a.albedo)));
+        return Err(Error::invalid(format!(
+            "--albedo {} must be finite and >= 0",
+            a.albedo
+        )));
     }
     Ok(match a.brdf {
         BrdfArg::Diffuse => Material::diffuse(a.albedo),
         BrdfArg::Phong => {
             if !(a.exponent.is_finite() && a.exponent >= 0.0) {
-                return Err(Error::invalid(format!("--exponent {} must be finite and >= 0", a.exponent)));
+                return Err(Error::invalid(format!(
+                    "--exponent {} must be finite and >= 0",
+                    a.exponent
+                )));
             }
             Material::phong(a.albedo, a.exponent)
         }
         BrdfArg::Ggx => {
             if !(a.alpha.is_finite() && a.alpha > 0.0 && a.alpha <= 1.0) {
-                return Err(Error::invalid(format!("--alpha {} must be in (0, 1]", a.alpha)));
+                return Err(Error::invalid(format!(
+                    "--alpha {} must be in (0, 1]",
+                    a.alpha
+                )));
             }
             Material::ggx(a.albedo, a.alpha)
         }
@@ -224,15 +238,26 @@ fn material(a: &SceneArgs) -> Result<Material> {
 /// The environment, G-buffer and material of `--scene`: `sphere` (with the command-line
 /// environment and material), or a TOML scene file, which supplies everything but the size.
 /// What [`setup`] returns: the environment, the G-buffer, the material and the scene file.
-type Setup = (LoadedEnv, Vec<Option<render::GPixel>>, Material, Option<envis::scene::Scene>);
+type Setup = (
+    LoadedEnv,
+    Vec<Option<render::GPixel>>,
+    Material,
+    Option<envis::scene::Scene>,
+);
 
 fn setup(a: &SceneArgs) -> Result<Setup> {
     if a.size == 0 || a.size > 16384 {
-        return Err(Error::invalid(format!("--size {} out of range 1..=16384", a.size)));
+        return Err(Error::invalid(format!(
+            "--size {} out of range 1..=16384",
+            a.size
+        )));
     }
     if a.scene != "sphere" {
         if !a.scene.ends_with(".toml") {
-            return Err(Error::invalid(format!("unknown scene '{}' (expected: sphere, or a .toml scene file)", a.scene)));
+            return Err(Error::invalid(format!(
+                "unknown scene '{}' (expected: sphere, or a .toml scene file)",
+                a.scene
+            )));
         }
         let sc = envis::scene::Scene::load(std::path::Path::new(&a.scene))?;
         let src: EnvSource = sc.environment.parse()?;
@@ -255,7 +280,10 @@ fn setup(a: &SceneArgs) -> Result<Setup> {
 fn check_exr_path(p: &std::path::Path) -> Result<()> {
     match p.extension().and_then(|e| e.to_str()) {
         Some(e) if e.eq_ignore_ascii_case("exr") => Ok(()),
-        _ => Err(Error::invalid(format!("--out {}: output must be an .exr file", p.display()))),
+        _ => Err(Error::invalid(format!(
+            "--out {}: output must be an .exr file",
+            p.display()
+        ))),
     }
 }
 
@@ -266,7 +294,12 @@ fn write_json(path: &std::path::Path, v: &impl serde::Serialize) -> Result<()> {
 
 /// `--backend wgpu`: the WGSL stages on a headless wgpu device (the same shaders the Bevy app runs).
 #[cfg(feature = "gpu")]
-fn render_wgpu(map: &envis::envmap::CubeMap, gbuf: &[Option<render::GPixel>], size: usize, s: &Settings) -> Result<(render::Rendered, serde_json::Value)> {
+fn render_wgpu(
+    map: &envis::envmap::CubeMap,
+    gbuf: &[Option<render::GPixel>],
+    size: usize,
+    s: &Settings,
+) -> Result<(render::Rendered, serde_json::Value)> {
     let ctx = envis::gpu::GpuContext::new()?;
     let (out, t) = envis::gpu::render_gpu(&ctx, map, gbuf, size, size, s)?;
     let extra = serde_json::json!({ "backend": "wgpu", "device": ctx.info.name, "device_backend": format!("{:?}", ctx.info.backend), "gpu_timings": t });
@@ -274,18 +307,33 @@ fn render_wgpu(map: &envis::envmap::CubeMap, gbuf: &[Option<render::GPixel>], si
 }
 
 #[cfg(not(feature = "gpu"))]
-fn render_wgpu(_: &envis::envmap::CubeMap, _: &[Option<render::GPixel>], _: usize, _: &Settings) -> Result<(render::Rendered, serde_json::Value)> {
-    Err(Error::invalid("--backend wgpu: this envis was built without the `gpu` feature (cargo build --features gpu)"))
+fn render_wgpu(
+    _: &envis::envmap::CubeMap,
+    _: &[Option<render::GPixel>],
+    _: usize,
+    _: &Settings,
+) -> Result<(render::Rendered, serde_json::Value)> {
+    Err(Error::invalid(
+        "--backend wgpu: this envis was built without the `gpu` feature (cargo build --features gpu)",
+    ))
 }
 
 /// `--backend gpu`: the Bevy app headless (no window), sphere mesh + deferred G-buffer. Pixels
 /// off the sphere are 0, as in the CPU contract (the app's sky pass is off).
 #[cfg(feature = "app")]
-fn render_bevy(a: &SceneArgs, s: &Settings, scene: Option<&envis::scene::Scene>) -> Result<(render::Rendered, serde_json::Value)> {
-    use envis::app::{headless::HeadlessSphere, EnvisMaterial, EnvisSettings};
+fn render_bevy(
+    a: &SceneArgs,
+    s: &Settings,
+    scene: Option<&envis::scene::Scene>,
+) -> Result<(render::Rendered, serde_json::Value)> {
+    use envis::app::{EnvisMaterial, EnvisSettings, headless::HeadlessSphere};
     use envis::sampling::Lobe;
     use envis::stream::{EnvStream, StreamSource};
-    let settings = EnvisSettings { sampling: *s, show_sky: false, ..Default::default() };
+    let settings = EnvisSettings {
+        sampling: *s,
+        show_sky: false,
+        ..Default::default()
+    };
     if let Some(sc) = scene {
         let t0 = std::time::Instant::now();
         let mut app = HeadlessSphere::from_scene(sc, settings, a.size as u32)?;
@@ -293,13 +341,29 @@ fn render_bevy(a: &SceneArgs, s: &Settings, scene: Option<&envis::scene::Scene>)
         let mut stats = render::RenderStats::for_settings(a.size, a.size, s, s.pool_per_face());
         stats.shade_ms = t0.elapsed().as_secs_f64() * 1e3;
         let extra = serde_json::json!({ "backend": "gpu", "pipeline": "bevy (offscreen)", "scene": sc.path });
-        return Ok((render::Rendered { image: envis::envmap::Image { width: a.size, height: a.size, data }, stats }, extra));
+        return Ok((
+            render::Rendered {
+                image: envis::envmap::Image {
+                    width: a.size,
+                    height: a.size,
+                    data,
+                },
+                stats,
+            },
+            extra,
+        ));
     }
     let mat = material(a)?;
     let em = match mat.lobe {
         Lobe::None => EnvisMaterial::Lambert { albedo: mat.kd },
-        Lobe::Phong { exponent } => EnvisMaterial::Phong { albedo: mat.ks, exponent },
-        Lobe::Ggx { alpha } => EnvisMaterial::Ggx { albedo: mat.ks, alpha },
+        Lobe::Phong { exponent } => EnvisMaterial::Phong {
+            albedo: mat.ks,
+            exponent,
+        },
+        Lobe::Ggx { alpha } => EnvisMaterial::Ggx {
+            albedo: mat.ks,
+            alpha,
+        },
     };
     let source = match a.env.parse::<EnvSource>()? {
         EnvSource::Sky { hours } => StreamSource::Sky { hours, speed: 0.0 },
@@ -321,59 +385,113 @@ fn render_bevy(a: &SceneArgs, s: &Settings, scene: Option<&envis::scene::Scene>)
         "distribution_builds": c.get(|c| &c.builds),
         "lighting_passes": c.get(|c| &c.lighting_passes),
     });
-    let image = envis::envmap::Image { width: a.size, height: a.size, data };
+    let image = envis::envmap::Image {
+        width: a.size,
+        height: a.size,
+        data,
+    };
     Ok((render::Rendered { image, stats }, extra))
 }
 
 #[cfg(not(feature = "app"))]
-fn render_bevy(_: &SceneArgs, _: &Settings, _: Option<&envis::scene::Scene>) -> Result<(render::Rendered, serde_json::Value)> {
-    Err(Error::invalid("--backend gpu: this envis was built without the `app` feature (cargo build --features app)"))
+fn render_bevy(
+    _: &SceneArgs,
+    _: &Settings,
+    _: Option<&envis::scene::Scene>,
+) -> Result<(render::Rendered, serde_json::Value)> {
+    Err(Error::invalid(
+        "--backend gpu: this envis was built without the `app` feature (cargo build --features app)",
+    ))
 }
 
 #[cfg(feature = "app")]
 fn run_demo(a: DemoArgs) -> Result<()> {
     use envis::stream::StreamSource;
-    let scene = a.scene.as_deref().map(envis::scene::Scene::load).transpose()?;
+    let scene = a
+        .scene
+        .as_deref()
+        .map(envis::scene::Scene::load)
+        .transpose()?;
     let source = if let Some(sc) = &scene {
         match StreamSource::parse(&sc.environment)? {
-            StreamSource::Sky { hours, .. } => StreamSource::Sky { hours, speed: sc.file.environment.speed },
+            StreamSource::Sky { hours, .. } => StreamSource::Sky {
+                hours,
+                speed: sc.file.environment.speed,
+            },
             other => other,
         }
     } else if let Some(dir) = a.sequence {
         StreamSource::Sequence { dir, fps: a.fps }
     } else if !a.carousel.is_empty() {
-        StreamSource::Carousel { paths: a.carousel, period: 8.0, fade: 2.0, spin: 0.05 }
+        StreamSource::Carousel {
+            paths: a.carousel,
+            period: 8.0,
+            fade: 2.0,
+            spin: 0.05,
+        }
     } else {
         StreamSource::parse(&a.env)?
     };
     // Refuse a bad source before opening a window, with its error.
-    envis::stream::EnvStream::open(source.clone(), scene.as_ref().map_or(a.face_size, |s| s.file.environment.face_size))?;
+    envis::stream::EnvStream::open(
+        source.clone(),
+        scene
+            .as_ref()
+            .map_or(a.face_size, |s| s.file.environment.face_size),
+    )?;
     let (w, h) = a
         .window
         .split_once('x')
         .and_then(|(w, h)| Some((w.parse::<u32>().ok()?, h.parse::<u32>().ok()?)))
         .filter(|(w, h)| (64..=8192).contains(w) && (64..=8192).contains(h))
-        .ok_or_else(|| Error::invalid(format!("--window {}: expected WIDTHxHEIGHT, e.g. 1280x720", a.window)))?;
-    let sampling = scene.as_ref().map_or(Settings { light_samples: a.light_samples, brdf_samples: a.brdf_samples, ..Default::default() }, |s| s.settings);
+        .ok_or_else(|| {
+            Error::invalid(format!(
+                "--window {}: expected WIDTHxHEIGHT, e.g. 1280x720",
+                a.window
+            ))
+        })?;
+    let sampling = scene.as_ref().map_or(
+        Settings {
+            light_samples: a.light_samples,
+            brdf_samples: a.brdf_samples,
+            ..Default::default()
+        },
+        |s| s.settings,
+    );
     sampling.validate()?;
-    let face_size = scene.as_ref().map_or(a.face_size, |s| s.file.environment.face_size);
+    let face_size = scene
+        .as_ref()
+        .map_or(a.face_size, |s| s.file.environment.face_size);
     if let Some(d) = &a.script {
         std::fs::create_dir_all(d).map_err(|e| Error::file(d, format!("cannot create: {e}")))?;
     }
-    let exit = envis::app::demo::run(envis::app::demo::DemoOptions { source, face_size, script: a.script, window: (w, h), sampling, scene });
+    let exit = envis::app::demo::run(envis::app::demo::DemoOptions {
+        source,
+        face_size,
+        script: a.script,
+        window: (w, h),
+        sampling,
+        scene,
+    });
     match exit {
         bevy::app::AppExit::Success => Ok(()),
-        bevy::app::AppExit::Error(c) => Err(Error::invalid(format!("the demo exited with code {c}"))),
+        bevy::app::AppExit::Error(c) => {
+            Err(Error::invalid(format!("the demo exited with code {c}")))
+        }
     }
 }
 
 #[cfg(not(feature = "app"))]
 fn run_demo(_: DemoArgs) -> Result<()> {
-    Err(Error::invalid("the interactive demo needs the `app` feature (cargo run --release --features app); see `envis --help` for the commands"))
+    Err(Error::invalid(
+        "the interactive demo needs the `app` feature (cargo run --release --features app); see `envis --help` for the commands",
+    ))
 }
 
 fn run(cli: Cli) -> Result<()> {
-    let Some(cmd) = cli.cmd else { return run_demo(cli.demo) };
+    let Some(cmd) = cli.cmd else {
+        return run_demo(cli.demo);
+    };
     match cmd {
         Cmd::Render(r) => {
             check_exr_path(&r.out)?;
@@ -405,7 +523,10 @@ fn run(cli: Cli) -> Result<()> {
             let settings = scene.as_ref().map_or(settings, |sc| sc.settings);
             let size = r.scene.size;
             let (mut out, extra) = match r.backend {
-                BackendArg::Cpu => (render::render(&env.cube, &gbuf, size, size, &settings)?, serde_json::json!({ "backend": "cpu" })),
+                BackendArg::Cpu => (
+                    render::render(&env.cube, &gbuf, size, size, &settings)?,
+                    serde_json::json!({ "backend": "cpu" }),
+                ),
                 BackendArg::Wgpu => render_wgpu(&env.cube, &gbuf, size, &settings)?,
                 BackendArg::Gpu => render_bevy(&r.scene, &settings, scene.as_ref())?,
             };
@@ -431,7 +552,8 @@ fn run(cli: Cli) -> Result<()> {
             }
             let (env, gbuf, mat, _) = setup(&r.scene)?;
             let t = std::time::Instant::now();
-            let (img, _) = reference::reference_image(&env.cube, &gbuf, r.scene.size, r.scene.size, r.refine);
+            let (img, _) =
+                reference::reference_image(&env.cube, &gbuf, r.scene.size, r.scene.size, r.refine);
             let ms = t.elapsed().as_secs_f64() * 1e3;
             output::write_exr(&r.out, &img)?;
             if let Some(p) = &r.png {
@@ -439,7 +561,10 @@ fn run(cli: Cli) -> Result<()> {
             }
             if let Some(p) = &r.stats {
                 let k = reference::subdivision(r.scene.size, &mat, r.refine);
-                write_json(p, &serde_json::json!({ "reference_ms": ms, "subtexel_points_per_axis": k, "clamped_texels": env.report }))?;
+                write_json(
+                    p,
+                    &serde_json::json!({ "reference_ms": ms, "subtexel_points_per_axis": k, "clamped_texels": env.report }),
+                )?;
             }
             Ok(())
         }
@@ -449,10 +574,19 @@ fn run(cli: Cli) -> Result<()> {
                 eprintln!("envis: {}: {}", c.env, env.report);
             }
             let img = envis::envmap::cube_to_cross(&env.cube);
-            match c.out.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref() {
+            match c
+                .out
+                .extension()
+                .and_then(|e| e.to_str())
+                .map(|e| e.to_ascii_lowercase())
+                .as_deref()
+            {
                 Some("exr") => output::write_exr(&c.out, &img),
                 Some("png") => output::write_png(&c.out, &img, c.exposure),
-                _ => Err(Error::invalid(format!("--out {}: expected .exr or .png", c.out.display()))),
+                _ => Err(Error::invalid(format!(
+                    "--out {}: expected .exr or .png",
+                    c.out.display()
+                ))),
             }
         }
         Cmd::Bench(b) => envis::bench::run(b),
@@ -464,12 +598,20 @@ fn main() {
         Ok(c) => c,
         Err(e) => {
             use clap::error::ErrorKind;
-            if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand) {
+            if matches!(
+                e.kind(),
+                ErrorKind::DisplayHelp
+                    | ErrorKind::DisplayVersion
+                    | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
+            ) {
                 e.exit();
             }
             // One line: clap's first line names the problem.
             let text = e.render().to_string();
-            let first = text.lines().find(|l| !l.trim().is_empty()).unwrap_or("invalid arguments");
+            let first = text
+                .lines()
+                .find(|l| !l.trim().is_empty())
+                .unwrap_or("invalid arguments");
             eprintln!("envis: {}", first.trim_start_matches("error: "));
             std::process::exit(2);
         }

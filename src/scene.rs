@@ -73,7 +73,11 @@ pub struct CameraSpec {
 
 impl Default for CameraSpec {
     fn default() -> Self {
-        CameraSpec { position: [0.0, 1.5, 6.0], target: [0.0, 0.8, 0.0], fov: 40.0 }
+        CameraSpec {
+            position: [0.0, 1.5, 6.0],
+            target: [0.0, 0.8, 0.0],
+            fov: 40.0,
+        }
     }
 }
 
@@ -174,9 +178,18 @@ pub struct Object {
 
 #[derive(Clone, Debug)]
 pub enum Shape {
-    Sphere { center: Vec3, radius: f32 },
+    Sphere {
+        center: Vec3,
+        radius: f32,
+    },
     /// A square of side `size` on the plane through `center` with normal `normal`.
-    Plane { center: Vec3, normal: Vec3, u: Vec3, v: Vec3, half: f32 },
+    Plane {
+        center: Vec3,
+        normal: Vec3,
+        u: Vec3,
+        v: Vec3,
+        half: f32,
+    },
     /// World-space triangles with per-vertex normals.
     Mesh(TriMesh),
 }
@@ -210,9 +223,13 @@ fn line_of(text: &str, offset: usize) -> usize {
 
 impl Scene {
     pub fn load(path: &Path) -> Result<Scene> {
-        let text = std::fs::read_to_string(path).map_err(|e| err(path, format!("cannot read: {e}")))?;
+        let text =
+            std::fs::read_to_string(path).map_err(|e| err(path, format!("cannot read: {e}")))?;
         let file: SceneFile = toml::from_str(&text).map_err(|e| {
-            let line = e.span().map(|s| format!("line {}: ", line_of(&text, s.start))).unwrap_or_default();
+            let line = e
+                .span()
+                .map(|s| format!("line {}: ", line_of(&text, s.start)))
+                .unwrap_or_default();
             err(path, format!("{line}{}", e.message().trim()))
         })?;
         let base = path.parent().unwrap_or(Path::new("."));
@@ -220,36 +237,93 @@ impl Scene {
             let p = PathBuf::from(p);
             if p.is_absolute() { p } else { base.join(p) }
         };
-        let environment = if file.environment.source.starts_with("builtin:") { file.environment.source.clone() } else { resolve(&file.environment.source).display().to_string() };
+        let environment = if file.environment.source.starts_with("builtin:") {
+            file.environment.source.clone()
+        } else {
+            resolve(&file.environment.source).display().to_string()
+        };
         let settings = sampling_settings(path, &file.sampling)?;
         let mut objects = Vec::new();
         for (i, o) in file.objects.iter().enumerate() {
-            let at = |field: &str| format!("object {} ({}), field `{field}`", i + 1, o.name.as_deref().unwrap_or(&o.shape));
-            let material = material(&o.material).map_err(|m| err(path, format!("{}: {m}", at("material"))))?;
-            let rot = Quat::from_euler(EulerRot::XYZ, o.rotation[0].to_radians(), o.rotation[1].to_radians(), o.rotation[2].to_radians());
+            let at = |field: &str| {
+                format!(
+                    "object {} ({}), field `{field}`",
+                    i + 1,
+                    o.name.as_deref().unwrap_or(&o.shape)
+                )
+            };
+            let material =
+                material(&o.material).map_err(|m| err(path, format!("{}: {m}", at("material"))))?;
+            let rot = Quat::from_euler(
+                EulerRot::XYZ,
+                o.rotation[0].to_radians(),
+                o.rotation[1].to_radians(),
+                o.rotation[2].to_radians(),
+            );
             let pos = Vec3::from(o.position);
             if !(o.scale.is_finite() && o.scale > 0.0) {
                 return Err(err(path, format!("{}: must be > 0", at("scale"))));
             }
             let shape = match o.shape.as_str() {
-                "sphere" => Shape::Sphere { center: pos, radius: o.radius.unwrap_or(1.0) * o.scale },
+                "sphere" => Shape::Sphere {
+                    center: pos,
+                    radius: o.radius.unwrap_or(1.0) * o.scale,
+                },
                 "plane" => {
                     let m = Mat3::from_quat(rot);
-                    Shape::Plane { center: pos, normal: m * Vec3::Y, u: m * Vec3::X, v: m * Vec3::Z, half: 0.5 * o.size.unwrap_or(10.0) * o.scale }
+                    Shape::Plane {
+                        center: pos,
+                        normal: m * Vec3::Y,
+                        u: m * Vec3::X,
+                        v: m * Vec3::Z,
+                        half: 0.5 * o.size.unwrap_or(10.0) * o.scale,
+                    }
                 }
-                "torus" => Shape::Mesh(torus_mesh(o.major_radius.unwrap_or(0.9), o.minor_radius.unwrap_or(0.45), 64, 32).transformed(rot, pos, o.scale)),
+                "torus" => Shape::Mesh(
+                    torus_mesh(
+                        o.major_radius.unwrap_or(0.9),
+                        o.minor_radius.unwrap_or(0.45),
+                        64,
+                        32,
+                    )
+                    .transformed(rot, pos, o.scale),
+                ),
                 "gltf" => {
-                    let p = o.path.as_deref().ok_or_else(|| err(path, format!("{}: a gltf object needs a path", at("path"))))?;
+                    let p = o.path.as_deref().ok_or_else(|| {
+                        err(path, format!("{}: a gltf object needs a path", at("path")))
+                    })?;
                     Shape::Mesh(load_glb(&resolve(p))?.transformed(rot, pos, o.scale))
                 }
-                other => return Err(err(path, format!("{}: unknown shape '{other}' (sphere, plane, torus, gltf)", at("shape")))),
+                other => {
+                    return Err(err(
+                        path,
+                        format!(
+                            "{}: unknown shape '{other}' (sphere, plane, torus, gltf)",
+                            at("shape")
+                        ),
+                    ));
+                }
             };
-            objects.push(Object { name: o.name.clone().unwrap_or_else(|| format!("{} {}", o.shape, i + 1)), material, shape, spec: o.clone() });
+            objects.push(Object {
+                name: o
+                    .name
+                    .clone()
+                    .unwrap_or_else(|| format!("{} {}", o.shape, i + 1)),
+                material,
+                shape,
+                spec: o.clone(),
+            });
         }
         if objects.is_empty() {
             return Err(err(path, "no [[object]] in the scene"));
         }
-        Ok(Scene { path: path.to_path_buf(), file, objects, settings, environment })
+        Ok(Scene {
+            path: path.to_path_buf(),
+            file,
+            objects,
+            settings,
+            environment,
+        })
     }
 
     /// The scene's G-buffer seen by its camera (perspective), `width x height`, row-major.
@@ -269,7 +343,11 @@ impl Scene {
                 let ndc_x = (2.0 * x / width as f32 - 1.0) * t * aspect;
                 let ndc_y = (1.0 - 2.0 * y / height as f32) * t;
                 let d = (fwd + right * ndc_x + up * ndc_y).normalize();
-                self.trace(eye, d).map(|(n, m)| GPixel { n, o: -d, material: m })
+                self.trace(eye, d).map(|(n, m)| GPixel {
+                    n,
+                    o: -d,
+                    material: m,
+                })
             })
             .collect()
     }
@@ -290,7 +368,12 @@ impl Scene {
 
 fn sampling_settings(path: &Path, s: &SamplingSpec) -> Result<Settings> {
     let mut out = Settings::default();
-    let bad = |field: &str, v: &str, ok: &str| err(path, format!("[sampling] field `{field}`: '{v}' (expected {ok})"));
+    let bad = |field: &str, v: &str, ok: &str| {
+        err(
+            path,
+            format!("[sampling] field `{field}`: '{v}' (expected {ok})"),
+        )
+    };
     if let Some(v) = s.light_samples {
         out.light_samples = v;
     }
@@ -324,7 +407,8 @@ fn sampling_settings(path: &Path, s: &SamplingSpec) -> Result<Settings> {
     out.pool_size = s.pool.unwrap_or(0);
     out.pixel_offset = s.pixel_offset.unwrap_or(false);
     out.material_budget = s.material_budget.unwrap_or(false);
-    out.validate().map_err(|e| err(path, format!("[sampling]: {e}")))?;
+    out.validate()
+        .map_err(|e| err(path, format!("[sampling]: {e}")))?;
     Ok(out)
 }
 
@@ -335,12 +419,43 @@ pub fn material(m: &MaterialSpec) -> std::result::Result<Material, String> {
         return Err(format!("albedo {a} must be finite and >= 0"));
     }
     Ok(match m.kind.as_str() {
-        "diffuse" => Material { kd: a, ks: Vec3::ZERO, lobe: Lobe::None },
-        "phong" => Material { kd: Vec3::ZERO, ks: a, lobe: Lobe::Phong { exponent: m.exponent.unwrap_or(150.0).clamp(0.0, crate::sampling::brdf::MAX_EXPONENT) } },
-        "ggx" => Material { kd: Vec3::ZERO, ks: a, lobe: Lobe::Ggx { alpha: m.alpha.unwrap_or(0.2).clamp(crate::sampling::brdf::MIN_ALPHA, 1.0) } },
+        "diffuse" => Material {
+            kd: a,
+            ks: Vec3::ZERO,
+            lobe: Lobe::None,
+        },
+        "phong" => Material {
+            kd: Vec3::ZERO,
+            ks: a,
+            lobe: Lobe::Phong {
+                exponent: m
+                    .exponent
+                    .unwrap_or(150.0)
+                    .clamp(0.0, crate::sampling::brdf::MAX_EXPONENT),
+            },
+        },
+        "ggx" => Material {
+            kd: Vec3::ZERO,
+            ks: a,
+            lobe: Lobe::Ggx {
+                alpha: m
+                    .alpha
+                    .unwrap_or(0.2)
+                    .clamp(crate::sampling::brdf::MIN_ALPHA, 1.0),
+            },
+        },
         "mix" => {
             let s = m.specular.unwrap_or(0.5).clamp(0.0, 1.0);
-            Material { kd: a * (1.0 - s), ks: a * s, lobe: Lobe::Ggx { alpha: m.alpha.unwrap_or(0.2).clamp(crate::sampling::brdf::MIN_ALPHA, 1.0) } }
+            Material {
+                kd: a * (1.0 - s),
+                ks: a * s,
+                lobe: Lobe::Ggx {
+                    alpha: m
+                        .alpha
+                        .unwrap_or(0.2)
+                        .clamp(crate::sampling::brdf::MIN_ALPHA, 1.0),
+                },
+            }
         }
         other => return Err(format!("unknown type '{other}' (diffuse, phong, ggx, mix)")),
     })
@@ -362,7 +477,13 @@ impl Shape {
                 let t = if -b - s > 1e-4 { -b - s } else { -b + s };
                 (t > 1e-4 && t < t_max).then(|| (t, (o + d * t - *center) / *radius))
             }
-            Shape::Plane { center, normal, u, v, half } => {
+            Shape::Plane {
+                center,
+                normal,
+                u,
+                v,
+                half,
+            } => {
                 let den = normal.dot(d);
                 if den.abs() < 1e-9 {
                     return None;
@@ -423,7 +544,8 @@ impl TriMesh {
             if t > 1e-4 && t < best {
                 best = t;
                 let [na, nb, nc] = tri.map(|i| self.normals[i as usize]);
-                let n = (na * (1.0 - u - v) + nb * u + nc * v).normalize_or(e1.cross(e2).normalize_or_zero());
+                let n = (na * (1.0 - u - v) + nb * u + nc * v)
+                    .normalize_or(e1.cross(e2).normalize_or_zero());
                 hit = Some((t, n));
             }
         }
@@ -473,19 +595,34 @@ pub fn load_glb(path: &Path) -> Result<TriMesh> {
     if bytes.len() < 20 || &bytes[0..4] != b"glTF" {
         return Err(bad("missing the glTF header"));
     }
-    let u32_at = |o: usize| -> Result<u32> { bytes.get(o..o + 4).map(|b| u32::from_le_bytes(b.try_into().unwrap())).ok_or_else(|| bad("truncated")) };
+    let u32_at = |o: usize| -> Result<u32> {
+        bytes
+            .get(o..o + 4)
+            .map(|b| u32::from_le_bytes(b.try_into().unwrap()))
+            .ok_or_else(|| bad("truncated"))
+    };
     let json_len = u32_at(12)? as usize;
     if u32_at(16)? != 0x4E4F534A {
         return Err(bad("first chunk is not JSON"));
     }
-    let json: serde_json::Value = serde_json::from_slice(bytes.get(20..20 + json_len).ok_or_else(|| bad("truncated JSON chunk"))?).map_err(|e| bad(&format!("JSON: {e}")))?;
+    let json: serde_json::Value = serde_json::from_slice(
+        bytes
+            .get(20..20 + json_len)
+            .ok_or_else(|| bad("truncated JSON chunk"))?,
+    )
+    .map_err(|e| bad(&format!("JSON: {e}")))?;
     let bin_at = 20 + json_len;
     let bin_len = u32_at(bin_at)? as usize;
-    let bin = bytes.get(bin_at + 8..bin_at + 8 + bin_len).ok_or_else(|| bad("truncated BIN chunk"))?;
+    let bin = bytes
+        .get(bin_at + 8..bin_at + 8 + bin_len)
+        .ok_or_else(|| bad("truncated BIN chunk"))?;
     let prim = &json["meshes"][0]["primitives"][0];
     let accessor = |i: &serde_json::Value| -> Result<(Vec<u8>, usize, u64, String)> {
         let a = &json["accessors"][i.as_u64().ok_or_else(|| bad("accessor index"))? as usize];
-        let view = &json["bufferViews"][a["bufferView"].as_u64().ok_or_else(|| bad("sparse or missing bufferView"))? as usize];
+        let view = &json["bufferViews"][a["bufferView"]
+            .as_u64()
+            .ok_or_else(|| bad("sparse or missing bufferView"))?
+            as usize];
         let count = a["count"].as_u64().ok_or_else(|| bad("accessor count"))? as usize;
         let ctype = a["componentType"].as_u64().unwrap_or(0);
         let kind = a["type"].as_str().unwrap_or("").to_string();
@@ -500,12 +637,19 @@ pub fn load_glb(path: &Path) -> Result<TriMesh> {
             5125 | 5126 => 4,
             _ => return Err(bad(&format!("component type {ctype}"))),
         };
-        let stride = view["byteStride"].as_u64().map(|s| s as usize).unwrap_or(comps * csize);
-        let start = view["byteOffset"].as_u64().unwrap_or(0) as usize + a["byteOffset"].as_u64().unwrap_or(0) as usize;
+        let stride = view["byteStride"]
+            .as_u64()
+            .map(|s| s as usize)
+            .unwrap_or(comps * csize);
+        let start = view["byteOffset"].as_u64().unwrap_or(0) as usize
+            + a["byteOffset"].as_u64().unwrap_or(0) as usize;
         let mut out = Vec::with_capacity(count * comps * csize);
         for k in 0..count {
             let o = start + k * stride;
-            out.extend_from_slice(bin.get(o..o + comps * csize).ok_or_else(|| bad("accessor out of the buffer"))?);
+            out.extend_from_slice(
+                bin.get(o..o + comps * csize)
+                    .ok_or_else(|| bad("accessor out of the buffer"))?,
+            );
         }
         Ok((out, count, ctype, kind))
     };
@@ -514,7 +658,13 @@ pub fn load_glb(path: &Path) -> Result<TriMesh> {
         if ctype != 5126 || kind != "VEC3" {
             return Err(bad(&format!("{name} must be float32 VEC3")));
         }
-        Ok((0..n).map(|k| Vec3::from_array(std::array::from_fn(|c| f32::from_le_bytes(b[12 * k + 4 * c..12 * k + 4 * c + 4].try_into().unwrap())))).collect())
+        Ok((0..n)
+            .map(|k| {
+                Vec3::from_array(std::array::from_fn(|c| {
+                    f32::from_le_bytes(b[12 * k + 4 * c..12 * k + 4 * c + 4].try_into().unwrap())
+                }))
+            })
+            .collect())
     };
     let positions = vec3s("POSITION")?;
     let normals = vec3s("NORMAL")?;
@@ -524,12 +674,26 @@ pub fn load_glb(path: &Path) -> Result<TriMesh> {
         let (b, n, ctype, _) = accessor(&prim["indices"])?;
         match ctype {
             5121 => b.iter().map(|&x| x as u32).collect(),
-            5123 => (0..n).map(|k| u16::from_le_bytes([b[2 * k], b[2 * k + 1]]) as u32).collect(),
-            _ => (0..n).map(|k| u32::from_le_bytes(b[4 * k..4 * k + 4].try_into().unwrap())).collect(),
+            5123 => (0..n)
+                .map(|k| u16::from_le_bytes([b[2 * k], b[2 * k + 1]]) as u32)
+                .collect(),
+            _ => (0..n)
+                .map(|k| u32::from_le_bytes(b[4 * k..4 * k + 4].try_into().unwrap()))
+                .collect(),
         }
     };
-    if flat.iter().any(|&i| i as usize >= positions.len()) || normals.len() != positions.len() || !flat.len().is_multiple_of(3) {
+    if flat.iter().any(|&i| i as usize >= positions.len())
+        || normals.len() != positions.len()
+        || !flat.len().is_multiple_of(3)
+    {
         return Err(bad("indices or normals do not match the positions"));
     }
-    Ok(TriMesh { positions, normals: normals.into_iter().map(|n| n.normalize_or(Vec3::Y)).collect(), indices: flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect() })
+    Ok(TriMesh {
+        positions,
+        normals: normals
+            .into_iter()
+            .map(|n| n.normalize_or(Vec3::Y))
+            .collect(),
+        indices: flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+    })
 }

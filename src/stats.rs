@@ -86,12 +86,23 @@ pub struct ChiSquare {
 /// count below `min_expected` are pooled into one bin (as Mitsuba's chi2 test does). With exact
 /// expectations (`zero_is_failure`), an observation in a bin of zero expectation fails at once
 /// (p = 0); with quadrature-estimated expectations such bins are pooled like the other sparse ones.
-pub fn chi_square(observed: &[f64], expected: &[f64], min_expected: f64, zero_is_failure: bool) -> ChiSquare {
+pub fn chi_square(
+    observed: &[f64],
+    expected: &[f64],
+    min_expected: f64,
+    zero_is_failure: bool,
+) -> ChiSquare {
     assert_eq!(observed.len(), expected.len());
-    let (mut stat, mut dof, mut pooled_o, mut pooled_e, mut pooled) = (0.0, 0usize, 0.0, 0.0, 0usize);
+    let (mut stat, mut dof, mut pooled_o, mut pooled_e, mut pooled) =
+        (0.0, 0usize, 0.0, 0.0, 0usize);
     for (&o, &e) in observed.iter().zip(expected) {
         if zero_is_failure && e <= 0.0 && o > 0.0 {
-            return ChiSquare { statistic: f64::INFINITY, dof: 0, p_value: 0.0, pooled_bins: 0 };
+            return ChiSquare {
+                statistic: f64::INFINITY,
+                dof: 0,
+                p_value: 0.0,
+                pooled_bins: 0,
+            };
         }
         if e < min_expected {
             pooled_o += o;
@@ -107,7 +118,12 @@ pub fn chi_square(observed: &[f64], expected: &[f64], min_expected: f64, zero_is
         dof += 1;
     }
     let dof = dof.saturating_sub(1).max(1);
-    ChiSquare { statistic: stat, dof, p_value: gamma_q(dof as f64 / 2.0, stat / 2.0), pooled_bins: pooled }
+    ChiSquare {
+        statistic: stat,
+        dof,
+        p_value: gamma_q(dof as f64 / 2.0, stat / 2.0),
+        pooled_bins: pooled,
+    }
 }
 
 /// Mean and standard error of the mean.

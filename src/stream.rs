@@ -12,15 +12,15 @@
 //! [`EnvStream::take_messages`], and playback goes on. Frames of another resolution are resampled
 //! to the stream's face size, so downstream buffers change only when the face size does.
 
-use crate::envmap::load::{load_env, EnvSource};
+use crate::envmap::load::{EnvSource, load_env};
 use crate::envmap::resample::cube_from_fetch;
-use crate::envmap::{sky, CubeMap, SanitizeReport};
+use crate::envmap::{CubeMap, SanitizeReport, sky};
 use crate::error::{Error, Result};
 use glam::{Quat, Vec3};
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
-use std::sync::mpsc::{sync_channel, Receiver, TryRecvError};
 use std::sync::Arc;
+use std::sync::mpsc::{Receiver, TryRecvError, sync_channel};
 
 /// Where frames come from.
 #[derive(Clone, Debug, PartialEq)]
@@ -33,7 +33,12 @@ pub enum StreamSource {
     Sequence { dir: PathBuf, fps: f32 },
     /// A list of maps, each shown `period` seconds (rotating about +Y at `spin` radians per
     /// second), cross-faded over the last `fade` seconds into the next.
-    Carousel { paths: Vec<PathBuf>, period: f32, fade: f32, spin: f32 },
+    Carousel {
+        paths: Vec<PathBuf>,
+        period: f32,
+        fade: f32,
+        spin: f32,
+    },
 }
 
 impl StreamSource {
@@ -64,7 +69,11 @@ impl SequenceDecoder {
         let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
             .map_err(|e| Error::file(dir, format!("cannot read the frame directory: {e}")))?
             .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("exr") || e.eq_ignore_ascii_case("hdr")))
+            .filter(|p| {
+                p.extension()
+                    .and_then(|e| e.to_str())
+                    .is_some_and(|e| e.eq_ignore_ascii_case("exr") || e.eq_ignore_ascii_case("hdr"))
+            })
             .collect();
         files.sort();
         if files.is_empty() {
@@ -76,14 +85,20 @@ impl SequenceDecoder {
             .name("envis-sequence-decoder".into())
             .spawn(move || {
                 for i in (0..list.len()).cycle() {
-                    let r = load_env(&EnvSource::File(list[i].clone()), face_size).map(|l| Arc::new(l.cube)).map_err(|e| e.to_string());
+                    let r = load_env(&EnvSource::File(list[i].clone()), face_size)
+                        .map(|l| Arc::new(l.cube))
+                        .map_err(|e| e.to_string());
                     if tx.send((i, r)).is_err() {
                         return; // the stream was dropped
                     }
                 }
             })
             .map_err(|e| Error::invalid(format!("cannot start the decoder thread: {e}")))?;
-        Ok(SequenceDecoder { files, rx: std::sync::Mutex::new(rx), _thread: thread })
+        Ok(SequenceDecoder {
+            files,
+            rx: std::sync::Mutex::new(rx),
+            _thread: thread,
+        })
     }
 }
 
@@ -125,7 +140,9 @@ pub struct EnvStream {
 impl EnvStream {
     pub fn open(source: StreamSource, face_size: usize) -> Result<Self> {
         if face_size == 0 || face_size > 4096 {
-            return Err(Error::invalid(format!("face size {face_size} out of range 1..=4096")));
+            return Err(Error::invalid(format!(
+                "face size {face_size} out of range 1..=4096"
+            )));
         }
         let mut s = EnvStream {
             source: source.clone(),
@@ -156,13 +173,19 @@ impl EnvStream {
             }
             StreamSource::Sequence { dir, fps } => {
                 if !(fps.is_finite() && *fps > 0.0) {
-                    return Err(Error::invalid(format!("sequence rate {fps} fps must be > 0")));
+                    return Err(Error::invalid(format!(
+                        "sequence rate {fps} fps must be > 0"
+                    )));
                 }
                 let d = SequenceDecoder::start(dir, face_size)?;
                 // The first frame is worth waiting for (there is nothing to show before it); any
                 // unreadable frames before the first good one are reported and skipped.
                 loop {
-                    let (i, r) = d.rx.lock().expect("decoder channel").recv().map_err(|_| Error::file(dir, "frame decoder stopped"))?;
+                    let (i, r) =
+                        d.rx.lock()
+                            .expect("decoder channel")
+                            .recv()
+                            .map_err(|_| Error::file(dir, "frame decoder stopped"))?;
                     match r {
                         Ok(m) => {
                             s.set_frame(m);
@@ -171,7 +194,10 @@ impl EnvStream {
                         Err(e) => {
                             s.bad_frame(&d.files[i], &e);
                             if s.stats.bad_frames as usize >= d.files.len() {
-                                return Err(Error::file(dir, format!("no frame of the sequence could be read (last: {e})")));
+                                return Err(Error::file(
+                                    dir,
+                                    format!("no frame of the sequence could be read (last: {e})"),
+                                ));
                             }
                         }
                     }
@@ -184,7 +210,8 @@ impl EnvStream {
                     return Err(Error::invalid("carousel: no maps given"));
                 }
                 for p in paths {
-                    s.carousel.push(load_env(&EnvSource::File(p.clone()), face_size)?.cube);
+                    s.carousel
+                        .push(load_env(&EnvSource::File(p.clone()), face_size)?.cube);
                 }
                 s.make_carousel();
             }
@@ -216,7 +243,9 @@ impl EnvStream {
     /// Sky: the current time of day.
     pub fn sky_hours(&self) -> Option<f32> {
         match self.source {
-            StreamSource::Sky { hours, speed } => Some((hours as f64 + self.time * speed as f64).rem_euclid(24.0) as f32),
+            StreamSource::Sky { hours, speed } => {
+                Some((hours as f64 + self.time * speed as f64).rem_euclid(24.0) as f32)
+            }
             _ => None,
         }
     }
@@ -257,7 +286,8 @@ impl EnvStream {
     fn bad_frame(&mut self, path: &Path, err: &str) {
         self.stats.bad_frames += 1;
         if self.reported.insert(path.to_path_buf()) {
-            self.messages.push(format!("{err} (kept the last good frame)"));
+            self.messages
+                .push(format!("{err} (kept the last good frame)"));
         }
     }
 
@@ -296,7 +326,8 @@ impl EnvStream {
                     return;
                 }
                 Err(TryRecvError::Disconnected) => {
-                    self.messages.push("frame decoder stopped; the last frame stays".into());
+                    self.messages
+                        .push("frame decoder stopped; the last frame stays".into());
                     self.decoder = None;
                     return;
                 }
@@ -309,7 +340,12 @@ impl EnvStream {
     }
 
     fn make_carousel(&mut self) {
-        let StreamSource::Carousel { period, fade, spin, .. } = self.source.clone() else { return };
+        let StreamSource::Carousel {
+            period, fade, spin, ..
+        } = self.source.clone()
+        else {
+            return;
+        };
         let n = self.carousel.len();
         let period = period.max(1e-3) as f64;
         let k = (self.time / period).floor();
@@ -317,11 +353,18 @@ impl EnvStream {
         let b = (a + 1) % n;
         let into = self.time - k * period;
         let fade = (fade as f64).clamp(0.0, period);
-        let w = if fade > 0.0 { ((into - (period - fade)) / fade).clamp(0.0, 1.0) } else { 0.0 };
+        let w = if fade > 0.0 {
+            ((into - (period - fade)) / fade).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
         let w = (w * w * (3.0 - 2.0 * w)) as f32; // smoothstep
         let angle = (self.time * spin as f64) as f32;
         // Quantise to 1/1000 rad and 1/1000 of the fade so a paused carousel costs nothing.
-        let key = ((angle as f64 * 1000.0).round() as i64, (k as i64) * 1000 + (w * 1000.0).round() as i64);
+        let key = (
+            (angle as f64 * 1000.0).round() as i64,
+            (k as i64) * 1000 + (w * 1000.0).round() as i64,
+        );
         if self.last_key == Some(key) {
             return;
         }
@@ -331,7 +374,11 @@ impl EnvStream {
         let m = cube_from_fetch(self.face_size, 1, |d: Vec3| {
             let r = rot * d;
             let x = ma.lookup(r);
-            if w > 0.0 { x * (1.0 - w) + mb.lookup(r) * w } else { x }
+            if w > 0.0 {
+                x * (1.0 - w) + mb.lookup(r) * w
+            } else {
+                x
+            }
         });
         self.set_frame(Arc::new(m));
     }

@@ -2,11 +2,11 @@
 //! fit and normalisation, Mitsuba-style), estimator unbiasedness against the f64 reference,
 //! loaders and the command line.
 
-use envis::envmap::load::{load_env, read_hdr_bytes, EnvSource};
+use envis::envmap::load::{EnvSource, load_env, read_hdr_bytes};
 use envis::envmap::resample::{latlong_integral, latlong_to_cube};
 use envis::envmap::*;
 use envis::render::reference::{reference_image, reference_pixel};
-use envis::render::{render, sphere_gbuffer, GPixel, Settings, Strategy};
+use envis::render::{GPixel, Settings, Strategy, render, sphere_gbuffer};
 use envis::sampling::rng::Rng;
 use envis::sampling::warp::Frame;
 use envis::sampling::*;
@@ -33,10 +33,20 @@ fn random_dir(r: &mut Rng) -> Vec3 {
 fn real_maps() -> Option<Vec<PathBuf>> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/hdri");
     let mut v: Vec<PathBuf> = match std::fs::read_dir(&dir) {
-        Ok(rd) => rd.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.extension().is_some_and(|e| e == "exr")).collect(),
+        Ok(rd) => rd
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|e| e == "exr"))
+            .collect(),
         Err(_) => {
-            assert!(std::env::var("CI").is_err(), "CI must have ../shared/data/hdri ({})", dir.display());
-            eprintln!("note: {} absent, using generated maps instead", dir.display());
+            assert!(
+                std::env::var("CI").is_err(),
+                "CI must have ../shared/data/hdri ({})",
+                dir.display()
+            );
+            eprintln!(
+                "note: {} absent, using generated maps instead",
+                dir.display()
+            );
             return None;
         }
     };
@@ -68,15 +78,28 @@ fn generated_latlong(w: usize, seed: u32) -> Image {
 /// Test environments: built-in sky at two times, plus real maps (or generated stand-ins).
 fn test_envs(face: usize, n_real: usize) -> Vec<(String, CubeMap)> {
     let mut v = vec![
-        ("builtin:sky:10".to_string(), load_env(&EnvSource::Sky { hours: 10.0 }, face).unwrap().cube),
-        ("builtin:sky:17".to_string(), load_env(&EnvSource::Sky { hours: 17.0 }, face).unwrap().cube),
+        (
+            "builtin:sky:10".to_string(),
+            load_env(&EnvSource::Sky { hours: 10.0 }, face)
+                .unwrap()
+                .cube,
+        ),
+        (
+            "builtin:sky:17".to_string(),
+            load_env(&EnvSource::Sky { hours: 17.0 }, face)
+                .unwrap()
+                .cube,
+        ),
     ];
     match real_maps() {
         Some(maps) => {
             // Spread the picks over the sorted list (deterministic).
             for i in 0..n_real.min(maps.len()) {
                 let p = &maps[i * maps.len() / n_real];
-                v.push((p.display().to_string(), load_env(&EnvSource::File(p.clone()), face).unwrap().cube));
+                v.push((
+                    p.display().to_string(),
+                    load_env(&EnvSource::File(p.clone()), face).unwrap().cube,
+                ));
             }
         }
         None => {
@@ -133,9 +156,15 @@ fn chi2_sphere(
                     let t = (it as f64 + (a as f64 + 0.5) / q as f64) / nt as f64;
                     let theta = std::f64::consts::PI * t * t;
                     let dtheta = 2.0 * std::f64::consts::PI * t / (nt * q) as f64;
-                    let phi = 2.0 * std::f64::consts::PI * (ip as f64 + (b as f64 + 0.5) / q as f64) / np as f64;
+                    let phi =
+                        2.0 * std::f64::consts::PI * (ip as f64 + (b as f64 + 0.5) / q as f64)
+                            / np as f64;
                     let dphi = 2.0 * std::f64::consts::PI / (np * q) as f64;
-                    let l = DVec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos());
+                    let l = DVec3::new(
+                        theta.sin() * phi.cos(),
+                        theta.sin() * phi.sin(),
+                        theta.cos(),
+                    );
                     let d = fr.to_world(l.as_vec3()).normalize();
                     m += pdf(d) as f64 * theta.sin() * dtheta * dphi;
                 }
@@ -173,23 +202,47 @@ fn direction_face_uv_round_trip() {
 #[test]
 fn latlong_bright_spot_lands_where_the_convention_says() {
     // (u, v) -> expected face, by d = (sin t sin p, cos t, -sin t cos p).
-    let cases = [((0.25, 0.5), 0usize), ((0.75, 0.5), 1), ((0.5, 0.5), 4), ((0.0, 0.5), 5), ((0.3, 0.02), 2), ((0.6, 0.98), 3), ((0.13, 0.31), 9)];
+    let cases = [
+        ((0.25, 0.5), 0usize),
+        ((0.75, 0.5), 1),
+        ((0.5, 0.5), 4),
+        ((0.0, 0.5), 5),
+        ((0.3, 0.02), 2),
+        ((0.6, 0.98), 3),
+        ((0.13, 0.31), 9),
+    ];
     for ((u, v), face) in cases {
         let (w, h) = (256usize, 128usize);
         let mut img = Image::new(w, h);
-        let (x, y) = (((u * w as f32) as usize).min(w - 1), ((v * h as f32) as usize).min(h - 1));
+        let (x, y) = (
+            ((u * w as f32) as usize).min(w - 1),
+            ((v * h as f32) as usize).min(h - 1),
+        );
         img.data[y * w + x] = Vec3::splat(1e4);
         let dir = tempdir();
         let path = dir.join("spot.exr");
         envis::render::output::write_exr(&path, &img).unwrap();
         let cube = load_env(&EnvSource::File(path), 16).unwrap().cube;
-        let brightest = (0..cube.data.len()).max_by(|&a, &b| envis::envmap::luminance(cube.data[a]).total_cmp(&envis::envmap::luminance(cube.data[b]))).unwrap();
+        let brightest = (0..cube.data.len())
+            .max_by(|&a, &b| {
+                envis::envmap::luminance(cube.data[a])
+                    .total_cmp(&envis::envmap::luminance(cube.data[b]))
+            })
+            .unwrap();
         let (f, row, col) = (brightest / 256, (brightest / 16) % 16, brightest % 16);
         let got = face_uv_to_dir(f, (col as f32 + 0.5) / 16.0, (row as f32 + 0.5) / 16.0);
         let want = latlong_to_dir((x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32);
-        assert!(got.dot(want) > (0.12f32).cos(), "spot at ({u},{v}) -> face {f} ({col},{row}) dir {got}, want {want}");
+        assert!(
+            got.dot(want) > (0.12f32).cos(),
+            "spot at ({u},{v}) -> face {f} ({col},{row}) dir {got}, want {want}"
+        );
         if face < 6 {
-            assert_eq!(f, face, "spot at ({u},{v}) landed on {}", Face::from_index(f).name());
+            assert_eq!(
+                f,
+                face,
+                "spot at ({u},{v}) landed on {}",
+                Face::from_index(f).name()
+            );
         }
     }
 }
@@ -210,7 +263,11 @@ fn resampling_preserves_energy() {
             img.sanitize();
             let want = latlong_integral(&img);
             let got = latlong_to_cube(&img, 64).integral();
-            assert!(((got - want).length() / want.length()) < 0.01, "{}: {got} vs {want}", p.display());
+            assert!(
+                ((got - want).length() / want.length()) < 0.01,
+                "{}: {got} vs {want}",
+                p.display()
+            );
         }
     }
 }
@@ -219,8 +276,12 @@ fn resampling_preserves_energy() {
 fn cube_cross_round_trip() {
     let cube = load_env(&EnvSource::Sky { hours: 8.0 }, 8).unwrap().cube;
     let cross = cube_to_cross(&cube);
-    assert_eq!(envis::envmap::load::detect_layout(cross.width, cross.height), Ok(envis::envmap::load::Layout::HorizontalCross));
-    let back = envis::envmap::load::cross_to_cube(&cross, envis::envmap::load::Layout::HorizontalCross);
+    assert_eq!(
+        envis::envmap::load::detect_layout(cross.width, cross.height),
+        Ok(envis::envmap::load::Layout::HorizontalCross)
+    );
+    let back =
+        envis::envmap::load::cross_to_cube(&cross, envis::envmap::load::Layout::HorizontalCross);
     assert_eq!(back.data, cube.data);
     // Faces that share an edge in the cross share it on the sphere: +Z's top row touches +Y's bottom row.
     let n = 8;
@@ -256,7 +317,9 @@ fn structured_cube(n: usize) -> CubeMap {
 
 /// A smooth map (small texel-to-texel jumps) for tests whose expectations come from quadrature.
 fn smooth_cube(n: usize) -> CubeMap {
-    CubeMap::from_fn(n, |d| Vec3::splat(0.3 + (1.0 + d.y).powi(2) + 0.5 * d.x.abs() + 0.3 * (3.0 * d.z).sin().abs()))
+    CubeMap::from_fn(n, |d| {
+        Vec3::splat(0.3 + (1.0 + d.y).powi(2) + 0.5 * d.x.abs() + 0.3 * (3.0 * d.z).sin().abs())
+    })
 }
 
 #[test]
@@ -275,7 +338,9 @@ fn face_distribution_chi2_texel_domain() {
             assert!(s.row != 1 && s.col != 2, "sampled a zero texel");
             obs[s.row * n + s.col] += 1.0;
         }
-        let exp: Vec<f64> = (0..n * n).map(|i| fd.texel_pmf(i % n, i / n) as f64 * ns as f64).collect();
+        let exp: Vec<f64> = (0..n * n)
+            .map(|i| fd.texel_pmf(i % n, i / n) as f64 * ns as f64)
+            .collect();
         let c = chi_square(&obs, &exp, 5.0, true);
         assert!(c.p_value > P_MIN, "face {f}: {c:?}");
     }
@@ -293,7 +358,10 @@ fn face_distribution_invert_round_trips() {
             let (g, a, b) = dir_to_face_ab(s.dir);
             assert_eq!(g, f);
             let back = dist.faces[f].invert(a, b);
-            assert!((back - u).abs().max_element() < 1e-3, "face {f}: {u} -> {back}");
+            assert!(
+                (back - u).abs().max_element() < 1e-3,
+                "face {f}: {u} -> {back}"
+            );
         }
     }
 }
@@ -325,7 +393,8 @@ fn face_distribution_solid_angle_pdf_chi2() {
                 let d = face_ab_to_vec(f, (a0 + h / 2.0) as f32, (b0 + h / 2.0) as f32);
                 let (g, p) = dist.face_pdf(d);
                 assert_eq!(g, f);
-                exp[(y / q) * nb + x / q] += p as f64 * face_rect_solid_angle(a0, b0, a0 + h, b0 + h) * ns as f64;
+                exp[(y / q) * nb + x / q] +=
+                    p as f64 * face_rect_solid_angle(a0, b0, a0 + h, b0 + h) * ns as f64;
             }
         }
         let c = chi_square(&obs, &exp, 5.0, true);
@@ -340,7 +409,13 @@ fn face_weighted_mixture_chi2_for_several_normals() {
     let dist = CubeDistribution::build(&map);
     let e = dist.energies();
     let smooth = CubeDistribution::build(&smooth_cube(8));
-    let normals = [Vec3::Y, Vec3::new(1.0, 1.0, 1.0), Vec3::new(0.3, -0.8, 0.2), -Vec3::Z, Vec3::new(1.0, 0.0, 0.0)];
+    let normals = [
+        Vec3::Y,
+        Vec3::new(1.0, 1.0, 1.0),
+        Vec3::new(0.3, -0.8, 0.2),
+        -Vec3::Z,
+        Vec3::new(1.0, 0.0, 0.0),
+    ];
     for (k, &nrm) in normals.iter().enumerate() {
         let fw = face_weights(nrm.normalize(), &e, true);
         let mix = Distribution1D::new(fw.mu.to_vec());
@@ -353,13 +428,28 @@ fn face_weighted_mixture_chi2_for_several_normals() {
             let s = dist.faces[f].sample(f, rng_vec2(&mut r)).unwrap();
             obs[(f * n + s.row) * n + s.col] += 1.0;
         }
-        let exp: Vec<f64> = (0..6 * n * n).map(|i| fw.mu[i / (n * n)] as f64 * dist.faces[i / (n * n)].texel_pmf(i % n, (i / n) % n) as f64 * ns as f64).collect();
+        let exp: Vec<f64> = (0..6 * n * n)
+            .map(|i| {
+                fw.mu[i / (n * n)] as f64
+                    * dist.faces[i / (n * n)].texel_pmf(i % n, (i / n) % n) as f64
+                    * ns as f64
+            })
+            .collect();
         let c = chi_square(&obs, &exp, 5.0, true);
         assert!(c.p_value > P_MIN, "normal {nrm}: {c:?}");
         // Faces entirely below the horizon are never used (exact skip), others are.
-        for (f, corners) in envis::sampling::faceweights::FACE_CORNERS.iter().enumerate() {
-            let corners_up = corners.iter().any(|&c| nrm.dot(envis::sampling::faceweights::corner(c)) > 0.0);
-            assert_eq!(fw.mu[f] > 0.0, corners_up && e[f] > 0.0, "normal {nrm} face {f}");
+        for (f, corners) in envis::sampling::faceweights::FACE_CORNERS
+            .iter()
+            .enumerate()
+        {
+            let corners_up = corners
+                .iter()
+                .any(|&c| nrm.dot(envis::sampling::faceweights::corner(c)) > 0.0);
+            assert_eq!(
+                fw.mu[f] > 0.0,
+                corners_up && e[f] > 0.0,
+                "normal {nrm} face {f}"
+            );
         }
         // And over the sphere, with the solid-angle pdf mu_f p_f(w), on the smooth map.
         let dist = &smooth;
@@ -418,7 +508,11 @@ fn pdfs_integrate_to_one() {
     let n = Vec3::new(0.1, 0.3, 0.9).normalize();
     let fr = Frame::new(n);
     let o = Vec3::new(0.5, 0.1, 0.8).normalize();
-    for (name, m) in [("diffuse", Material::diffuse(0.7)), ("phong 20", Material::phong(0.7, 20.0)), ("phong 150", Material::phong(0.7, 150.0))] {
+    for (name, m) in [
+        ("diffuse", Material::diffuse(0.7)),
+        ("phong 20", Material::phong(0.7, 20.0)),
+        ("phong 150", Material::phong(0.7, 150.0)),
+    ] {
         let i = integrate_sphere(|d| m.pdf(&fr, o, d));
         assert!((i - 1.0).abs() < 3e-3, "{name}: {i}");
     }
@@ -428,8 +522,14 @@ fn pdfs_integrate_to_one() {
         let m = Material::ggx(0.7, alpha);
         let i = integrate_sphere(|d| m.pdf(&fr, o, d));
         let mut r = Rng::new(3, 3);
-        let valid = (0..200_000).filter(|_| m.sample(&fr, o, rng_vec2(&mut r)).is_some()).count() as f64 / 200_000.0;
-        assert!(i <= 1.0 + 2e-3 && (i - valid).abs() < 5e-3, "ggx {alpha}: integral {i}, valid fraction {valid}");
+        let valid = (0..200_000)
+            .filter(|_| m.sample(&fr, o, rng_vec2(&mut r)).is_some())
+            .count() as f64
+            / 200_000.0;
+        assert!(
+            i <= 1.0 + 2e-3 && (i - valid).abs() < 5e-3,
+            "ggx {alpha}: integral {i}, valid fraction {valid}"
+        );
     }
 }
 
@@ -437,23 +537,49 @@ fn pdfs_integrate_to_one() {
 fn brdf_samplers_chi2() {
     let n = Vec3::new(0.2, 0.3, 0.93).normalize();
     let fr = Frame::new(n);
-    let views = [Vec3::new(0.0, 0.0, 1.0), Vec3::new(0.8, 0.1, 0.35).normalize()];
+    let views = [
+        Vec3::new(0.0, 0.0, 1.0),
+        Vec3::new(0.8, 0.1, 0.35).normalize(),
+    ];
     let mats = [
         ("cosine", Material::diffuse(1.0)),
         ("phong 10", Material::phong(1.0, 10.0)),
         ("phong 150", Material::phong(1.0, 150.0)),
         ("ggx 0.2", Material::ggx(1.0, 0.2)),
         ("ggx 0.6", Material::ggx(1.0, 0.6)),
-        ("mix", Material { kd: Vec3::splat(0.5), ks: Vec3::splat(0.5), lobe: Lobe::Ggx { alpha: 0.3 } }),
+        (
+            "mix",
+            Material {
+                kd: Vec3::splat(0.5),
+                ks: Vec3::splat(0.5),
+                lobe: Lobe::Ggx { alpha: 0.3 },
+            },
+        ),
     ];
     for (k, (name, m)) in mats.iter().enumerate() {
         for (j, o) in views.iter().enumerate() {
             let o = fr.to_world(*o).normalize();
             // Bin around the lobe's axis (mirror direction for glossy lobes).
-            let axis = if matches!(m.lobe, Lobe::None) { n } else { 2.0 * n.dot(o) * n - o };
+            let axis = if matches!(m.lobe, Lobe::None) {
+                n
+            } else {
+                2.0 * n.dot(o) * n - o
+            };
             // Samples below the surface are `None` in `Material::sample`; count them via raw warps
             // by asking the pdf only where the sampler can land (the lost bin takes the rest).
-            let c = chi2_sphere(axis, 200_000, |r| m.sample(&fr, o, rng_vec2(r)).map(|(d, _)| d), |d| if n.dot(d) > 0.0 { m.pdf(&fr, o, d) } else { 0.0 }, (k * 10 + j) as u32);
+            let c = chi2_sphere(
+                axis,
+                200_000,
+                |r| m.sample(&fr, o, rng_vec2(r)).map(|(d, _)| d),
+                |d| {
+                    if n.dot(d) > 0.0 {
+                        m.pdf(&fr, o, d)
+                    } else {
+                        0.0
+                    }
+                },
+                (k * 10 + j) as u32,
+            );
             assert!(c.p_value > P_MIN, "{name}, view {j}: {c:?}");
         }
     }
@@ -464,11 +590,35 @@ fn degenerate_maps_have_defined_behaviour() {
     // All-zero map: no NaN, zero image, empty faces.
     let zero = CubeMap::new(4);
     let dist = CubeDistribution::build(&zero);
-    assert!(dist.faces.iter().all(|f| f.energy == 0.0 && f.sample(0, Vec2::new(0.3, 0.7)).is_none()));
+    assert!(
+        dist.faces
+            .iter()
+            .all(|f| f.energy == 0.0 && f.sample(0, Vec2::new(0.3, 0.7)).is_none())
+    );
     let gbuf = sphere_gbuffer(8, 8, Material::diffuse(1.0));
-    for strategy in [Strategy::Paper, Strategy::Global, Strategy::Light, Strategy::Brdf] {
-        let out = render(&zero, &gbuf, 8, 8, &Settings { strategy, light_samples: 4, brdf_samples: 4, ..Default::default() }).unwrap();
-        assert!(out.image.data.iter().all(|c| *c == Vec3::ZERO), "{strategy:?}");
+    for strategy in [
+        Strategy::Paper,
+        Strategy::Global,
+        Strategy::Light,
+        Strategy::Brdf,
+    ] {
+        let out = render(
+            &zero,
+            &gbuf,
+            8,
+            8,
+            &Settings {
+                strategy,
+                light_samples: 4,
+                brdf_samples: 4,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert!(
+            out.image.data.iter().all(|c| *c == Vec3::ZERO),
+            "{strategy:?}"
+        );
     }
     // One face lit, five black: only that face is ever sampled.
     let mut one = CubeMap::new(4);
@@ -483,8 +633,24 @@ fn degenerate_maps_have_defined_behaviour() {
     assert!((fw.mu[2] - 1.0).abs() < 1e-6 && fw.mu.iter().sum::<f32>() <= 1.0 + 1e-6);
     // 1x1 faces work.
     let tiny = load_env(&EnvSource::Sky { hours: 12.0 }, 1).unwrap().cube;
-    let out = render(&tiny, &gbuf, 8, 8, &Settings { light_samples: 2, brdf_samples: 2, ..Default::default() }).unwrap();
-    assert!(out.image.data.iter().all(|c| c.is_finite() && c.min_element() >= 0.0));
+    let out = render(
+        &tiny,
+        &gbuf,
+        8,
+        8,
+        &Settings {
+            light_samples: 2,
+            brdf_samples: 2,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert!(
+        out.image
+            .data
+            .iter()
+            .all(|c| c.is_finite() && c.min_element() >= 0.0)
+    );
 }
 
 #[test]
@@ -492,16 +658,47 @@ fn sample_counts_edge_cases() {
     let map = load_env(&EnvSource::Sky { hours: 10.0 }, 8).unwrap().cube;
     let gbuf = sphere_gbuffer(8, 8, Material::diffuse(1.0));
     for (nl, nb) in [(0usize, 4usize), (4, 0)] {
-        let out = render(&map, &gbuf, 8, 8, &Settings { light_samples: nl, brdf_samples: nb, ..Default::default() }).unwrap();
-        assert!(out.image.data.iter().all(|c| c.is_finite() && c.min_element() >= 0.0));
+        let out = render(
+            &map,
+            &gbuf,
+            8,
+            8,
+            &Settings {
+                light_samples: nl,
+                brdf_samples: nb,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert!(
+            out.image
+                .data
+                .iter()
+                .all(|c| c.is_finite() && c.min_element() >= 0.0)
+        );
         assert!(out.image.data.iter().any(|c| c.max_element() > 0.0));
     }
-    let err = render(&map, &gbuf, 8, 8, &Settings { light_samples: 0, brdf_samples: 0, ..Default::default() }).err().expect("both counts 0 must be refused");
+    let err = render(
+        &map,
+        &gbuf,
+        8,
+        8,
+        &Settings {
+            light_samples: 0,
+            brdf_samples: 0,
+            ..Default::default()
+        },
+    )
+    .err()
+    .expect("both counts 0 must be refused");
     assert!(err.to_string().contains("both 0"), "{err}");
     // Counts within 1e-7 of an integer, exact integers, tiny mu, larger than the pool.
     for nf in [2.0f32, 2.000_000_2, 1.999_999_9, 1e-12, 100.0] {
         let c = face_count(nf, 8, Counts::Fractional);
-        assert!(c.taken <= 8 && c.density > 0.0 && c.last_weight > 0.0 && c.last_weight <= 1.0, "{nf}: {c:?}");
+        assert!(
+            c.taken <= 8 && c.density > 0.0 && c.last_weight > 0.0 && c.last_weight <= 1.0,
+            "{nf}: {c:?}"
+        );
     }
 }
 
@@ -522,15 +719,34 @@ impl Check {
 }
 
 /// Image mean and quadrant means (luminance) of `k` renders with different seeds vs the reference.
-fn unbiased_checks(map: &CubeMap, mat: Material, s: Settings, k: u32, size: usize, reference: &[DVec3]) -> Vec<Check> {
+fn unbiased_checks(
+    map: &CubeMap,
+    mat: Material,
+    s: Settings,
+    k: u32,
+    size: usize,
+    reference: &[DVec3],
+) -> Vec<Check> {
     let gbuf = sphere_gbuffer(size, size, mat);
     type Region = (String, Box<dyn Fn(usize, usize) -> bool>);
     let regions: Vec<Region> = vec![
         ("image".into(), Box::new(|_, _| true)),
-        ("top-left".into(), Box::new(move |x, y| x < size / 2 && y < size / 2)),
-        ("top-right".into(), Box::new(move |x, y| x >= size / 2 && y < size / 2)),
-        ("bottom-left".into(), Box::new(move |x, y| x < size / 2 && y >= size / 2)),
-        ("bottom-right".into(), Box::new(move |x, y| x >= size / 2 && y >= size / 2)),
+        (
+            "top-left".into(),
+            Box::new(move |x, y| x < size / 2 && y < size / 2),
+        ),
+        (
+            "top-right".into(),
+            Box::new(move |x, y| x >= size / 2 && y < size / 2),
+        ),
+        (
+            "bottom-left".into(),
+            Box::new(move |x, y| x < size / 2 && y >= size / 2),
+        ),
+        (
+            "bottom-right".into(),
+            Box::new(move |x, y| x >= size / 2 && y >= size / 2),
+        ),
     ];
     let lum = luminance_f64;
     let region_mean = |f: &dyn Fn(usize) -> f64, sel: &dyn Fn(usize, usize) -> bool| {
@@ -547,10 +763,29 @@ fn unbiased_checks(map: &CubeMap, mat: Material, s: Settings, k: u32, size: usiz
     };
     let mut per_seed: Vec<Vec<f64>> = vec![Vec::new(); regions.len()];
     for seed in 0..k {
-        let out = render(map, &gbuf, size, size, &Settings { seed: seed * 7919 + 1, ..s }).unwrap();
-        assert!(out.image.data.iter().all(|c| c.is_finite() && c.min_element() >= 0.0), "non-finite or negative pixel");
+        let out = render(
+            map,
+            &gbuf,
+            size,
+            size,
+            &Settings {
+                seed: seed * 7919 + 1,
+                ..s
+            },
+        )
+        .unwrap();
+        assert!(
+            out.image
+                .data
+                .iter()
+                .all(|c| c.is_finite() && c.min_element() >= 0.0),
+            "non-finite or negative pixel"
+        );
         for (r, (_, sel)) in regions.iter().enumerate() {
-            per_seed[r].push(region_mean(&|i| lum(out.image.data[i].as_dvec3()), sel.as_ref()));
+            per_seed[r].push(region_mean(
+                &|i| lum(out.image.data[i].as_dvec3()),
+                sel.as_ref(),
+            ));
         }
     }
     regions
@@ -558,7 +793,12 @@ fn unbiased_checks(map: &CubeMap, mat: Material, s: Settings, k: u32, size: usiz
         .enumerate()
         .map(|(r, (name, sel))| {
             let (mean, se) = mean_se(&per_seed[r]);
-            Check { label: name.clone(), mean, se, reference: region_mean(&|i| lum(reference[i]), sel.as_ref()) }
+            Check {
+                label: name.clone(),
+                mean,
+                se,
+                reference: region_mean(&|i| lum(reference[i]), sel.as_ref()),
+            }
         })
         .collect()
 }
@@ -567,16 +807,63 @@ fn unbiased_checks(map: &CubeMap, mat: Material, s: Settings, k: u32, size: usiz
 fn estimators_are_unbiased() {
     let (size, face, k) = (16usize, 16usize, 40u32);
     let envs = test_envs(face, 3);
-    let mats = [("diffuse", Material::diffuse(0.8)), ("phong 150", Material::phong(0.8, 150.0)), ("ggx 0.2", Material::ggx(0.8, 0.2))];
-    let base = Settings { light_samples: 4, brdf_samples: 4, ..Default::default() };
+    let mats = [
+        ("diffuse", Material::diffuse(0.8)),
+        ("phong 150", Material::phong(0.8, 150.0)),
+        ("ggx 0.2", Material::ggx(0.8, 0.2)),
+    ];
+    let base = Settings {
+        light_samples: 4,
+        brdf_samples: 4,
+        ..Default::default()
+    };
     let configs = [
         ("paper fractional balance", base),
-        ("paper fractional power", Settings { mis: Heuristic::Power, ..base }),
-        ("paper fractional offset pool=16", Settings { pixel_offset: true, pool_size: 16, ..base }),
-        ("paper light-only", Settings { brdf_samples: 0, light_samples: 6, ..base }),
-        ("global power", Settings { strategy: Strategy::Global, mis: Heuristic::Power, ..base }),
-        ("light", Settings { strategy: Strategy::Light, ..base }),
-        ("brdf", Settings { strategy: Strategy::Brdf, ..base }),
+        (
+            "paper fractional power",
+            Settings {
+                mis: Heuristic::Power,
+                ..base
+            },
+        ),
+        (
+            "paper fractional offset pool=16",
+            Settings {
+                pixel_offset: true,
+                pool_size: 16,
+                ..base
+            },
+        ),
+        (
+            "paper light-only",
+            Settings {
+                brdf_samples: 0,
+                light_samples: 6,
+                ..base
+            },
+        ),
+        (
+            "global power",
+            Settings {
+                strategy: Strategy::Global,
+                mis: Heuristic::Power,
+                ..base
+            },
+        ),
+        (
+            "light",
+            Settings {
+                strategy: Strategy::Light,
+                ..base
+            },
+        ),
+        (
+            "brdf",
+            Settings {
+                strategy: Strategy::Brdf,
+                ..base
+            },
+        ),
     ];
     let mut failures = Vec::new();
     let mut worst = 0.0f64;
@@ -587,14 +874,21 @@ fn estimators_are_unbiased() {
             for (cname, s) in &configs {
                 // BRDF-only sampling of a 1.5-degree sun under a Phong/GGX lobe converges too
                 // slowly for 40 seeds; it is still checked on diffuse.
-                if s.strategy == Strategy::Brdf && *mname != "diffuse" && ename.starts_with("builtin") {
+                if s.strategy == Strategy::Brdf
+                    && *mname != "diffuse"
+                    && ename.starts_with("builtin")
+                {
                     continue;
                 }
                 // BRDF-only sampling of small bright lights (the sun, studio lamps) is heavy-tailed:
                 // with few seeds most runs miss the lights, so both the mean and its standard
                 // error come out low. Checked with 400 seeds on studio.exr: mean within 0.7 se of
                 // the reference, median 0.83x the mean. It gets 5x the seeds (it is cheap).
-                let seeds = if s.strategy == Strategy::Brdf { 5 * k } else { k };
+                let seeds = if s.strategy == Strategy::Brdf {
+                    5 * k
+                } else {
+                    k
+                };
                 for c in unbiased_checks(map, *mat, *s, seeds, size, &reference) {
                     // 3 standard errors on the image mean; 3.5 on the four quadrants (5 checks per case).
                     let limit = if c.label == "image" { 3.0 } else { 3.5 };
@@ -625,18 +919,47 @@ fn integer_counts_bias_is_detected() {
     let size = 16;
     let gbuf = sphere_gbuffer(size, size, mat);
     let (_, reference) = reference_image(&map, &gbuf, size, size, 1.0);
-    let base = Settings { light_samples: 1, brdf_samples: 0, pool_size: 4, ..Default::default() };
+    let base = Settings {
+        light_samples: 1,
+        brdf_samples: 0,
+        pool_size: 4,
+        ..Default::default()
+    };
     let frac = unbiased_checks(&map, mat, base, 64, size, &reference);
-    let int = unbiased_checks(&map, mat, Settings { counts: Counts::Integer, ..base }, 64, size, &reference);
-    assert!(frac[0].z() < 3.0, "fractional should be unbiased: z = {}", frac[0].z());
-    assert!(int[0].z() > 6.0, "integer bias not detected: z = {} (mean {} ref {})", int[0].z(), int[0].mean, int[0].reference);
+    let int = unbiased_checks(
+        &map,
+        mat,
+        Settings {
+            counts: Counts::Integer,
+            ..base
+        },
+        64,
+        size,
+        &reference,
+    );
+    assert!(
+        frac[0].z() < 3.0,
+        "fractional should be unbiased: z = {}",
+        frac[0].z()
+    );
+    assert!(
+        int[0].z() > 6.0,
+        "integer bias not detected: z = {} (mean {} ref {})",
+        int[0].z(),
+        int[0].mean,
+        int[0].reference
+    );
 }
 
 #[test]
 fn white_furnace() {
     // Constant radiance 1: diffuse albedo 1 reflects exactly 1; GGX with F = 1 never more than 1.
     let map = CubeMap::from_fn(8, |_| Vec3::ONE);
-    let px = |m| GPixel { n: Vec3::new(0.3, 0.2, 0.93).normalize(), o: Vec3::new(0.1, 0.0, 1.0).normalize(), material: m };
+    let px = |m| GPixel {
+        n: Vec3::new(0.3, 0.2, 0.93).normalize(),
+        o: Vec3::new(0.1, 0.0, 1.0).normalize(),
+        material: m,
+    };
     let r = reference_pixel(&map, &px(Material::diffuse(1.0)), 2.0);
     assert!((r.x - 1.0).abs() < 1e-3, "diffuse furnace reference {r}");
     // Single-scattering GGX loses energy as alpha grows (0.69 at alpha 0.5, 0.31 at 1 for this
@@ -644,12 +967,33 @@ fn white_furnace() {
     let mut last = 1.0 + 1e-3;
     for alpha in [0.05f32, 0.2, 0.5, 1.0] {
         let g = reference_pixel(&map, &px(Material::ggx(1.0, alpha)), 1.0).x;
-        assert!(g <= last && g > 0.2, "ggx furnace reference alpha {alpha}: {g} (previous {last})");
+        assert!(
+            g <= last && g > 0.2,
+            "ggx furnace reference alpha {alpha}: {g} (previous {last})"
+        );
         last = g;
     }
     let gbuf = sphere_gbuffer(16, 16, Material::diffuse(1.0));
-    let out = render(&map, &gbuf, 16, 16, &Settings { light_samples: 16, brdf_samples: 16, ..Default::default() }).unwrap();
-    let vals: Vec<f64> = out.image.data.iter().zip(&gbuf).filter(|(_, g)| g.is_some()).map(|(c, _)| c.x as f64).collect();
+    let out = render(
+        &map,
+        &gbuf,
+        16,
+        16,
+        &Settings {
+            light_samples: 16,
+            brdf_samples: 16,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let vals: Vec<f64> = out
+        .image
+        .data
+        .iter()
+        .zip(&gbuf)
+        .filter(|(_, g)| g.is_some())
+        .map(|(c, _)| c.x as f64)
+        .collect();
     let (m, _) = mean_se(&vals);
     assert!((m - 1.0).abs() < 0.02, "diffuse furnace MC mean {m}");
 }
@@ -657,12 +1001,19 @@ fn white_furnace() {
 #[test]
 fn reference_quadrature_is_converged() {
     let map = load_env(&EnvSource::Sky { hours: 10.0 }, 16).unwrap().cube;
-    for mat in [Material::diffuse(0.8), Material::phong(0.8, 150.0), Material::ggx(0.8, 0.2)] {
+    for mat in [
+        Material::diffuse(0.8),
+        Material::phong(0.8, 150.0),
+        Material::ggx(0.8, 0.2),
+    ] {
         let gbuf = sphere_gbuffer(8, 8, mat);
         let (_, a) = reference_image(&map, &gbuf, 8, 8, 1.0);
         let (_, b) = reference_image(&map, &gbuf, 8, 8, 2.0);
         let (sa, sb): (f64, f64) = (a.iter().map(|c| c.y).sum(), b.iter().map(|c| c.y).sum());
-        assert!(((sa - sb) / sb).abs() < 2e-3, "{mat:?}: refine 1 vs 2: {sa} vs {sb}");
+        assert!(
+            ((sa - sb) / sb).abs() < 2e-3,
+            "{mat:?}: refine 1 vs 2: {sa} vs {sb}"
+        );
     }
 }
 
@@ -670,10 +1021,18 @@ fn reference_quadrature_is_converged() {
 fn renders_are_deterministic_per_seed() {
     let map = load_env(&EnvSource::Sky { hours: 10.0 }, 16).unwrap().cube;
     let gbuf = sphere_gbuffer(16, 16, Material::ggx(0.8, 0.3));
-    let s = Settings { light_samples: 8, brdf_samples: 8, seed: 42, ..Default::default() };
+    let s = Settings {
+        light_samples: 8,
+        brdf_samples: 8,
+        seed: 42,
+        ..Default::default()
+    };
     let a = render(&map, &gbuf, 16, 16, &s).unwrap().image.data;
     let b = render(&map, &gbuf, 16, 16, &s).unwrap().image.data;
-    let c = render(&map, &gbuf, 16, 16, &Settings { seed: 43, ..s }).unwrap().image.data;
+    let c = render(&map, &gbuf, 16, 16, &Settings { seed: 43, ..s })
+        .unwrap()
+        .image
+        .data;
     assert_eq!(a, b);
     assert_ne!(a, c);
 }
@@ -684,7 +1043,11 @@ fn renders_are_deterministic_per_seed() {
 fn tempdir() -> PathBuf {
     use std::sync::atomic::{AtomicUsize, Ordering};
     static N: AtomicUsize = AtomicUsize::new(0);
-    let d = std::env::temp_dir().join(format!("envis-test-{}-{}", std::process::id(), N.fetch_add(1, Ordering::SeqCst)));
+    let d = std::env::temp_dir().join(format!(
+        "envis-test-{}-{}",
+        std::process::id(),
+        N.fetch_add(1, Ordering::SeqCst)
+    ));
     std::fs::create_dir_all(&d).unwrap();
     d
 }
@@ -692,22 +1055,41 @@ fn tempdir() -> PathBuf {
 #[test]
 fn real_maps_load_and_report_clamped_texels() {
     let Some(maps) = real_maps() else { return };
-    assert!(maps.len() >= 18, "expected the 18 shared maps, found {}", maps.len());
+    assert!(
+        maps.len() >= 18,
+        "expected the 18 shared maps, found {}",
+        maps.len()
+    );
     let mut total_negative = 0;
     for p in &maps {
         let env = load_env(&EnvSource::File(p.clone()), 32).unwrap();
-        assert!(env.cube.data.iter().all(|c| c.is_finite() && c.min_element() >= 0.0), "{}", p.display());
+        assert!(
+            env.cube
+                .data
+                .iter()
+                .all(|c| c.is_finite() && c.min_element() >= 0.0),
+            "{}",
+            p.display()
+        );
         total_negative += env.report.negative;
     }
-    assert!(total_negative > 0, "the shared maps are known to contain negative pixels");
+    assert!(
+        total_negative > 0,
+        "the shared maps are known to contain negative pixels"
+    );
 }
 
 #[test]
 fn bad_files_give_clear_errors() {
     let dir = tempdir();
     let missing = dir.join("missing.exr");
-    let e = load_env(&EnvSource::File(missing.clone()), 16).unwrap_err().to_string();
-    assert!(e.contains("missing.exr") && e.contains("cannot open"), "{e}");
+    let e = load_env(&EnvSource::File(missing.clone()), 16)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("missing.exr") && e.contains("cannot open"),
+        "{e}"
+    );
 
     // Truncated EXR.
     let good = dir.join("good.exr");
@@ -715,13 +1097,20 @@ fn bad_files_give_clear_errors() {
     let bytes = std::fs::read(&good).unwrap();
     let trunc = dir.join("trunc.exr");
     std::fs::write(&trunc, &bytes[..bytes.len() / 2]).unwrap();
-    let e = load_env(&EnvSource::File(trunc), 16).unwrap_err().to_string();
+    let e = load_env(&EnvSource::File(trunc), 16)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("trunc.exr") && !e.contains('\n'), "{e}");
 
     // Wrong channels (luminance only, written by Mitsuba 3).
     let y_only = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/corpus/luminance_only_8x4.exr");
-    let e = load_env(&EnvSource::File(y_only), 4).unwrap_err().to_string();
-    assert!(e.contains("luminance_only_8x4.exr") && e.contains("needs R, G and B"), "{e}");
+    let e = load_env(&EnvSource::File(y_only), 4)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("luminance_only_8x4.exr") && e.contains("needs R, G and B"),
+        "{e}"
+    );
 
     // Wrong aspect ratio.
     let odd = dir.join("odd.exr");
@@ -736,7 +1125,8 @@ fn bad_files_give_clear_errors() {
     assert!(e.contains("notes.exr") && e.contains("magic"), "{e}");
 
     // Radiance: absurd dimensions refused before allocating, truncated data named.
-    let e = read_hdr_bytes(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 100000 +X 100000\n").unwrap_err();
+    let e =
+        read_hdr_bytes(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 100000 +X 100000\n").unwrap_err();
     assert!(e.contains("absurd"), "{e}");
     let mut hdr = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 2 +X 4\n".to_vec();
     hdr.extend_from_slice(&[1, 1, 1, 128].repeat(5));
@@ -755,7 +1145,14 @@ fn bad_files_give_clear_errors() {
 fn bench_accuracy_quick_smoke() {
     // The quick sweep runs and writes well-formed CSV / JSON / Markdown (no timing asserted).
     let dir = tempdir();
-    let r = envis_cmd(&["bench", "--suite", "accuracy", "--quick", "--out", dir.to_str().unwrap()]);
+    let r = envis_cmd(&[
+        "bench",
+        "--suite",
+        "accuracy",
+        "--quick",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let cfg = envis::bench::accuracy::Config::new(true, None).unwrap();
     let n = envis::bench::accuracy::point_count(&cfg);
@@ -770,22 +1167,38 @@ fn bench_accuracy_quick_smoke() {
         let relmse: f64 = cols[6].parse().unwrap();
         assert!(relmse.is_finite() && relmse >= 0.0, "{l}");
         let flip: f64 = cols[11].parse().unwrap();
-        assert!((0.0..=1.0).contains(&flip) && flip > 0.0, "FLIP of a noisy render: {l}");
+        assert!(
+            (0.0..=1.0).contains(&flip) && flip > 0.0,
+            "FLIP of a noisy render: {l}"
+        );
         if gpu_required {
             for c in &cols[12..14] {
-                let ms: f64 = c.parse().unwrap_or_else(|_| panic!("GPU timing missing: {l}"));
+                let ms: f64 = c
+                    .parse()
+                    .unwrap_or_else(|_| panic!("GPU timing missing: {l}"));
                 assert!(ms.is_finite() && ms > 0.0, "{l}");
             }
         }
     }
-    let js: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("accuracy.json")).unwrap()).unwrap();
+    let js: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("accuracy.json")).unwrap()).unwrap();
     assert_eq!(js["points"].as_array().unwrap().len(), n);
     let md = std::fs::read_to_string(dir.join("accuracy-vs-time.md")).unwrap();
-    assert!(md.contains("## diffuse") && md.contains("Pareto front") && md.contains("Mean HDR-FLIP") && md.contains("envis bench --suite accuracy --quick"), "{md}");
+    assert!(
+        md.contains("## diffuse")
+            && md.contains("Pareto front")
+            && md.contains("Mean HDR-FLIP")
+            && md.contains("envis bench --suite accuracy --quick"),
+        "{md}"
+    );
     for (m, _) in &cfg.materials {
         let stem = envis::bench::accuracy::plot_stem(m);
         check_plot(&dir, &stem, &["paper-fractional", "global", "Pareto front"]);
-        check_plot(&dir, &format!("{stem}-samples"), &["paper-fractional", "brdf"]);
+        check_plot(
+            &dir,
+            &format!("{stem}-samples"),
+            &["paper-fractional", "brdf"],
+        );
         assert!(md.contains(&format!("{stem}.png")), "{m}");
     }
     check_plot(&dir, "accuracy-wasted", &["paper-fractional", "light"]);
@@ -795,21 +1208,40 @@ fn bench_accuracy_quick_smoke() {
 /// A chart written by `envis bench`: an SVG naming every series and with no non-finite
 /// coordinates, and a PNG of the chart's size that is not blank.
 fn check_plot(dir: &std::path::Path, stem: &str, series: &[&str]) {
-    let svg = std::fs::read_to_string(dir.join(format!("{stem}.svg"))).unwrap_or_else(|e| panic!("{stem}.svg: {e}"));
-    assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"), "{stem}.svg");
-    assert!(!svg.contains("NaN") && !svg.contains("inf"), "{stem}.svg: non-finite coordinates");
-    assert!(svg.matches("<polyline").count() >= series.len(), "{stem}.svg: too few lines");
+    let svg = std::fs::read_to_string(dir.join(format!("{stem}.svg")))
+        .unwrap_or_else(|e| panic!("{stem}.svg: {e}"));
+    assert!(
+        svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"),
+        "{stem}.svg"
+    );
+    assert!(
+        !svg.contains("NaN") && !svg.contains("inf"),
+        "{stem}.svg: non-finite coordinates"
+    );
+    assert!(
+        svg.matches("<polyline").count() >= series.len(),
+        "{stem}.svg: too few lines"
+    );
     for name in series {
         assert!(svg.contains(name), "{stem}.svg: no series '{name}'");
     }
-    let file = std::fs::File::open(dir.join(format!("{stem}.png"))).unwrap_or_else(|e| panic!("{stem}.png: {e}"));
-    let mut reader = png::Decoder::new(std::io::BufReader::new(file)).read_info().unwrap();
+    let file = std::fs::File::open(dir.join(format!("{stem}.png")))
+        .unwrap_or_else(|e| panic!("{stem}.png: {e}"));
+    let mut reader = png::Decoder::new(std::io::BufReader::new(file))
+        .read_info()
+        .unwrap();
     let mut buf = vec![0u8; reader.output_buffer_size().unwrap()];
     let info = reader.next_frame(&mut buf).unwrap();
     assert_eq!((info.width, info.height), (800, 520), "{stem}.png");
     let pixels = &buf[..info.buffer_size()];
-    let coloured = pixels.chunks(3).filter(|p| p[0] != p[1] || p[1] != p[2]).count();
-    assert!(coloured > 500, "{stem}.png: only {coloured} coloured pixels");
+    let coloured = pixels
+        .chunks(3)
+        .filter(|p| p[0] != p[1] || p[1] != p[2])
+        .count();
+    assert!(
+        coloured > 500,
+        "{stem}.png: only {coloured} coloured pixels"
+    );
 }
 
 /// An interrupted sweep resumes: the points in `accuracy.partial.jsonl` (same configuration) are
@@ -818,17 +1250,30 @@ fn check_plot(dir: &std::path::Path, stem: &str, series: &[&str]) {
 fn bench_accuracy_resumes() {
     let dir = tempdir();
     let out = dir.to_str().unwrap();
-    let args = ["bench", "--suite", "accuracy", "--quick", "--cpu-only", "--out", out];
+    let args = [
+        "bench",
+        "--suite",
+        "accuracy",
+        "--quick",
+        "--cpu-only",
+        "--out",
+        out,
+    ];
     let r = envis_cmd(&args);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    assert!(!dir.join("accuracy.partial.jsonl").exists(), "journal left behind");
-    let js: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("accuracy.json")).unwrap()).unwrap();
+    assert!(
+        !dir.join("accuracy.partial.jsonl").exists(),
+        "journal left behind"
+    );
+    let js: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("accuracy.json")).unwrap()).unwrap();
     let mut pts: Vec<serde_json::Value> = js["points"].as_array().unwrap().clone();
     let n = pts.len();
     // Journal of an interrupted run: 10 finished points (the first marked) and a torn line.
     pts[0]["relmse"] = serde_json::json!(123.0);
     let cfg = envis::bench::accuracy::Config::new(true, None).unwrap();
-    let mut journal = serde_json::to_string(&envis::bench::accuracy::fingerprint(&cfg, None)).unwrap() + "\n";
+    let mut journal =
+        serde_json::to_string(&envis::bench::accuracy::fingerprint(&cfg, None)).unwrap() + "\n";
     for p in &pts[..10] {
         journal += &(p.to_string() + "\n");
     }
@@ -836,29 +1281,69 @@ fn bench_accuracy_resumes() {
     std::fs::write(dir.join("accuracy.partial.jsonl"), &journal).unwrap();
     let r = envis_cmd(&args);
     let err = String::from_utf8_lossy(&r.stderr);
-    assert!(r.status.success() && err.contains(&format!("resuming 10 of {n} points")), "{err}");
+    assert!(
+        r.status.success() && err.contains(&format!("resuming 10 of {n} points")),
+        "{err}"
+    );
     let csv = std::fs::read_to_string(dir.join("accuracy.csv")).unwrap();
     assert_eq!(csv.lines().count(), n + 1);
     let first: Vec<&str> = csv.lines().nth(1).unwrap().split(',').collect();
-    assert_eq!(first[6].parse::<f64>().unwrap(), 123.0, "the resumed point was measured again");
+    assert_eq!(
+        first[6].parse::<f64>().unwrap(),
+        123.0,
+        "the resumed point was measured again"
+    );
     let md = std::fs::read_to_string(dir.join("accuracy-vs-time.md")).unwrap();
     assert!(md.contains(&format!("10 of {n} points resumed")), "{md}");
     assert!(!dir.join("accuracy.partial.jsonl").exists());
     // A journal from another configuration is not used.
-    std::fs::write(dir.join("accuracy.partial.jsonl"), journal.replace("size=16", "size=17")).unwrap();
+    std::fs::write(
+        dir.join("accuracy.partial.jsonl"),
+        journal.replace("size=16", "size=17"),
+    )
+    .unwrap();
     let r = envis_cmd(&args);
     let err = String::from_utf8_lossy(&r.stderr);
-    assert!(r.status.success() && err.contains("different configuration"), "{err}");
+    assert!(
+        r.status.success() && err.contains("different configuration"),
+        "{err}"
+    );
     let csv = std::fs::read_to_string(dir.join("accuracy.csv")).unwrap();
-    assert_ne!(csv.lines().nth(1).unwrap().split(',').nth(6).unwrap().parse::<f64>().unwrap(), 123.0);
+    assert_ne!(
+        csv.lines()
+            .nth(1)
+            .unwrap()
+            .split(',')
+            .nth(6)
+            .unwrap()
+            .parse::<f64>()
+            .unwrap(),
+        123.0
+    );
 }
 
 #[test]
 fn bench_popping_quick_smoke() {
     let dir = tempdir();
-    let r = envis_cmd(&["bench", "--suite", "popping", "--quick", "--size", "16", "--face-size", "8", "--light-samples", "4", "--brdf-samples", "0", "--out", dir.to_str().unwrap()]);
+    let r = envis_cmd(&[
+        "bench",
+        "--suite",
+        "popping",
+        "--quick",
+        "--size",
+        "16",
+        "--face-size",
+        "8",
+        "--light-samples",
+        "4",
+        "--brdf-samples",
+        "0",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    let js: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("popping.json")).unwrap()).unwrap();
+    let js: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("popping.json")).unwrap()).unwrap();
     let rows = js["rows"].as_array().unwrap();
     assert_eq!(rows.len(), 2);
     for row in rows {
@@ -868,11 +1353,18 @@ fn bench_popping_quick_smoke() {
     for m in ["fractional", "integer"] {
         assert!(dir.join(format!("popping-strip-{m}.png")).exists());
     }
-    check_plot(&dir, "popping", &["reference", "fractional counts", "integer counts"]);
+    check_plot(
+        &dir,
+        "popping",
+        &["reference", "fractional counts", "integer counts"],
+    );
 }
 
 fn envis_cmd(args: &[&str]) -> std::process::Output {
-    std::process::Command::new(env!("CARGO_BIN_EXE_envis")).args(args).output().unwrap()
+    std::process::Command::new(env!("CARGO_BIN_EXE_envis"))
+        .args(args)
+        .output()
+        .unwrap()
 }
 
 #[test]
@@ -881,9 +1373,37 @@ fn cli_contract() {
     let out = dir.join("img.exr");
     let stats = dir.join("stats.json");
     let r = envis_cmd(&[
-        "render", "--env", "builtin:sky:9", "--face-size", "16", "--scene", "sphere", "--size", "24", "--brdf", "ggx", "--alpha", "0.3",
-        "--light-samples", "4", "--brdf-samples", "4", "--strategy", "paper", "--counts", "fractional", "--mis", "balance",
-        "--seed", "3", "--backend", "cpu", "--out", out.to_str().unwrap(), "--stats", stats.to_str().unwrap(),
+        "render",
+        "--env",
+        "builtin:sky:9",
+        "--face-size",
+        "16",
+        "--scene",
+        "sphere",
+        "--size",
+        "24",
+        "--brdf",
+        "ggx",
+        "--alpha",
+        "0.3",
+        "--light-samples",
+        "4",
+        "--brdf-samples",
+        "4",
+        "--strategy",
+        "paper",
+        "--counts",
+        "fractional",
+        "--mis",
+        "balance",
+        "--seed",
+        "3",
+        "--backend",
+        "cpu",
+        "--out",
+        out.to_str().unwrap(),
+        "--stats",
+        stats.to_str().unwrap(),
     ]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let img = envis::envmap::load::read_exr(&out).unwrap();
@@ -891,25 +1411,68 @@ fn cli_contract() {
     assert_eq!(img.get(0, 0), Vec3::ZERO, "corner pixel is off the sphere");
     assert!(img.get(12, 12).max_element() > 0.0);
     let js: serde_json::Value = serde_json::from_slice(&std::fs::read(&stats).unwrap()).unwrap();
-    for key in ["build_ms", "shade_ms", "samples_evaluated", "red", "green", "yellow", "wasted"] {
+    for key in [
+        "build_ms",
+        "shade_ms",
+        "samples_evaluated",
+        "red",
+        "green",
+        "yellow",
+        "wasted",
+    ] {
         assert!(js[key].is_number(), "stats lack {key}: {js}");
     }
-    let (red, green, yellow) = (js["red"].as_f64().unwrap(), js["green"].as_f64().unwrap(), js["yellow"].as_f64().unwrap());
+    let (red, green, yellow) = (
+        js["red"].as_f64().unwrap(),
+        js["green"].as_f64().unwrap(),
+        js["yellow"].as_f64().unwrap(),
+    );
     assert!((red + green + yellow - 1.0).abs() < 1e-9);
 
     let refp = dir.join("ref.exr");
-    let r = envis_cmd(&["reference", "--env", "builtin:sky:9", "--face-size", "8", "--size", "8", "--brdf", "phong", "--exponent", "20", "--out", refp.to_str().unwrap()]);
+    let r = envis_cmd(&[
+        "reference",
+        "--env",
+        "builtin:sky:9",
+        "--face-size",
+        "8",
+        "--size",
+        "8",
+        "--brdf",
+        "phong",
+        "--exponent",
+        "20",
+        "--out",
+        refp.to_str().unwrap(),
+    ]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     assert!(refp.exists());
 
     // Bad arguments and files: one line, non-zero exit, names the problem.
     let o = out.to_str().unwrap();
     let bad: &[(&[&str], &str)] = &[
-        (&["render", "--env", "/nonexistent/x.exr", "--out", o], "x.exr"),
+        (
+            &["render", "--env", "/nonexistent/x.exr", "--out", o],
+            "x.exr",
+        ),
         (&["render", "--strategy", "fancy", "--out", o], "fancy"),
-        (&["render", "--light-samples", "0", "--brdf-samples", "0", "--out", o], "both 0"),
+        (
+            &[
+                "render",
+                "--light-samples",
+                "0",
+                "--brdf-samples",
+                "0",
+                "--out",
+                o,
+            ],
+            "both 0",
+        ),
         (&["render", "--scene", "teapot", "--out", o], "teapot"),
-        (&["render", "--brdf", "ggx", "--alpha", "0", "--out", o], "--alpha"),
+        (
+            &["render", "--brdf", "ggx", "--alpha", "0", "--out", o],
+            "--alpha",
+        ),
         (&["render", "--out", "image.png"], ".exr"),
         (&["render", "--env", "builtin:sky:noon", "--out", o], "noon"),
         (&["render", "--size", "abc", "--out", o], "abc"),
@@ -918,8 +1481,15 @@ fn cli_contract() {
         let r = envis_cmd(args);
         let err = String::from_utf8_lossy(&r.stderr);
         assert!(!r.status.success(), "{args:?} should fail");
-        assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: not one line: {err}");
-        assert!(err.contains(needle), "{args:?}: '{err}' does not name '{needle}'");
+        assert_eq!(
+            err.trim_end().lines().count(),
+            1,
+            "{args:?}: not one line: {err}"
+        );
+        assert!(
+            err.contains(needle),
+            "{args:?}: '{err}' does not name '{needle}'"
+        );
         assert!(!err.contains("panicked"), "{args:?}: {err}");
     }
 }
@@ -932,13 +1502,30 @@ mod stream;
 /// rest red; and it reports the same estimate.
 #[test]
 fn debug_pixel_matches_the_estimator() {
-    use envis::render::{debug_pixel, shade_pixel, FrameData, SampleKind};
+    use envis::render::{FrameData, SampleKind, debug_pixel, shade_pixel};
     let map = load_env(&EnvSource::Sky { hours: 16.0 }, 16).unwrap().cube;
     let gbuf = sphere_gbuffer(12, 12, Material::ggx(0.8, 0.3));
     for s in [
-        Settings { light_samples: 24, brdf_samples: 8, ..Default::default() },
-        Settings { light_samples: 24, brdf_samples: 8, counts: Counts::Integer, pixel_offset: true, pool_size: 40, seed: 5, ..Default::default() },
-        Settings { light_samples: 10, brdf_samples: 6, strategy: Strategy::Light, ..Default::default() },
+        Settings {
+            light_samples: 24,
+            brdf_samples: 8,
+            ..Default::default()
+        },
+        Settings {
+            light_samples: 24,
+            brdf_samples: 8,
+            counts: Counts::Integer,
+            pixel_offset: true,
+            pool_size: 40,
+            seed: 5,
+            ..Default::default()
+        },
+        Settings {
+            light_samples: 10,
+            brdf_samples: 6,
+            strategy: Strategy::Light,
+            ..Default::default()
+        },
     ] {
         let fd = FrameData::prepare(&map, &s);
         for (i, px) in gbuf.iter().enumerate() {
@@ -959,36 +1546,82 @@ fn debug_pixel_matches_the_estimator() {
 /// near-mirror pixels no light sample, glossy pixels both; and every choice stays unbiased.
 #[test]
 fn material_budget_skips_work_and_stays_unbiased() {
-    use envis::render::{shade_pixel, FrameData};
+    use envis::render::{FrameData, shade_pixel};
     let map = load_env(&EnvSource::Sky { hours: 11.0 }, 16).unwrap().cube;
-    let s = Settings { light_samples: 6, brdf_samples: 6, material_budget: true, ..Default::default() };
+    let s = Settings {
+        light_samples: 6,
+        brdf_samples: 6,
+        material_budget: true,
+        ..Default::default()
+    };
     let fd = FrameData::prepare(&map, &s);
-    let px = |m| GPixel { n: Vec3::new(0.2, 0.9, 0.3).normalize(), o: Vec3::new(0.1, 0.8, 0.6).normalize(), material: m };
+    let px = |m| GPixel {
+        n: Vec3::new(0.2, 0.9, 0.3).normalize(),
+        o: Vec3::new(0.1, 0.8, 0.6).normalize(),
+        material: m,
+    };
     let (_, d) = shade_pixel(&fd, &s, &px(Material::diffuse(0.8)), 0);
     assert_eq!(d.brdf, 0, "diffuse: BRDF samples drawn");
-    assert!(d.green + d.yellow > 6, "diffuse: the whole budget goes to light samples ({d:?})");
+    assert!(
+        d.green + d.yellow > 6,
+        "diffuse: the whole budget goes to light samples ({d:?})"
+    );
     let (_, m) = shade_pixel(&fd, &s, &px(Material::ggx(0.8, 0.01)), 0);
-    assert_eq!((m.green, m.yellow, m.brdf), (0, 0, 12), "near-mirror: light samples used");
+    assert_eq!(
+        (m.green, m.yellow, m.brdf),
+        (0, 0, 12),
+        "near-mirror: light samples used"
+    );
     let (_, g) = shade_pixel(&fd, &s, &px(Material::ggx(0.8, 0.3)), 0);
-    assert!(g.brdf == 6 && g.green + g.yellow > 0, "glossy: both techniques ({g:?})");
+    assert!(
+        g.brdf == 6 && g.green + g.yellow > 0,
+        "glossy: both techniques ({g:?})"
+    );
     // A whole diffuse image: zero BRDF samples.
     let gbuf = sphere_gbuffer(16, 16, Material::diffuse(0.8));
     let fd = FrameData::prepare(&map, &s);
-    let brdf: u32 = gbuf.iter().enumerate().filter_map(|(i, p)| p.as_ref().map(|p| shade_pixel(&fd, &s, p, i as u32).1.brdf)).sum();
+    let brdf: u32 = gbuf
+        .iter()
+        .enumerate()
+        .filter_map(|(i, p)| p.as_ref().map(|p| shade_pixel(&fd, &s, p, i as u32).1.brdf))
+        .sum();
     assert_eq!(brdf, 0);
     // Unbiased for each kind of material (sky + a real map).
     let mut failures = Vec::new();
     for (ename, map) in test_envs(16, 1).iter().skip(1) {
-        for (mname, mat) in [("diffuse", Material::diffuse(0.8)), ("ggx 0.3", Material::ggx(0.8, 0.3)), ("ggx 0.01", Material::ggx(0.8, 0.01)), ("phong 2000", Material::phong(0.8, 2000.0))] {
+        for (mname, mat) in [
+            ("diffuse", Material::diffuse(0.8)),
+            ("ggx 0.3", Material::ggx(0.8, 0.3)),
+            ("ggx 0.01", Material::ggx(0.8, 0.01)),
+            ("phong 2000", Material::phong(0.8, 2000.0)),
+        ] {
             let gbuf = sphere_gbuffer(16, 16, mat);
             let (_, reference) = reference_image(map, &gbuf, 16, 16, 1.0);
             // A pool of N_L + N_B = 8 per face under a low sun makes the glossy estimate
             // heavy-tailed (40 seeds once gave z = 8.8, 100 seeds z = 2.2 for the same case with
             // a plain --pool 8): 200 seeds keep the standard error honest.
             let seeds = 200;
-            for c in unbiased_checks(map, mat, Settings { light_samples: 4, brdf_samples: 4, material_budget: true, ..Default::default() }, seeds, 16, &reference) {
+            for c in unbiased_checks(
+                map,
+                mat,
+                Settings {
+                    light_samples: 4,
+                    brdf_samples: 4,
+                    material_budget: true,
+                    ..Default::default()
+                },
+                seeds,
+                16,
+                &reference,
+            ) {
                 if c.z() > if c.label == "image" { 3.0 } else { 3.5 } {
-                    failures.push(format!("{ename} / {mname} / {}: mean {:.6} ref {:.6} z {:.2}", c.label, c.mean, c.reference, c.z()));
+                    failures.push(format!(
+                        "{ename} / {mname} / {}: mean {:.6} ref {:.6} z {:.2}",
+                        c.label,
+                        c.mean,
+                        c.reference,
+                        c.z()
+                    ));
                 }
             }
         }
@@ -1002,36 +1635,87 @@ fn material_budget_skips_work_and_stays_unbiased() {
 fn scene_files_load_render_and_report_errors() {
     use envis::scene::Scene;
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
-    for name in ["showcase.toml", "diffuse-static.toml", "glossy-dynamic.toml"] {
+    for name in [
+        "showcase.toml",
+        "diffuse-static.toml",
+        "glossy-dynamic.toml",
+    ] {
         let sc = Scene::load(&dir.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
         let g = sc.gbuffer(24, 24);
         let hits = g.iter().filter(|p| p.is_some()).count();
-        assert!(hits > 24 * 24 / 4, "{name}: only {hits} pixels hit geometry");
+        assert!(
+            hits > 24 * 24 / 4,
+            "{name}: only {hits} pixels hit geometry"
+        );
         for p in g.iter().flatten() {
-            assert!((p.n.length() - 1.0).abs() < 1e-3 && p.n.dot(p.o) > -1e-3, "{name}: bad G-buffer texel {p:?}");
+            assert!(
+                (p.n.length() - 1.0).abs() < 1e-3 && p.n.dot(p.o) > -1e-3,
+                "{name}: bad G-buffer texel {p:?}"
+            );
         }
     }
     // The CLI renders a scene file (the file supplies everything but the size).
     let t = tempdir();
     let out = t.join("scene.exr");
-    let o = envis_cmd(&["render", "--scene", dir.join("diffuse-static.toml").to_str().unwrap(), "--size", "24", "--out", out.to_str().unwrap(), "--stats", t.join("s.json").to_str().unwrap()]);
+    let o = envis_cmd(&[
+        "render",
+        "--scene",
+        dir.join("diffuse-static.toml").to_str().unwrap(),
+        "--size",
+        "24",
+        "--out",
+        out.to_str().unwrap(),
+        "--stats",
+        t.join("s.json").to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let j: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(t.join("s.json")).unwrap()).unwrap();
-    assert_eq!(j["brdf_samples_drawn"], 0, "diffuse scene with material_budget drew BRDF samples: {j}");
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(t.join("s.json")).unwrap()).unwrap();
+    assert_eq!(
+        j["brdf_samples_drawn"], 0,
+        "diffuse scene with material_budget drew BRDF samples: {j}"
+    );
     // Errors: file + line + field.
     let cases = [
-        ("typo.toml", "[environment]\nsource = \"builtin:sky\"\n\n[[object]]\nshape = \"sphere\"\nradus = 1.0\nmaterial = { type = \"diffuse\" }\n", &["typo.toml", "line 6", "radus"][..]),
-        ("nomat.toml", "[environment]\nsource = \"builtin:sky\"\n[[object]]\nshape = \"sphere\"\n", &["nomat.toml", "material"][..]),
-        ("shape.toml", "[environment]\nsource = \"builtin:sky\"\n[[object]]\nshape = \"cone\"\nmaterial = { type = \"diffuse\" }\n", &["shape.toml", "object 1", "`shape`", "cone"][..]),
-        ("mat.toml", "[environment]\nsource = \"builtin:sky\"\n[[object]]\nshape = \"sphere\"\nmaterial = { type = \"velvet\" }\n", &["mat.toml", "`material`", "velvet"][..]),
-        ("samp.toml", "[environment]\nsource = \"builtin:sky\"\n[sampling]\ncounts = \"often\"\n[[object]]\nshape = \"sphere\"\nmaterial = { type = \"diffuse\" }\n", &["samp.toml", "counts", "often"][..]),
-        ("glb.toml", "[environment]\nsource = \"builtin:sky\"\n[[object]]\nshape = \"gltf\"\npath = \"broken.glb\"\nmaterial = { type = \"diffuse\" }\n", &["broken.glb", "glTF"][..]),
+        (
+            "typo.toml",
+            "[environment]\nsource = \"builtin:sky\"\n\n[[object]]\nshape = \"sphere\"\nradus = 1.0\nmaterial = { type = \"diffuse\" }\n",
+            &["typo.toml", "line 6", "radus"][..],
+        ),
+        (
+            "nomat.toml",
+            "[environment]\nsource = \"builtin:sky\"\n[[object]]\nshape = \"sphere\"\n",
+            &["nomat.toml", "material"][..],
+        ),
+        (
+            "shape.toml",
+            "[environment]\nsource = \"builtin:sky\"\n[[object]]\nshape = \"cone\"\nmaterial = { type = \"diffuse\" }\n",
+            &["shape.toml", "object 1", "`shape`", "cone"][..],
+        ),
+        (
+            "mat.toml",
+            "[environment]\nsource = \"builtin:sky\"\n[[object]]\nshape = \"sphere\"\nmaterial = { type = \"velvet\" }\n",
+            &["mat.toml", "`material`", "velvet"][..],
+        ),
+        (
+            "samp.toml",
+            "[environment]\nsource = \"builtin:sky\"\n[sampling]\ncounts = \"often\"\n[[object]]\nshape = \"sphere\"\nmaterial = { type = \"diffuse\" }\n",
+            &["samp.toml", "counts", "often"][..],
+        ),
+        (
+            "glb.toml",
+            "[environment]\nsource = \"builtin:sky\"\n[[object]]\nshape = \"gltf\"\npath = \"broken.glb\"\nmaterial = { type = \"diffuse\" }\n",
+            &["broken.glb", "glTF"][..],
+        ),
     ];
     std::fs::write(t.join("broken.glb"), b"glTF\x02\x00\x00\x00garbage").unwrap();
     for (file, text, needles) in cases {
         let p = t.join(file);
         std::fs::write(&p, text).unwrap();
-        let e = Scene::load(&p).err().unwrap_or_else(|| panic!("{file}: accepted")).to_string();
+        let e = Scene::load(&p)
+            .err()
+            .unwrap_or_else(|| panic!("{file}: accepted"))
+            .to_string();
         for n in needles {
             assert!(e.contains(n), "{file}: '{e}' does not name '{n}'");
         }
@@ -1045,35 +1729,58 @@ fn scene_files_load_render_and_report_errors() {
 #[test]
 fn flip_matches_flip_evaluator() {
     use envis::bench::flip::{exposure_range, hdr_flip, ldr_flip};
-    let js: serde_json::Value = serde_json::from_str(include_str!("data/flip_reference.json")).unwrap();
-    let (w, h) = (js["width"].as_u64().unwrap() as usize, js["height"].as_u64().unwrap() as usize);
+    let js: serde_json::Value =
+        serde_json::from_str(include_str!("data/flip_reference.json")).unwrap();
+    let (w, h) = (
+        js["width"].as_u64().unwrap() as usize,
+        js["height"].as_u64().unwrap() as usize,
+    );
     let mut reference = vec![Vec3::ZERO; w * h];
     for y in 0..h {
         for x in 0..w {
             if (x as i64 - 12).pow(2) + (y as i64 - 10).pow(2) > 100 {
                 continue;
             }
-            reference[y * w + x] = Vec3::from_array(std::array::from_fn(|c| (4.0 * (0.5 + 0.5 * (0.7 * x as f64 + 1.3 * y as f64 + 2.0 * c as f64).sin()).powi(3)) as f32));
+            reference[y * w + x] = Vec3::from_array(std::array::from_fn(|c| {
+                (4.0 * (0.5 + 0.5 * (0.7 * x as f64 + 1.3 * y as f64 + 2.0 * c as f64).sin())
+                    .powi(3)) as f32
+            }));
         }
     }
     reference[7 * w + 5] += Vec3::splat(1000.0);
     let mut checked = 0;
     for case in js["cases"].as_array().unwrap() {
         let amp = case["amp"].as_f64().unwrap();
-        let want: Vec<f32> = case["map"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap() as f32).collect();
+        let want: Vec<f32> = case["map"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap() as f32)
+            .collect();
         let (got, mean) = if case["kind"] == "hdr" {
             let mut test = reference.clone();
             for y in 0..h {
                 for x in 0..w {
                     for c in 0..3 {
                         let r = reference[y * w + x][c] as f64;
-                        test[y * w + x][c] = (r * (1.0 + amp * (2.1 * (x * x) as f64 + 3.7 * y as f64 + c as f64).sin())).max(0.0) as f32;
+                        test[y * w + x][c] = (r
+                            * (1.0
+                                + amp * (2.1 * (x * x) as f64 + 3.7 * y as f64 + c as f64).sin()))
+                        .max(0.0) as f32;
                     }
                 }
             }
             let (start, stop, count) = exposure_range(&reference);
-            assert!((start as f64 - case["start"].as_f64().unwrap()).abs() < 1e-4, "start {start} vs {}", case["start"]);
-            assert!((stop as f64 - case["stop"].as_f64().unwrap()).abs() < 1e-4, "stop {stop} vs {}", case["stop"]);
+            assert!(
+                (start as f64 - case["start"].as_f64().unwrap()).abs() < 1e-4,
+                "start {start} vs {}",
+                case["start"]
+            );
+            assert!(
+                (stop as f64 - case["stop"].as_f64().unwrap()).abs() < 1e-4,
+                "stop {stop} vs {}",
+                case["stop"]
+            );
             assert_eq!(count as u64, case["count"].as_u64().unwrap());
             hdr_flip(&reference, &test, w, h)
         } else {
@@ -1083,7 +1790,8 @@ fn flip_matches_flip_evaluator() {
                     for c in 0..3 {
                         let v = 0.5 + 0.4 * (0.3 * x as f64 - 0.5 * y as f64 + c as f64).sin();
                         r[y * w + x][c] = v as f32;
-                        t[y * w + x][c] = (v + 0.15 * (1.7 * (x * y) as f64 + c as f64).sin()).clamp(0.0, 1.0) as f32;
+                        t[y * w + x][c] = (v + 0.15 * (1.7 * (x * y) as f64 + c as f64).sin())
+                            .clamp(0.0, 1.0) as f32;
                     }
                 }
             }
@@ -1091,10 +1799,22 @@ fn flip_matches_flip_evaluator() {
             let mean = m.iter().sum::<f32>() / m.len() as f32;
             (m, mean)
         };
-        let worst = got.iter().zip(&want).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+        let worst = got
+            .iter()
+            .zip(&want)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0f32, f32::max);
         let want_mean = case["mean"].as_f64().unwrap() as f32;
-        assert!((mean - want_mean).abs() <= 1e-4 + 1e-3 * want_mean, "{} amp {amp}: mean {mean} vs flip-evaluator {want_mean}", case["kind"]);
-        assert!(worst < 2e-3, "{} amp {amp}: a pixel differs by {worst}", case["kind"]);
+        assert!(
+            (mean - want_mean).abs() <= 1e-4 + 1e-3 * want_mean,
+            "{} amp {amp}: mean {mean} vs flip-evaluator {want_mean}",
+            case["kind"]
+        );
+        assert!(
+            worst < 2e-3,
+            "{} amp {amp}: a pixel differs by {worst}",
+            case["kind"]
+        );
         if want_mean > 0.0 {
             checked += 1;
         }

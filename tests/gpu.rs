@@ -3,11 +3,11 @@
 //! runs on exactly the GPU's input — and then the whole frame against the CPU renderer and the
 //! f64 reference. Under `CI=true` a missing device fails the tests instead of skipping them.
 
-use envis::envmap::load::{load_env, EnvSource};
+use envis::envmap::load::{EnvSource, load_env};
 use envis::envmap::*;
-use envis::gpu::{render_gpu, EnvSampler, GpuContext, GpuGPixel, Shader};
+use envis::gpu::{EnvSampler, GpuContext, GpuGPixel, Shader, render_gpu};
 use envis::render::reference::reference_image;
-use envis::render::{pool_seed, render, sphere_gbuffer, FrameData, Settings, Strategy};
+use envis::render::{FrameData, Settings, Strategy, pool_seed, render, sphere_gbuffer};
 use envis::sampling::*;
 use envis::stats::mean_se;
 use glam::Vec3;
@@ -20,11 +20,17 @@ fn gpu() -> Option<&'static GpuContext> {
     static CTX: OnceLock<Option<GpuContext>> = OnceLock::new();
     CTX.get_or_init(|| match GpuContext::new() {
         Ok(c) => {
-            eprintln!("GPU tests on: {} ({:?}, timestamps: {})", c.info.name, c.info.backend, c.timestamps);
+            eprintln!(
+                "GPU tests on: {} ({:?}, timestamps: {})",
+                c.info.name, c.info.backend, c.timestamps
+            );
             Some(c)
         }
         Err(e) => {
-            assert!(std::env::var("CI").is_err(), "CI must run the GPU tests, but no device: {e}");
+            assert!(
+                std::env::var("CI").is_err(),
+                "CI must run the GPU tests, but no device: {e}"
+            );
             eprintln!("SKIPPING GPU test: {e}");
             None
         }
@@ -35,9 +41,16 @@ fn gpu() -> Option<&'static GpuContext> {
 fn real_map_paths() -> Vec<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/hdri");
     let mut v: Vec<PathBuf> = match std::fs::read_dir(&dir) {
-        Ok(rd) => rd.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.extension().is_some_and(|e| e == "exr")).collect(),
+        Ok(rd) => rd
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|e| e == "exr"))
+            .collect(),
         Err(_) => {
-            assert!(std::env::var("CI").is_err(), "CI must have ../shared/data/hdri ({})", dir.display());
+            assert!(
+                std::env::var("CI").is_err(),
+                "CI must have ../shared/data/hdri ({})",
+                dir.display()
+            );
             Vec::new()
         }
     };
@@ -58,12 +71,21 @@ fn single_texel_map(n: usize, face: usize, col: usize, row: usize) -> CubeMap {
 
 /// Test maps for the stage comparisons: the built-in sky, two real maps, a lone 1e6 texel.
 fn stage_maps(n: usize) -> Vec<(String, CubeMap)> {
-    let mut v = vec![("builtin:sky:9".to_string(), load_env(&EnvSource::Sky { hours: 9.0 }, n).unwrap().cube)];
+    let mut v = vec![(
+        "builtin:sky:9".to_string(),
+        load_env(&EnvSource::Sky { hours: 9.0 }, n).unwrap().cube,
+    )];
     let real = real_map_paths();
     for p in real.iter().step_by(real.len().max(2) / 2).take(2) {
-        v.push((p.display().to_string(), load_env(&EnvSource::File(p.clone()), n).unwrap().cube));
+        v.push((
+            p.display().to_string(),
+            load_env(&EnvSource::File(p.clone()), n).unwrap().cube,
+        ));
     }
-    v.push(("single 1e6 texel".into(), single_texel_map(n, 4, n / 3, n - 2)));
+    v.push((
+        "single 1e6 texel".into(),
+        single_texel_map(n, 4, n / 3, n - 2),
+    ));
     v
 }
 
@@ -83,31 +105,61 @@ fn gpu_build(ctx: &GpuContext, map: &CubeMap, m: usize, seed: u32) -> envis::gpu
 fn gpu_distribution_matches_cpu() {
     let Some(ctx) = gpu() else { return };
     for n in [1usize, 7, 64] {
-        for (name, map) in stage_maps(n.max(2)).into_iter().map(|(nm, m)| (nm, if n == 1 { envis::envmap::resample::resize_cube(&m, 1) } else { m })) {
+        for (name, map) in stage_maps(n.max(2)).into_iter().map(|(nm, m)| {
+            (
+                nm,
+                if n == 1 {
+                    envis::envmap::resample::resize_cube(&m, 1)
+                } else {
+                    m
+                },
+            )
+        }) {
             let cpu = CubeDistribution::build(&map);
             let w_cpu = envis::sampling::distribution::texel_weights(&map);
             let g = gpu_build(ctx, &map, 8, 1);
             let nn = map.size * map.size;
             for (i, (&a, &b)) in g.weights.iter().zip(&w_cpu).enumerate() {
-                assert!(rel(a as f64, b as f64) < 1e-6, "{name} n={n}: weight {i}: gpu {a} cpu {b}");
+                assert!(
+                    rel(a as f64, b as f64) < 1e-6,
+                    "{name} n={n}: weight {i}: gpu {a} cpu {b}"
+                );
             }
             for f in 0..6 {
                 let fd = &cpu.faces[f];
-                assert!(rel(g.energies[f] as f64, fd.energy) < 2e-5, "{name}: I_{f}: gpu {} cpu {}", g.energies[f], fd.energy);
+                assert!(
+                    rel(g.energies[f] as f64, fd.energy) < 2e-5,
+                    "{name}: I_{f}: gpu {} cpu {}",
+                    g.energies[f],
+                    fd.energy
+                );
                 let n = map.size;
-                for (c, &v) in g.marg_cdf[f * (n + 1)..(f + 1) * (n + 1)].iter().enumerate() {
-                    assert!((v - fd.marginal.cdf[c]).abs() < 2e-6, "{name}: face {f} CDF(u)[{c}]: gpu {v} cpu {}", fd.marginal.cdf[c]);
+                for (c, &v) in g.marg_cdf[f * (n + 1)..(f + 1) * (n + 1)]
+                    .iter()
+                    .enumerate()
+                {
+                    assert!(
+                        (v - fd.marginal.cdf[c]).abs() < 2e-6,
+                        "{name}: face {f} CDF(u)[{c}]: gpu {v} cpu {}",
+                        fd.marginal.cdf[c]
+                    );
                 }
                 for col in 0..n {
                     let base = (f * n + col) * (n + 1);
                     for (r, &v) in g.cond_cdf[base..base + n + 1].iter().enumerate() {
                         let want = fd.conditional[col].cdf[r];
-                        assert!((v - want).abs() < 2e-6, "{name}: face {f} CDF(v|u={col})[{r}]: gpu {v} cpu {want}");
+                        assert!(
+                            (v - want).abs() < 2e-6,
+                            "{name}: face {f} CDF(v|u={col})[{r}]: gpu {v} cpu {want}"
+                        );
                     }
                 }
                 for t in 0..nn {
                     let (a, b) = (g.pdf_area[f * nn + t] as f64, fd.pdf_area[t] as f64);
-                    assert!(rel(a, b) < 2e-5 || (a - b).abs() < 1e-30, "{name}: face {f} pdf_area[{t}]: gpu {a} cpu {b}");
+                    assert!(
+                        rel(a, b) < 2e-5 || (a - b).abs() < 1e-30,
+                        "{name}: face {f} pdf_area[{t}]: gpu {a} cpu {b}"
+                    );
                 }
             }
         }
@@ -128,21 +180,33 @@ fn gpu_global_distribution_matches_cpu() {
         let (w, h) = (cpu.width, cpu.height);
         assert_eq!(g.len(), envis::gpu::sampler::global_len(map.size));
         for (y, &v) in g[..h + 1].iter().enumerate() {
-            assert!((v - cpu.marginal.cdf[y]).abs() < 1e-5, "{name}: marginal[{y}] gpu {v} cpu {}", cpu.marginal.cdf[y]);
+            assert!(
+                (v - cpu.marginal.cdf[y]).abs() < 1e-5,
+                "{name}: marginal[{y}] gpu {v} cpu {}",
+                cpu.marginal.cdf[y]
+            );
         }
         let rows = h + 1;
         for y in 0..h {
             for x in 0..=w {
                 let (a, b) = (g[rows + y * (w + 1) + x], cpu.conditional[y].cdf[x]);
-                assert!((a - b).abs() < 1e-5, "{name}: row {y} cdf[{x}] gpu {a} cpu {b}");
+                assert!(
+                    (a - b).abs() < 1e-5,
+                    "{name}: row {y} cdf[{x}] gpu {a} cpu {b}"
+                );
             }
         }
         let pdf = rows + h * (w + 1);
         for y in 0..h {
             for x in 0..w {
-                let want = cpu.marginal.bin_pmf(y) as f64 * cpu.conditional[y].bin_pmf(x) as f64 * (w * h) as f64;
+                let want = cpu.marginal.bin_pmf(y) as f64
+                    * cpu.conditional[y].bin_pmf(x) as f64
+                    * (w * h) as f64;
                 let got = g[pdf + y * w + x] as f64;
-                assert!(rel(got, want) < 1e-4, "{name}: p(u,v) cell ({x},{y}) gpu {got} cpu {want}");
+                assert!(
+                    rel(got, want) < 1e-4,
+                    "{name}: p(u,v) cell ({x},{y}) gpu {got} cpu {want}"
+                );
             }
         }
     }
@@ -161,16 +225,46 @@ fn gpu_pool_matches_cpu_twin() {
             let mut worst_dir = 0.0f32;
             for (k, (a, b)) in g.pool.iter().zip(&cpu.samples).enumerate() {
                 worst_dir = worst_dir.max((a.dir - b.dir).length());
-                assert!((a.dir - b.dir).length() < 2e-6, "{name} M={m}: sample {k} dir gpu {} cpu {}", a.dir, b.dir);
-                assert!(rel(a.pdf as f64, b.pdf as f64) < 1e-5, "{name} M={m}: sample {k} pdf gpu {} cpu {}", a.pdf, b.pdf);
+                assert!(
+                    (a.dir - b.dir).length() < 2e-6,
+                    "{name} M={m}: sample {k} dir gpu {} cpu {}",
+                    a.dir,
+                    b.dir
+                );
+                assert!(
+                    rel(a.pdf as f64, b.pdf as f64) < 1e-5,
+                    "{name} M={m}: sample {k} pdf gpu {} cpu {}",
+                    a.pdf,
+                    b.pdf
+                );
                 assert_eq!(a.radiance, b.radiance, "{name} M={m}: sample {k} radiance");
-                assert!(a.pdf > 0.0 || g.energies[k / m] == 0.0, "{name}: a sample with pdf 0 on a lit face");
+                assert!(
+                    a.pdf > 0.0 || g.energies[k / m] == 0.0,
+                    "{name}: a sample with pdf 0 on a lit face"
+                );
             }
             // And against the pool drawn from the CPU's own tables: same texels but where a CDF
             // value differs by rounding right at a sample's bin boundary.
-            let own = FrameData::prepare(&map, &Settings { light_samples: m, brdf_samples: 0, seed: 5, ..Default::default() });
-            let differ = g.pool.iter().zip(&own.pool.samples).filter(|(a, b)| (a.dir - b.dir).length() > 1e-4).count();
-            assert!(differ * 1000 <= g.pool.len(), "{name} M={m}: {differ} of {} samples differ from the CPU-built pool", g.pool.len());
+            let own = FrameData::prepare(
+                &map,
+                &Settings {
+                    light_samples: m,
+                    brdf_samples: 0,
+                    seed: 5,
+                    ..Default::default()
+                },
+            );
+            let differ = g
+                .pool
+                .iter()
+                .zip(&own.pool.samples)
+                .filter(|(a, b)| (a.dir - b.dir).length() > 1e-4)
+                .count();
+            assert!(
+                differ * 1000 <= g.pool.len(),
+                "{name} M={m}: {differ} of {} samples differ from the CPU-built pool",
+                g.pool.len()
+            );
         }
     }
 }
@@ -182,18 +276,59 @@ fn gpu_render_matches_cpu_same_seed() {
     let Some(ctx) = gpu() else { return };
     let size = 48;
     let map = load_env(&EnvSource::Sky { hours: 15.0 }, 32).unwrap().cube;
-    let mats = [("diffuse", Material::diffuse(0.8)), ("phong 150", Material::phong(0.8, 150.0)), ("ggx 0.2", Material::ggx(0.8, 0.2)), ("mix", Material { kd: Vec3::splat(0.4), ks: Vec3::splat(0.4), lobe: Lobe::Ggx { alpha: 0.3 } })];
+    let mats = [
+        ("diffuse", Material::diffuse(0.8)),
+        ("phong 150", Material::phong(0.8, 150.0)),
+        ("ggx 0.2", Material::ggx(0.8, 0.2)),
+        (
+            "mix",
+            Material {
+                kd: Vec3::splat(0.4),
+                ks: Vec3::splat(0.4),
+                lobe: Lobe::Ggx { alpha: 0.3 },
+            },
+        ),
+    ];
     let strategies = [
-        (Strategy::Paper, Counts::Fractional, Heuristic::Balance, false),
+        (
+            Strategy::Paper,
+            Counts::Fractional,
+            Heuristic::Balance,
+            false,
+        ),
         (Strategy::Paper, Counts::Integer, Heuristic::Power, true),
-        (Strategy::Light, Counts::Fractional, Heuristic::Balance, false),
-        (Strategy::Brdf, Counts::Fractional, Heuristic::Balance, false),
-        (Strategy::Global, Counts::Fractional, Heuristic::Power, false),
+        (
+            Strategy::Light,
+            Counts::Fractional,
+            Heuristic::Balance,
+            false,
+        ),
+        (
+            Strategy::Brdf,
+            Counts::Fractional,
+            Heuristic::Balance,
+            false,
+        ),
+        (
+            Strategy::Global,
+            Counts::Fractional,
+            Heuristic::Power,
+            false,
+        ),
     ];
     for (mname, mat) in mats {
         let gbuf = sphere_gbuffer(size, size, mat);
         for (strategy, counts, mis, pixel_offset) in strategies {
-            let s = Settings { light_samples: 8, brdf_samples: 8, strategy, counts, mis, pixel_offset, seed: 11, ..Default::default() };
+            let s = Settings {
+                light_samples: 8,
+                brdf_samples: 8,
+                strategy,
+                counts,
+                mis,
+                pixel_offset,
+                seed: 11,
+                ..Default::default()
+            };
             let cpu = render(&map, &gbuf, size, size, &s).unwrap();
             let (gpu_img, timings) = render_gpu(ctx, &map, &gbuf, size, size, &s).unwrap();
             let label = format!("{mname} {strategy:?} {counts:?} {mis:?} offset={pixel_offset}");
@@ -201,18 +336,34 @@ fn gpu_render_matches_cpu_same_seed() {
             // cosine or a CDF comparison sits within rounding of its threshold.
             let mut off = 0;
             for (i, (a, b)) in gpu_img.image.data.iter().zip(&cpu.image.data).enumerate() {
-                assert!(a.is_finite() && a.min_element() >= 0.0, "{label}: pixel {i} = {a}");
+                assert!(
+                    a.is_finite() && a.min_element() >= 0.0,
+                    "{label}: pixel {i} = {a}"
+                );
                 let d = (*a - *b).abs().max_element() / b.max_element().max(1e-3);
                 if d > 1e-3 {
                     off += 1;
                 }
             }
-            assert!(off * 200 <= size * size, "{label}: {off} pixels differ by more than 0.1%");
+            assert!(
+                off * 200 <= size * size,
+                "{label}: {off} pixels differ by more than 0.1%"
+            );
             let (ma, mb) = (mean_lum(&gpu_img.image.data), mean_lum(&cpu.image.data));
             assert!(rel(ma, mb) < 1e-3, "{label}: image mean gpu {ma} cpu {mb}");
             // Sample accounting (red / green / yellow) matches too.
-            assert!((gpu_img.stats.green - cpu.stats.green).abs() < 1e-3, "{label}: green {} vs {}", gpu_img.stats.green, cpu.stats.green);
-            assert!((gpu_img.stats.yellow - cpu.stats.yellow).abs() < 1e-3, "{label}: yellow {} vs {}", gpu_img.stats.yellow, cpu.stats.yellow);
+            assert!(
+                (gpu_img.stats.green - cpu.stats.green).abs() < 1e-3,
+                "{label}: green {} vs {}",
+                gpu_img.stats.green,
+                cpu.stats.green
+            );
+            assert!(
+                (gpu_img.stats.yellow - cpu.stats.yellow).abs() < 1e-3,
+                "{label}: yellow {} vs {}",
+                gpu_img.stats.yellow,
+                cpu.stats.yellow
+            );
             assert_eq!(gpu_img.stats.shaded_pixels, cpu.stats.shaded_pixels);
             assert!(timings.build_wall_ms > 0.0 && timings.shade_wall_ms > 0.0);
         }
@@ -229,27 +380,55 @@ fn mean_lum(d: &[Vec3]) -> f64 {
 fn gpu_render_is_unbiased() {
     let Some(ctx) = gpu() else { return };
     let (size, face, k) = (16usize, 16usize, 40u32);
-    let mut envs = vec![("builtin:sky:10".to_string(), load_env(&EnvSource::Sky { hours: 10.0 }, face).unwrap().cube)];
+    let mut envs = vec![(
+        "builtin:sky:10".to_string(),
+        load_env(&EnvSource::Sky { hours: 10.0 }, face)
+            .unwrap()
+            .cube,
+    )];
     if let Some(p) = real_map_paths().first() {
-        envs.push((p.display().to_string(), load_env(&EnvSource::File(p.clone()), face).unwrap().cube));
+        envs.push((
+            p.display().to_string(),
+            load_env(&EnvSource::File(p.clone()), face).unwrap().cube,
+        ));
     }
-    let mats = [("diffuse", Material::diffuse(0.8)), ("phong 150", Material::phong(0.8, 150.0)), ("ggx 0.2", Material::ggx(0.8, 0.2))];
+    let mats = [
+        ("diffuse", Material::diffuse(0.8)),
+        ("phong 150", Material::phong(0.8, 150.0)),
+        ("ggx 0.2", Material::ggx(0.8, 0.2)),
+    ];
     for (ename, map) in &envs {
         for (mname, mat) in mats {
             let gbuf = sphere_gbuffer(size, size, mat);
             let (_, reference) = reference_image(map, &gbuf, size, size, 1.0);
-            let want = reference.iter().map(|c| luminance_f64(*c)).sum::<f64>() / reference.len() as f64;
+            let want =
+                reference.iter().map(|c| luminance_f64(*c)).sum::<f64>() / reference.len() as f64;
             {
                 let counts = Counts::Fractional;
                 let means: Vec<f64> = (0..k)
                     .map(|seed| {
-                        let s = Settings { light_samples: 4, brdf_samples: 4, counts, seed: seed * 7919 + 1, ..Default::default() };
-                        mean_lum(&render_gpu(ctx, map, &gbuf, size, size, &s).unwrap().0.image.data)
+                        let s = Settings {
+                            light_samples: 4,
+                            brdf_samples: 4,
+                            counts,
+                            seed: seed * 7919 + 1,
+                            ..Default::default()
+                        };
+                        mean_lum(
+                            &render_gpu(ctx, map, &gbuf, size, size, &s)
+                                .unwrap()
+                                .0
+                                .image
+                                .data,
+                        )
                     })
                     .collect();
                 let (mean, se) = mean_se(&means);
                 let z = (mean - want).abs() / se.max(1e-12 * want.abs());
-                assert!(z < 4.0, "{ename} {mname}: GPU mean {mean} vs reference {want} (se {se}, z {z:.2})");
+                assert!(
+                    z < 4.0,
+                    "{ename} {mname}: GPU mean {mean} vs reference {want} (se {se}, z {z:.2})"
+                );
             }
         }
     }
@@ -264,12 +443,24 @@ fn gpu_stream_follows_the_map_every_frame() {
     let (size, face) = (32usize, 16usize);
     let gbuf = sphere_gbuffer(size, size, Material::diffuse(0.8));
     let pixels: Vec<GpuGPixel> = gbuf.iter().map(GpuGPixel::from).collect();
-    let s = Settings { light_samples: 8, brdf_samples: 8, seed: 3, ..Default::default() };
+    let s = Settings {
+        light_samples: 8,
+        brdf_samples: 8,
+        seed: 3,
+        ..Default::default()
+    };
     let sampler = EnvSampler::new(ctx, face, s.pool_per_face()).unwrap();
     let shader = Shader::new(ctx);
     let mut prev_cpu: Option<Vec<Vec3>> = None;
     for frame in 0..6 {
-        let map = load_env(&EnvSource::Sky { hours: 7.0 + 2.0 * frame as f32 }, face).unwrap().cube;
+        let map = load_env(
+            &EnvSource::Sky {
+                hours: 7.0 + 2.0 * frame as f32,
+            },
+            face,
+        )
+        .unwrap()
+        .cube;
         sampler.upload(&ctx.queue, &map);
         sampler.set_seed(&ctx.queue, pool_seed(s.seed));
         // Build and shade in one submission, as a renderer does.
@@ -277,14 +468,31 @@ fn gpu_stream_follows_the_map_every_frame() {
         sampler.encode(&mut enc);
         ctx.queue.submit([enc.finish()]);
         let job = shader.shade(ctx, &sampler, &pixels, &s).unwrap();
-        let img: Vec<Vec3> = job.color.iter().map(|c| Vec3::new(c[0], c[1], c[2])).collect();
+        let img: Vec<Vec3> = job
+            .color
+            .iter()
+            .map(|c| Vec3::new(c[0], c[1], c[2]))
+            .collect();
         let cpu = render(&map, &gbuf, size, size, &s).unwrap().image.data;
-        let diff = |a: &[Vec3], b: &[Vec3]| a.iter().zip(b).map(|(x, y)| (*x - *y).abs().max_element() as f64).sum::<f64>() / mean_lum(b).max(1e-9) / a.len() as f64;
+        let diff = |a: &[Vec3], b: &[Vec3]| {
+            a.iter()
+                .zip(b)
+                .map(|(x, y)| (*x - *y).abs().max_element() as f64)
+                .sum::<f64>()
+                / mean_lum(b).max(1e-9)
+                / a.len() as f64
+        };
         let now = diff(&img, &cpu);
-        assert!(now < 1e-3, "frame {frame}: GPU image differs from this frame's CPU render ({now})");
+        assert!(
+            now < 1e-3,
+            "frame {frame}: GPU image differs from this frame's CPU render ({now})"
+        );
         if let Some(p) = &prev_cpu {
             let stale = diff(&img, p);
-            assert!(stale > 100.0 * now.max(1e-6), "frame {frame}: the image is as close to the previous frame ({stale}) as to this one ({now})");
+            assert!(
+                stale > 100.0 * now.max(1e-6),
+                "frame {frame}: the image is as close to the previous frame ({stale}) as to this one ({now})"
+            );
         }
         prev_cpu = Some(cpu);
     }
@@ -319,46 +527,109 @@ fn cli_gpu_backends() {
         let out = dir.join(format!("{b}.exr"));
         let stats = dir.join(format!("{b}.json"));
         let o = std::process::Command::new(env!("CARGO_BIN_EXE_envis"))
-            .args(["render", "--env", "builtin:sky:14", "--brdf", "ggx", "--alpha", "0.3", "--size", "48", "--face-size", "32", "--backend", b])
+            .args([
+                "render",
+                "--env",
+                "builtin:sky:14",
+                "--brdf",
+                "ggx",
+                "--alpha",
+                "0.3",
+                "--size",
+                "48",
+                "--face-size",
+                "32",
+                "--backend",
+                b,
+            ])
             .arg("--out")
             .arg(&out)
             .arg("--stats")
             .arg(&stats)
             .output()
             .unwrap();
-        assert!(o.status.success(), "--backend {b}: {}", String::from_utf8_lossy(&o.stderr));
-        let j: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+        assert!(
+            o.status.success(),
+            "--backend {b}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let j: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
         assert_eq!(j["backend"], *b, "{j}");
         means.push(read_exr_mean(&out));
     }
-    assert!(rel(means[1], means[0]) < 1e-3, "wgpu {} vs cpu {}", means[1], means[0]);
+    assert!(
+        rel(means[1], means[0]) < 1e-3,
+        "wgpu {} vs cpu {}",
+        means[1],
+        means[0]
+    );
     if means.len() > 2 {
-        assert!(rel(means[2], means[0]) < 0.03, "gpu (bevy) {} vs cpu {}", means[2], means[0]);
+        assert!(
+            rel(means[2], means[0]) < 0.03,
+            "gpu (bevy) {} vs cpu {}",
+            means[2],
+            means[0]
+        );
     }
     // A scene file (perspective camera, sphere / glTF bunny / torus / plane) on each backend.
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes/showcase.toml");
     let mut scene_means = Vec::new();
     for b in &backends {
         let out = dir.join(format!("scene-{b}.exr"));
-        let o = std::process::Command::new(env!("CARGO_BIN_EXE_envis")).args(["render", "--size", "48", "--backend", b, "--scene"]).arg(&scene).arg("--out").arg(&out).output().unwrap();
-        assert!(o.status.success(), "scene on {b}: {}", String::from_utf8_lossy(&o.stderr));
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_envis"))
+            .args(["render", "--size", "48", "--backend", b, "--scene"])
+            .arg(&scene)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "scene on {b}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
         scene_means.push(read_exr_mean(&out));
     }
-    assert!(rel(scene_means[1], scene_means[0]) < 1e-3, "scene: wgpu {} vs cpu {}", scene_means[1], scene_means[0]);
+    assert!(
+        rel(scene_means[1], scene_means[0]) < 1e-3,
+        "scene: wgpu {} vs cpu {}",
+        scene_means[1],
+        scene_means[0]
+    );
     if scene_means.len() > 2 {
         // Meshes and 8-bit materials in the G-buffer, and silhouettes rasterised rather than ray cast.
-        assert!(rel(scene_means[2], scene_means[0]) < 0.05, "scene: gpu (bevy) {} vs cpu {}", scene_means[2], scene_means[0]);
+        assert!(
+            rel(scene_means[2], scene_means[0]) < 0.05,
+            "scene: gpu (bevy) {} vs cpu {}",
+            scene_means[2],
+            scene_means[0]
+        );
     }
     // `global` runs on the GPU too.
     let (a, b) = (dir.join("g-cpu.exr"), dir.join("g-wgpu.exr"));
     for (be, out) in [("cpu", &a), ("wgpu", &b)] {
         let o = std::process::Command::new(env!("CARGO_BIN_EXE_envis"))
-            .args(["render", "--size", "32", "--face-size", "16", "--strategy", "global", "--backend", be])
+            .args([
+                "render",
+                "--size",
+                "32",
+                "--face-size",
+                "16",
+                "--strategy",
+                "global",
+                "--backend",
+                be,
+            ])
             .arg("--out")
             .arg(out)
             .output()
             .unwrap();
-        assert!(o.status.success(), "global on {be}: {}", String::from_utf8_lossy(&o.stderr));
+        assert!(
+            o.status.success(),
+            "global on {be}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
     }
     assert!(rel(read_exr_mean(&a), read_exr_mean(&b)) < 1e-3);
 }
@@ -374,18 +645,39 @@ fn gpu_material_budget_matches_cpu_and_skips_work() {
     let Some(ctx) = gpu() else { return };
     let map = load_env(&EnvSource::Sky { hours: 13.0 }, 16).unwrap().cube;
     let size = 32;
-    for (name, mat) in [("diffuse", Material::diffuse(0.8)), ("ggx 0.01", Material::ggx(0.8, 0.01)), ("ggx 0.3", Material::ggx(0.8, 0.3))] {
+    for (name, mat) in [
+        ("diffuse", Material::diffuse(0.8)),
+        ("ggx 0.01", Material::ggx(0.8, 0.01)),
+        ("ggx 0.3", Material::ggx(0.8, 0.3)),
+    ] {
         let gbuf = sphere_gbuffer(size, size, mat);
-        let s = Settings { light_samples: 8, brdf_samples: 8, material_budget: true, seed: 4, ..Default::default() };
+        let s = Settings {
+            light_samples: 8,
+            brdf_samples: 8,
+            material_budget: true,
+            seed: 4,
+            ..Default::default()
+        };
         let (g, _) = render_gpu(ctx, &map, &gbuf, size, size, &s).unwrap();
         let c = render(&map, &gbuf, size, size, &s).unwrap();
-        assert!(rel(mean_lum(&g.image.data), mean_lum(&c.image.data)) < 1e-3, "{name}: image mean");
-        assert_eq!(g.stats.brdf_samples_drawn, c.stats.brdf_samples_drawn, "{name}");
+        assert!(
+            rel(mean_lum(&g.image.data), mean_lum(&c.image.data)) < 1e-3,
+            "{name}: image mean"
+        );
+        assert_eq!(
+            g.stats.brdf_samples_drawn, c.stats.brdf_samples_drawn,
+            "{name}"
+        );
         assert!((g.stats.green - c.stats.green).abs() < 1e-3, "{name}");
         match name {
             "diffuse" => assert_eq!(g.stats.brdf_samples_drawn, 0),
-            "ggx 0.01" => assert!(g.stats.green + g.stats.yellow == 0.0 && g.stats.brdf_samples_drawn == 16 * g.stats.shaded_pixels),
-            _ => assert!(g.stats.brdf_samples_drawn == 8 * g.stats.shaded_pixels && g.stats.green > 0.0),
+            "ggx 0.01" => assert!(
+                g.stats.green + g.stats.yellow == 0.0
+                    && g.stats.brdf_samples_drawn == 16 * g.stats.shaded_pixels
+            ),
+            _ => assert!(
+                g.stats.brdf_samples_drawn == 8 * g.stats.shaded_pixels && g.stats.green > 0.0
+            ),
         }
     }
 }

@@ -3,18 +3,21 @@
 //! full-screen overlays. `--script DIR` runs a scripted sequence (for CI under Xvfb): it takes
 //! screenshots, writes `report.json` and exits.
 
-use super::scene_objects::{spawn_scene_objects, SceneObject};
-use super::{EnvFrame, EnvMapSamplingPlugin, EnvMapStream, EnvMapStreamPlugin, EnvisCamera, EnvisCounters, EnvisMaterial, EnvisProbe, EnvisSettings, EnvisTimings, MisLightingPlugin, Overlay};
-use crate::envmap::{dir_to_face_ab, CubeMap, CROSS_BLOCKS};
-use crate::render::{debug_pixel, FrameData, PixelDebug, SampleKind, Settings, Strategy};
+use super::scene_objects::{SceneObject, spawn_scene_objects};
+use super::{
+    EnvFrame, EnvMapSamplingPlugin, EnvMapStream, EnvMapStreamPlugin, EnvisCamera, EnvisCounters,
+    EnvisMaterial, EnvisProbe, EnvisSettings, EnvisTimings, MisLightingPlugin, Overlay,
+};
+use crate::envmap::{CROSS_BLOCKS, CubeMap, dir_to_face_ab};
+use crate::render::{FrameData, PixelDebug, SampleKind, Settings, Strategy, debug_pixel};
 use crate::sampling::{Counts, Heuristic};
 use crate::stream::StreamSource;
 use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::input::mouse::{AccumulatedMouseMotion, AccumulatedMouseScroll};
 use bevy::prelude::*;
-use bevy::render::view::screenshot::{save_to_disk, Screenshot};
+use bevy::render::view::screenshot::{Screenshot, save_to_disk};
 use bevy::window::{PrimaryWindow, WindowResolution};
-use bevy_egui::{egui, EguiContexts, EguiPlugin, EguiPrimaryContextPass};
+use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
 use std::path::PathBuf;
 
 /// How the demo starts.
@@ -42,22 +45,51 @@ pub fn run(opts: DemoOptions) -> AppExit {
         DefaultPlugins
             .set(WindowPlugin {
                 primary_window: Some(Window {
-                    title: "envis — real-time importance sampling of dynamic environment maps".into(),
+                    title: "envis — real-time importance sampling of dynamic environment maps"
+                        .into(),
                     resolution: WindowResolution::new(opts.window.0, opts.window.1),
                     ..default()
                 }),
                 ..default()
             })
-            .set(AssetPlugin { file_path: asset_root(), ..default() }),
+            .set(AssetPlugin {
+                file_path: asset_root(),
+                ..default()
+            }),
     )
-    .insert_resource(EnvisSettings { sampling: opts.sampling, ..default() })
-    .add_plugins((EnvMapStreamPlugin { source: opts.source.clone(), face_size: opts.face_size }, EnvMapSamplingPlugin, MisLightingPlugin))
+    .insert_resource(EnvisSettings {
+        sampling: opts.sampling,
+        ..default()
+    })
+    .add_plugins((
+        EnvMapStreamPlugin {
+            source: opts.source.clone(),
+            face_size: opts.face_size,
+        },
+        EnvMapSamplingPlugin,
+        MisLightingPlugin,
+    ))
     .add_plugins(EguiPlugin::default())
     // Bevy's own per-pass GPU timings (its prepass writes the G-buffer) for the Timings panel.
     .add_plugins(bevy::render::diagnostic::RenderDiagnosticsPlugin)
-    .insert_resource(DemoState { debug: false, script: opts.script.clone(), face_size: opts.face_size, ..default() })
+    .insert_resource(DemoState {
+        debug: false,
+        script: opts.script.clone(),
+        face_size: opts.face_size,
+        ..default()
+    })
     .add_systems(Startup, setup_scene)
-    .add_systems(Update, (orbit_camera, keys, pick_pixel, update_debug_view, draw_debug_samples).chain())
+    .add_systems(
+        Update,
+        (
+            orbit_camera,
+            keys,
+            pick_pixel,
+            update_debug_view,
+            draw_debug_samples,
+        )
+            .chain(),
+    )
     .add_systems(EguiPrimaryContextPass, panel);
     if scripted {
         app.add_systems(Update, run_script.after(update_debug_view));
@@ -75,11 +107,12 @@ pub fn asset_root() -> String {
         return p;
     }
     if std::path::Path::new("assets/models/bunny_plain.glb").exists() {
-        return std::fs::canonicalize("assets").map(|p| p.display().to_string()).unwrap_or_else(|_| "assets".into());
+        return std::fs::canonicalize("assets")
+            .map(|p| p.display().to_string())
+            .unwrap_or_else(|_| "assets".into());
     }
     concat!(env!("CARGO_MANIFEST_DIR"), "/assets").into()
 }
-
 
 #[derive(Component)]
 struct Orbit {
@@ -106,45 +139,115 @@ pub struct DemoState {
     fps: f32,
 }
 
-fn setup_scene(mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>, mut materials: ResMut<Assets<StandardMaterial>>, assets: Res<AssetServer>, scene: Option<Res<SceneResource>>) {
-    let mut spawn = |name: &str, mesh: Handle<Mesh>, material: EnvisMaterial, transform: Transform| {
-        let handle = materials.add(material.standard());
-        commands.spawn((Mesh3d(mesh), MeshMaterial3d(handle.clone()), transform, SceneObject { name: name.into(), material, handle }));
-    };
+fn setup_scene(
+    mut commands: Commands,
+    mut meshes: ResMut<Assets<Mesh>>,
+    mut materials: ResMut<Assets<StandardMaterial>>,
+    assets: Res<AssetServer>,
+    scene: Option<Res<SceneResource>>,
+) {
+    let mut spawn =
+        |name: &str, mesh: Handle<Mesh>, material: EnvisMaterial, transform: Transform| {
+            let handle = materials.add(material.standard());
+            commands.spawn((
+                Mesh3d(mesh),
+                MeshMaterial3d(handle.clone()),
+                transform,
+                SceneObject {
+                    name: name.into(),
+                    material,
+                    handle,
+                },
+            ));
+        };
     if let Some(sc) = scene {
         let cam = spawn_scene_objects(&mut commands, &mut meshes, &mut materials, &sc.0);
         let d = cam.eye - cam.target;
         let distance = d.length().max(0.1);
         commands.spawn((
             Camera3d::default(),
-            Projection::Perspective(PerspectiveProjection { fov: cam.fov, ..default() }),
+            Projection::Perspective(PerspectiveProjection {
+                fov: cam.fov,
+                ..default()
+            }),
             bevy::camera::Hdr,
             Msaa::Off,
             Tonemapping::TonyMcMapface,
             EnvisCamera,
-            Orbit { yaw: d.x.atan2(d.z), pitch: (d.y / distance).asin(), distance, target: cam.target },
+            Orbit {
+                yaw: d.x.atan2(d.z),
+                pitch: (d.y / distance).asin(),
+                distance,
+                target: cam.target,
+            },
             Transform::default(),
         ));
         return;
     }
-    spawn("sphere", meshes.add(Sphere::new(1.0).mesh().ico(6).expect("icosphere")), EnvisMaterial::Phong { albedo: Vec3::splat(0.8), exponent: 150.0 }, Transform::from_xyz(-2.3, 1.0, 0.0));
-    let bunny = assets.load(GltfAssetLabel::Primitive { mesh: 0, primitive: 0 }.from_asset("models/bunny_plain.glb"));
-    spawn("bunny", bunny, EnvisMaterial::Ggx { albedo: Vec3::new(0.9, 0.75, 0.5), alpha: 0.2 }, Transform::from_xyz(0.0, 0.0, 0.3).with_scale(Vec3::splat(1.6)));
-    spawn("torus", meshes.add(Torus::new(0.45, 0.9)), EnvisMaterial::Mix { albedo: Vec3::new(0.2, 0.5, 0.8), specular: 0.4, alpha: 0.3 }, Transform::from_xyz(2.4, 0.45, 0.0));
-    spawn("ground", meshes.add(Plane3d::default().mesh().size(12.0, 12.0)), EnvisMaterial::Lambert { albedo: Vec3::splat(0.5) }, Transform::IDENTITY);
+    spawn(
+        "sphere",
+        meshes.add(Sphere::new(1.0).mesh().ico(6).expect("icosphere")),
+        EnvisMaterial::Phong {
+            albedo: Vec3::splat(0.8),
+            exponent: 150.0,
+        },
+        Transform::from_xyz(-2.3, 1.0, 0.0),
+    );
+    let bunny = assets.load(
+        GltfAssetLabel::Primitive {
+            mesh: 0,
+            primitive: 0,
+        }
+        .from_asset("models/bunny_plain.glb"),
+    );
+    spawn(
+        "bunny",
+        bunny,
+        EnvisMaterial::Ggx {
+            albedo: Vec3::new(0.9, 0.75, 0.5),
+            alpha: 0.2,
+        },
+        Transform::from_xyz(0.0, 0.0, 0.3).with_scale(Vec3::splat(1.6)),
+    );
+    spawn(
+        "torus",
+        meshes.add(Torus::new(0.45, 0.9)),
+        EnvisMaterial::Mix {
+            albedo: Vec3::new(0.2, 0.5, 0.8),
+            specular: 0.4,
+            alpha: 0.3,
+        },
+        Transform::from_xyz(2.4, 0.45, 0.0),
+    );
+    spawn(
+        "ground",
+        meshes.add(Plane3d::default().mesh().size(12.0, 12.0)),
+        EnvisMaterial::Lambert {
+            albedo: Vec3::splat(0.5),
+        },
+        Transform::IDENTITY,
+    );
     commands.spawn((
         Camera3d::default(),
         bevy::camera::Hdr,
         Msaa::Off,
         Tonemapping::TonyMcMapface,
         EnvisCamera,
-        Orbit { yaw: 0.0, pitch: 0.35, distance: 9.0, target: Vec3::new(0.0, 0.8, 0.0) },
+        Orbit {
+            yaw: 0.0,
+            pitch: 0.35,
+            distance: 9.0,
+            target: Vec3::new(0.0, 0.8, 0.0),
+        },
         Transform::default(),
     ));
 }
 
 fn egui_wants_pointer(contexts: &mut EguiContexts) -> bool {
-    contexts.ctx_mut().map(|c| c.egui_wants_pointer_input() || c.is_pointer_over_egui()).unwrap_or(false)
+    contexts
+        .ctx_mut()
+        .map(|c| c.egui_wants_pointer_input() || c.is_pointer_over_egui())
+        .unwrap_or(false)
 }
 
 fn orbit_camera(
@@ -163,24 +266,44 @@ fn orbit_camera(
             }
             o.distance = (o.distance * (1.0 - scroll.delta.y * 0.08)).clamp(2.0, 40.0);
         }
-        let dir = Vec3::new(o.yaw.sin() * o.pitch.cos(), o.pitch.sin(), o.yaw.cos() * o.pitch.cos());
+        let dir = Vec3::new(
+            o.yaw.sin() * o.pitch.cos(),
+            o.pitch.sin(),
+            o.yaw.cos() * o.pitch.cos(),
+        );
         *t = Transform::from_translation(o.target + dir * o.distance).looking_at(o.target, Vec3::Y);
     }
 }
 
-fn keys(keys: Res<ButtonInput<KeyCode>>, mut settings: ResMut<EnvisSettings>, mut state: ResMut<DemoState>, mut last: Local<Option<std::time::Instant>>) {
+fn keys(
+    keys: Res<ButtonInput<KeyCode>>,
+    mut settings: ResMut<EnvisSettings>,
+    mut state: ResMut<DemoState>,
+    mut last: Local<Option<std::time::Instant>>,
+) {
     // Frames per second of the app (an exponential moving average of wall-clock frame times).
     let now = std::time::Instant::now();
     if let Some(t) = *last {
         let dt = (now - t).as_secs_f32().max(1e-6);
-        state.fps = if state.fps == 0.0 { 1.0 / dt } else { 0.9 * state.fps + 0.1 / dt };
+        state.fps = if state.fps == 0.0 {
+            1.0 / dt
+        } else {
+            0.9 * state.fps + 0.1 / dt
+        };
     }
     *last = Some(now);
     if keys.just_pressed(KeyCode::KeyI) {
-        settings.sampling.counts = if settings.sampling.counts == Counts::Fractional { Counts::Integer } else { Counts::Fractional };
+        settings.sampling.counts = if settings.sampling.counts == Counts::Fractional {
+            Counts::Integer
+        } else {
+            Counts::Fractional
+        };
     }
     if keys.just_pressed(KeyCode::KeyO) {
-        let i = Overlay::ALL.iter().position(|o| *o == settings.overlay).unwrap_or(0);
+        let i = Overlay::ALL
+            .iter()
+            .position(|o| *o == settings.overlay)
+            .unwrap_or(0);
         settings.overlay = Overlay::ALL[(i + 1) % Overlay::ALL.len()];
     }
     if keys.just_pressed(KeyCode::KeyD) {
@@ -189,7 +312,13 @@ fn keys(keys: Res<ButtonInput<KeyCode>>, mut settings: ResMut<EnvisSettings>, mu
 }
 
 /// Right click (or the script) picks the pixel whose samples the debug view shows.
-fn pick_pixel(mut contexts: EguiContexts, buttons: Res<ButtonInput<MouseButton>>, windows: Query<&Window, With<PrimaryWindow>>, mut settings: ResMut<EnvisSettings>, mut state: ResMut<DemoState>) {
+fn pick_pixel(
+    mut contexts: EguiContexts,
+    buttons: Res<ButtonInput<MouseButton>>,
+    windows: Query<&Window, With<PrimaryWindow>>,
+    mut settings: ResMut<EnvisSettings>,
+    mut state: ResMut<DemoState>,
+) {
     if egui_wants_pointer(&mut contexts) || !buttons.just_pressed(MouseButton::Right) {
         return;
     }
@@ -201,10 +330,20 @@ fn pick_pixel(mut contexts: EguiContexts, buttons: Res<ButtonInput<MouseButton>>
 }
 
 /// Recompute the CPU twin's view of the probed pixel when the probe, the frame or the settings change.
-fn update_debug_view(frame: Res<EnvFrame>, settings: Res<EnvisSettings>, probe: Res<EnvisProbe>, mut state: ResMut<DemoState>) {
-    let Some(p) = *probe.lock().expect("probe") else { return };
+fn update_debug_view(
+    frame: Res<EnvFrame>,
+    settings: Res<EnvisSettings>,
+    probe: Res<EnvisProbe>,
+    mut state: ResMut<DemoState>,
+) {
+    let Some(p) = *probe.lock().expect("probe") else {
+        return;
+    };
     // The seed the GPU used for this frame (it changes per frame while accumulating).
-    let s = Settings { seed: settings.frame_seed(), ..settings.sampling };
+    let s = Settings {
+        seed: settings.frame_seed(),
+        ..settings.sampling
+    };
     let key = (frame.generation, s, p.pixel_index, p.gpixel.n);
     if state.key == Some(key) {
         return;
@@ -216,8 +355,14 @@ fn update_debug_view(frame: Res<EnvFrame>, settings: Res<EnvisSettings>, probe: 
 }
 
 /// The probed pixel's pool samples on the sky, far away in their directions.
-fn draw_debug_samples(state: Res<DemoState>, cams: Query<&Transform, With<EnvisCamera>>, mut gizmos: Gizmos) {
-    let (Some((d, _, _)), true) = (&state.pixel, state.debug) else { return };
+fn draw_debug_samples(
+    state: Res<DemoState>,
+    cams: Query<&Transform, With<EnvisCamera>>,
+    mut gizmos: Gizmos,
+) {
+    let (Some((d, _, _)), true) = (&state.pixel, state.debug) else {
+        return;
+    };
     let Ok(cam) = cams.single() else { return };
     for s in &d.samples {
         let p = cam.translation + s.dir * 30.0;
@@ -244,7 +389,11 @@ fn egui_kind_color(k: SampleKind) -> egui::Color32 {
 /// The environment as a small 4:3 cross image (Reinhard-tonemapped) for the panel's inset.
 fn cross_texture(ctx: &egui::Context, map: &CubeMap) -> egui::TextureHandle {
     let n = map.size.min(48);
-    let small = if map.size == n { map.clone() } else { crate::envmap::resample::resize_cube(map, n) };
+    let small = if map.size == n {
+        map.clone()
+    } else {
+        crate::envmap::resample::resize_cube(map, n)
+    };
     let img = crate::envmap::cube_to_cross(&small);
     let px: Vec<egui::Color32> = img
         .data
@@ -254,7 +403,11 @@ fn cross_texture(ctx: &egui::Context, map: &CubeMap) -> egui::TextureHandle {
             egui::Color32::from_rgb(t(c.x), t(c.y), t(c.z))
         })
         .collect();
-    let ci = egui::ColorImage { size: [img.width, img.height], source_size: egui::vec2(img.width as f32, img.height as f32), pixels: px };
+    let ci = egui::ColorImage {
+        size: [img.width, img.height],
+        source_size: egui::vec2(img.width as f32, img.height as f32),
+        pixels: px,
+    };
     ctx.load_texture("envis-cross", ci, egui::TextureOptions::NEAREST)
 }
 
@@ -273,7 +426,11 @@ fn panel(
     diagnostics: Res<bevy::diagnostic::DiagnosticsStore>,
 ) -> Result {
     let ctx = contexts.ctx_mut()?.clone();
-    if state.cross.as_ref().is_none_or(|(g, _)| *g != frame.generation) {
+    if state
+        .cross
+        .as_ref()
+        .is_none_or(|(g, _)| *g != frame.generation)
+    {
         state.cross = Some((frame.generation, cross_texture(&ctx, &frame.map)));
     }
     egui::Window::new("envis").anchor(egui::Align2::RIGHT_TOP, [-8.0, 8.0]).default_width(320.0).show(&ctx, |ui| {
@@ -318,35 +475,66 @@ fn panel(
             }
         });
     });
-    egui::Window::new("sample debug (right-click a pixel, D)").anchor(egui::Align2::LEFT_BOTTOM, [8.0, -8.0]).default_width(330.0).show(&ctx, |ui| debug_ui(ui, &mut settings, &mut state));
+    egui::Window::new("sample debug (right-click a pixel, D)")
+        .anchor(egui::Align2::LEFT_BOTTOM, [8.0, -8.0])
+        .default_width(330.0)
+        .show(&ctx, |ui| debug_ui(ui, &mut settings, &mut state));
     Ok(())
 }
 
-fn environment_ui(ui: &mut egui::Ui, stream: &mut EnvMapStream, settings: &mut EnvisSettings, state: &mut DemoState) {
+fn environment_ui(
+    ui: &mut egui::Ui,
+    stream: &mut EnvMapStream,
+    settings: &mut EnvisSettings,
+    state: &mut DemoState,
+) {
     let s = &mut stream.stream;
     ui.horizontal(|ui| {
-        if ui.button(if s.playing { "pause" } else { "play" }).clicked() {
+        if ui
+            .button(if s.playing { "pause" } else { "play" })
+            .clicked()
+        {
             s.playing = !s.playing;
         }
         ui.add(egui::Slider::new(&mut s.speed, 0.0..=8.0).text("speed"));
     });
     if let Some(mut h) = s.sky_hours() {
-        if ui.add(egui::Slider::new(&mut h, 0.0..=24.0).text("time of day (h)")).changed() {
+        if ui
+            .add(egui::Slider::new(&mut h, 0.0..=24.0).text("time of day (h)"))
+            .changed()
+        {
             s.set_sky_hours(h);
         }
     }
-    ui.add(egui::Slider::new(&mut settings.exposure, 0.01..=8.0).logarithmic(true).text("exposure"));
-    ui.checkbox(&mut settings.show_sky, "show the environment behind objects");
+    ui.add(
+        egui::Slider::new(&mut settings.exposure, 0.01..=8.0)
+            .logarithmic(true)
+            .text("exposure"),
+    );
+    ui.checkbox(
+        &mut settings.show_sky,
+        "show the environment behind objects",
+    );
     let mut face = state.face_size;
-    ui.add(egui::Slider::new(&mut face, 8..=1024).logarithmic(true).text("face size"));
+    ui.add(
+        egui::Slider::new(&mut face, 8..=1024)
+            .logarithmic(true)
+            .text("face size"),
+    );
     ui.horizontal(|ui| {
         ui.label("source");
         ui.text_edit_singleline(&mut state.env_text);
     });
     ui.horizontal(|ui| {
-        let apply = ui.button("open (file, frame directory, builtin:sky)").clicked();
+        let apply = ui
+            .button("open (file, frame directory, builtin:sky)")
+            .clicked();
         if apply || face != state.face_size {
-            let src = if state.env_text.trim().is_empty() { Ok(stream.stream.source().clone()) } else { StreamSource::parse(state.env_text.trim()) };
+            let src = if state.env_text.trim().is_empty() {
+                Ok(stream.stream.source().clone())
+            } else {
+                StreamSource::parse(state.env_text.trim())
+            };
             match src {
                 Ok(src) => {
                     if stream.switch(src, face) {
@@ -357,7 +545,11 @@ fn environment_ui(ui: &mut egui::Ui, stream: &mut EnvMapStream, settings: &mut E
             }
         }
     });
-    ui.label(format!("{:?}, generation {}", stream.stream.stats(), stream.stream.generation()));
+    ui.label(format!(
+        "{:?}, generation {}",
+        stream.stream.stats(),
+        stream.stream.generation()
+    ));
 }
 
 fn sampling_ui(ui: &mut egui::Ui, settings: &mut EnvisSettings) {
@@ -369,7 +561,12 @@ fn sampling_ui(ui: &mut egui::Ui, settings: &mut EnvisSettings) {
     }
     ui.horizontal(|ui| {
         ui.label("strategy");
-        for st in [Strategy::Paper, Strategy::Global, Strategy::Light, Strategy::Brdf] {
+        for st in [
+            Strategy::Paper,
+            Strategy::Global,
+            Strategy::Light,
+            Strategy::Brdf,
+        ] {
             ui.selectable_value(&mut s.strategy, st, st.name());
         }
     });
@@ -387,7 +584,10 @@ fn sampling_ui(ui: &mut egui::Ui, settings: &mut EnvisSettings) {
         ui.add(egui::DragValue::new(&mut s.seed).prefix("seed "));
         ui.checkbox(&mut s.pixel_offset, "per-pixel pool offset");
     });
-    ui.checkbox(&mut s.material_budget, "material budget (diffuse: light only, mirror: BRDF only)");
+    ui.checkbox(
+        &mut s.material_budget,
+        "material budget (diffuse: light only, mirror: BRDF only)",
+    );
     let frame = settings.frame;
     ui.horizontal(|ui| {
         ui.checkbox(&mut settings.accumulate, "accumulate over frames");
@@ -397,11 +597,13 @@ fn sampling_ui(ui: &mut egui::Ui, settings: &mut EnvisSettings) {
     });
     ui.horizontal(|ui| {
         ui.label("overlay [O]");
-        egui::ComboBox::from_id_salt("overlay").selected_text(settings.overlay.name()).show_ui(ui, |ui| {
-            for o in Overlay::ALL {
-                ui.selectable_value(&mut settings.overlay, o, o.name());
-            }
-        });
+        egui::ComboBox::from_id_salt("overlay")
+            .selected_text(settings.overlay.name())
+            .show_ui(ui, |ui| {
+                for o in Overlay::ALL {
+                    ui.selectable_value(&mut settings.overlay, o, o.name());
+                }
+            });
     });
 }
 
@@ -414,7 +616,11 @@ fn material_ui(ui: &mut egui::Ui, name: &str, m: &mut EnvisMaterial) -> bool {
             EnvisMaterial::Lambert { albedo } => (albedo, 0.2, 150.0, 0.0),
             EnvisMaterial::Phong { albedo, exponent } => (albedo, 0.2, exponent, 1.0),
             EnvisMaterial::Ggx { albedo, alpha } => (albedo, alpha, 150.0, 1.0),
-            EnvisMaterial::Mix { albedo, specular, alpha } => (albedo, alpha, 150.0, specular),
+            EnvisMaterial::Mix {
+                albedo,
+                specular,
+                alpha,
+            } => (albedo, alpha, 150.0, specular),
         };
         egui::ComboBox::from_id_salt(name)
             .selected_text(match m {
@@ -427,18 +633,40 @@ fn material_ui(ui: &mut egui::Ui, name: &str, m: &mut EnvisMaterial) -> bool {
                 ui.selectable_value(m, EnvisMaterial::Lambert { albedo }, "diffuse");
                 ui.selectable_value(m, EnvisMaterial::Phong { albedo, exponent }, "phong");
                 ui.selectable_value(m, EnvisMaterial::Ggx { albedo, alpha }, "ggx");
-                ui.selectable_value(m, EnvisMaterial::Mix { albedo, specular: specular.max(0.3), alpha }, "mix");
+                ui.selectable_value(
+                    m,
+                    EnvisMaterial::Mix {
+                        albedo,
+                        specular: specular.max(0.3),
+                        alpha,
+                    },
+                    "mix",
+                );
             });
     });
     match m {
         EnvisMaterial::Phong { exponent, .. } => {
-            ui.add(egui::Slider::new(exponent, 0.0..=10000.0).logarithmic(true).text("exponent"));
+            ui.add(
+                egui::Slider::new(exponent, 0.0..=10000.0)
+                    .logarithmic(true)
+                    .text("exponent"),
+            );
         }
         EnvisMaterial::Ggx { alpha, .. } => {
-            ui.add(egui::Slider::new(alpha, 0.001..=1.0).logarithmic(true).text("alpha"));
+            ui.add(
+                egui::Slider::new(alpha, 0.001..=1.0)
+                    .logarithmic(true)
+                    .text("alpha"),
+            );
         }
-        EnvisMaterial::Mix { alpha, specular, .. } => {
-            ui.add(egui::Slider::new(alpha, 0.001..=1.0).logarithmic(true).text("alpha"));
+        EnvisMaterial::Mix {
+            alpha, specular, ..
+        } => {
+            ui.add(
+                egui::Slider::new(alpha, 0.001..=1.0)
+                    .logarithmic(true)
+                    .text("alpha"),
+            );
             ui.add(egui::Slider::new(specular, 0.0..=1.0).text("specular"));
         }
         EnvisMaterial::Lambert { .. } => {}
@@ -453,9 +681,15 @@ fn debug_ui(ui: &mut egui::Ui, settings: &mut EnvisSettings, state: &mut DemoSta
         return;
     };
     if let Some(p) = settings.probe {
-        ui.label(format!("pixel ({}, {}), n = ({:.2}, {:.2}, {:.2})", p.x, p.y, g.n.x, g.n.y, g.n.z));
+        ui.label(format!(
+            "pixel ({}, {}), n = ({:.2}, {:.2}, {:.2})",
+            p.x, p.y, g.n.x, g.n.y, g.n.z
+        ));
     }
-    ui.label(format!("estimate: GPU ({:.3}, {:.3}, {:.3}), CPU twin ({:.3}, {:.3}, {:.3})", gpu.x, gpu.y, gpu.z, d.estimate.x, d.estimate.y, d.estimate.z));
+    ui.label(format!(
+        "estimate: GPU ({:.3}, {:.3}, {:.3}), CPU twin ({:.3}, {:.3}, {:.3})",
+        gpu.x, gpu.y, gpu.z, d.estimate.x, d.estimate.y, d.estimate.z
+    ));
     egui::Grid::new("faces").striped(true).show(ui, |ui| {
         ui.label("face");
         for f in 0..6 {
@@ -474,26 +708,49 @@ fn debug_ui(ui: &mut egui::Ui, settings: &mut EnvisSettings, state: &mut DemoSta
         ui.end_row();
     });
     let count = |k| d.samples.iter().filter(|s| s.kind == k).count();
-    ui.label(format!("red (discarded) {}, green (used, cos > 0) {}, yellow (used, cos <= 0) {}", count(SampleKind::Discarded), count(SampleKind::Used), count(SampleKind::Wasted)));
+    ui.label(format!(
+        "red (discarded) {}, green (used, cos > 0) {}, yellow (used, cos <= 0) {}",
+        count(SampleKind::Discarded),
+        count(SampleKind::Used),
+        count(SampleKind::Wasted)
+    ));
     if !state.debug {
         return;
     }
     // The unfolded cube cross with each pool sample at its face coordinates.
     let w = 320.0;
     let block = w / 4.0;
-    let (rect, _) = ui.allocate_exact_size(egui::vec2(4.0 * block, 3.0 * block), egui::Sense::hover());
+    let (rect, _) =
+        ui.allocate_exact_size(egui::vec2(4.0 * block, 3.0 * block), egui::Sense::hover());
     let painter = ui.painter_at(rect);
     if let Some((_, tex)) = &state.cross {
-        painter.image(tex.id(), rect, egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)), egui::Color32::WHITE);
+        painter.image(
+            tex.id(),
+            rect,
+            egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
+            egui::Color32::WHITE,
+        );
     }
     for &(bx, by) in &CROSS_BLOCKS {
-        let r = egui::Rect::from_min_size(rect.min + egui::vec2(bx as f32 * block, by as f32 * block), egui::vec2(block, block));
-        painter.rect_stroke(r, 0.0, egui::Stroke::new(1.0, egui::Color32::GRAY), egui::StrokeKind::Inside);
+        let r = egui::Rect::from_min_size(
+            rect.min + egui::vec2(bx as f32 * block, by as f32 * block),
+            egui::vec2(block, block),
+        );
+        painter.rect_stroke(
+            r,
+            0.0,
+            egui::Stroke::new(1.0, egui::Color32::GRAY),
+            egui::StrokeKind::Inside,
+        );
     }
     for s in &d.samples {
         let (f, a, b) = dir_to_face_ab(s.dir);
         let (bx, by) = CROSS_BLOCKS[f];
-        let p = rect.min + egui::vec2((bx as f32 + 0.5 * (a + 1.0)) * block, (by as f32 + 0.5 * (b + 1.0)) * block);
+        let p = rect.min
+            + egui::vec2(
+                (bx as f32 + 0.5 * (a + 1.0)) * block,
+                (by as f32 + 0.5 * (b + 1.0)) * block,
+            );
         painter.circle_filled(p, 2.5, egui_kind_color(s.kind));
     }
 }
@@ -514,7 +771,9 @@ fn run_script(
 ) {
     const WARMUP: u32 = 10;
     const STEP: u32 = 6;
-    let Some(dir) = state.script.clone() else { return };
+    let Some(dir) = state.script.clone() else {
+        return;
+    };
     state.script_frame += 1;
     let f = state.script_frame;
     if f == 1 {
@@ -526,9 +785,14 @@ fn run_script(
     }
     let step = (f - WARMUP) / STEP;
     let shot = |commands: &mut Commands, name: &str| {
-        commands.spawn(Screenshot::primary_window()).observe(save_to_disk(dir.join(name)));
+        commands
+            .spawn(Screenshot::primary_window())
+            .observe(save_to_disk(dir.join(name)));
     };
-    let (w, h) = windows.single().map(|w| (w.physical_width(), w.physical_height())).unwrap_or((0, 0));
+    let (w, h) = windows
+        .single()
+        .map(|w| (w.physical_width(), w.physical_height()))
+        .unwrap_or((0, 0));
     match step {
         0 => shot(&mut commands, "start.png"),
         1 => {
@@ -546,7 +810,11 @@ fn run_script(
             settings.sampling.counts = Counts::Fractional;
             // Probe a pixel on the sphere: its centre, projected (physical pixels).
             let scale = windows.single().map(|w| w.scale_factor()).unwrap_or(1.0);
-            let p = cams.single().ok().and_then(|(c, t)| c.world_to_viewport(t, Vec3::new(-2.3, 1.0, 0.0)).ok()).unwrap_or(Vec2::new(w as f32 * 0.3, h as f32 * 0.5));
+            let p = cams
+                .single()
+                .ok()
+                .and_then(|(c, t)| c.world_to_viewport(t, Vec3::new(-2.3, 1.0, 0.0)).ok())
+                .unwrap_or(Vec2::new(w as f32 * 0.3, h as f32 * 0.5));
             settings.probe = Some((p * scale).as_uvec2());
             state.debug = true;
         }
@@ -556,7 +824,10 @@ fn run_script(
         13 => {
             for mut o in &mut objects {
                 if o.name == "sphere" {
-                    o.material = EnvisMaterial::Ggx { albedo: Vec3::splat(0.8), alpha: 0.05 };
+                    o.material = EnvisMaterial::Ggx {
+                        albedo: Vec3::splat(0.8),
+                        alpha: 0.05,
+                    };
                     if let Some(mut m) = materials.get_mut(&o.handle) {
                         *m = o.material.standard();
                     }
@@ -581,7 +852,10 @@ fn run_script(
                     "yellow": d.samples.iter().filter(|s| s.kind == SampleKind::Wasted).count(),
                 })),
             });
-            let _ = std::fs::write(dir.join("report.json"), serde_json::to_string_pretty(&report).expect("json") + "\n");
+            let _ = std::fs::write(
+                dir.join("report.json"),
+                serde_json::to_string_pretty(&report).expect("json") + "\n",
+            );
         }
         16 => {
             exit.write(AppExit::Success);

@@ -3,16 +3,19 @@
 //! deferred G-buffer and the envis lighting pass into a float image. Used by
 //! `envis render --backend bevy` and by the tests.
 
-use super::{EnvMapSamplingPlugin, EnvMapStream, EnvMapStreamPlugin, EnvisCamera, EnvisCounters, EnvisMaterial, EnvisSettings, MisLightingPlugin};
+use super::{
+    EnvMapSamplingPlugin, EnvMapStream, EnvMapStreamPlugin, EnvisCamera, EnvisCounters,
+    EnvisMaterial, EnvisSettings, MisLightingPlugin,
+};
 use crate::stream::StreamSource;
 use bevy::asset::RenderAssetUsages;
 use bevy::camera::{Hdr, RenderTarget, ScalingMode};
 use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::image::Image;
 use bevy::prelude::*;
+use bevy::render::RenderPlugin;
 use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat, TextureUsages};
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
-use bevy::render::RenderPlugin;
 use bevy::window::ExitCondition;
 use bevy::winit::WinitPlugin;
 use std::sync::{Arc, Mutex};
@@ -27,53 +30,126 @@ pub struct HeadlessSphere {
 impl HeadlessSphere {
     /// Build the app: stream `source` at `face` texels per face, the sphere with `mat`, HDR output
     /// without tonemapping into a `size x size` Rgba32Float image.
-    pub fn new(source: StreamSource, face: usize, mat: EnvisMaterial, settings: EnvisSettings, size: u32) -> Self {
+    pub fn new(
+        source: StreamSource,
+        face: usize,
+        mat: EnvisMaterial,
+        settings: EnvisSettings,
+        size: u32,
+    ) -> Self {
         let (mut app, target) = Self::base(source, face, settings, size);
-        let mesh = app.world_mut().resource_mut::<Assets<Mesh>>().add(Sphere::new(1.0).mesh().ico(7).expect("icosphere"));
-        let material = app.world_mut().resource_mut::<Assets<StandardMaterial>>().add(mat.standard());
-        app.world_mut().spawn((Mesh3d(mesh), MeshMaterial3d(material), Transform::IDENTITY));
-        let projection = Projection::Orthographic(OrthographicProjection { scaling_mode: ScalingMode::Fixed { width: 2.0, height: 2.0 }, ..OrthographicProjection::default_3d() });
-        Self::finish(app, target, projection, Transform::from_xyz(0.0, 0.0, 5.0).looking_at(Vec3::ZERO, Vec3::Y), size)
+        let mesh = app
+            .world_mut()
+            .resource_mut::<Assets<Mesh>>()
+            .add(Sphere::new(1.0).mesh().ico(7).expect("icosphere"));
+        let material = app
+            .world_mut()
+            .resource_mut::<Assets<StandardMaterial>>()
+            .add(mat.standard());
+        app.world_mut()
+            .spawn((Mesh3d(mesh), MeshMaterial3d(material), Transform::IDENTITY));
+        let projection = Projection::Orthographic(OrthographicProjection {
+            scaling_mode: ScalingMode::Fixed {
+                width: 2.0,
+                height: 2.0,
+            },
+            ..OrthographicProjection::default_3d()
+        });
+        Self::finish(
+            app,
+            target,
+            projection,
+            Transform::from_xyz(0.0, 0.0, 5.0).looking_at(Vec3::ZERO, Vec3::Y),
+            size,
+        )
     }
 
     /// A scene file's objects and camera (perspective), with the scene's environment and settings.
-    pub fn from_scene(sc: &crate::scene::Scene, settings: EnvisSettings, size: u32) -> crate::error::Result<Self> {
+    pub fn from_scene(
+        sc: &crate::scene::Scene,
+        settings: EnvisSettings,
+        size: u32,
+    ) -> crate::error::Result<Self> {
         let source = match StreamSource::parse(&sc.environment)? {
             StreamSource::Sky { hours, .. } => StreamSource::Sky { hours, speed: 0.0 },
             other => other,
         };
         let (mut app, target) = Self::base(source, sc.file.environment.face_size, settings, size);
-        let cam = app.world_mut().resource_scope(|world, mut meshes: Mut<Assets<Mesh>>| {
-            world.resource_scope(|world, mut materials: Mut<Assets<StandardMaterial>>| {
-                let mut commands = world.commands();
-                super::scene_objects::spawn_scene_objects(&mut commands, &mut meshes, &mut materials, sc)
-            })
-        });
+        let cam = app
+            .world_mut()
+            .resource_scope(|world, mut meshes: Mut<Assets<Mesh>>| {
+                world.resource_scope(|world, mut materials: Mut<Assets<StandardMaterial>>| {
+                    let mut commands = world.commands();
+                    super::scene_objects::spawn_scene_objects(
+                        &mut commands,
+                        &mut meshes,
+                        &mut materials,
+                        sc,
+                    )
+                })
+            });
         app.world_mut().flush();
-        let projection = Projection::Perspective(PerspectiveProjection { fov: cam.fov, ..default() });
+        let projection = Projection::Perspective(PerspectiveProjection {
+            fov: cam.fov,
+            ..default()
+        });
         Ok(Self::finish(app, target, projection, cam.transform(), size))
     }
 
     /// The app with the envis plugins and a float render target.
-    fn base(source: StreamSource, face: usize, settings: EnvisSettings, size: u32) -> (App, Handle<Image>) {
+    fn base(
+        source: StreamSource,
+        face: usize,
+        settings: EnvisSettings,
+        size: u32,
+    ) -> (App, Handle<Image>) {
         let mut app = App::new();
         app.add_plugins(
             DefaultPlugins
-                .set(RenderPlugin { synchronous_pipeline_compilation: true, ..default() })
-                .set(WindowPlugin { primary_window: None, exit_condition: ExitCondition::DontExit, ..default() })
+                .set(RenderPlugin {
+                    synchronous_pipeline_compilation: true,
+                    ..default()
+                })
+                .set(WindowPlugin {
+                    primary_window: None,
+                    exit_condition: ExitCondition::DontExit,
+                    ..default()
+                })
                 .disable::<WinitPlugin>()
                 .disable::<bevy::log::LogPlugin>(),
         )
         .insert_resource(settings)
-        .add_plugins((EnvMapStreamPlugin { source, face_size: face }, EnvMapSamplingPlugin, MisLightingPlugin));
-        let mut img = Image::new_uninit(Extent3d { width: size, height: size, depth_or_array_layers: 1 }, TextureDimension::D2, TextureFormat::Rgba32Float, RenderAssetUsages::RENDER_WORLD);
+        .add_plugins((
+            EnvMapStreamPlugin {
+                source,
+                face_size: face,
+            },
+            EnvMapSamplingPlugin,
+            MisLightingPlugin,
+        ));
+        let mut img = Image::new_uninit(
+            Extent3d {
+                width: size,
+                height: size,
+                depth_or_array_layers: 1,
+            },
+            TextureDimension::D2,
+            TextureFormat::Rgba32Float,
+            RenderAssetUsages::RENDER_WORLD,
+        );
         img.texture_descriptor.usage |= TextureUsages::RENDER_ATTACHMENT | TextureUsages::COPY_SRC;
         let target = app.world_mut().resource_mut::<Assets<Image>>().add(img);
         (app, target)
     }
 
     /// Add the camera (HDR, no tonemapping, into the float target) and finish the app.
-    fn finish(mut app: App, target: Handle<Image>, projection: Projection, transform: Transform, size: u32) -> Self {
+    fn finish(
+        mut app: App,
+        target: Handle<Image>,
+        projection: Projection,
+        transform: Transform,
+        size: u32,
+    ) -> Self {
         app.world_mut().spawn((
             Camera3d::default(),
             projection,
@@ -101,16 +177,26 @@ impl HeadlessSphere {
         }
         let got: Arc<Mutex<Option<Image>>> = Arc::default();
         let sink = got.clone();
-        self.app.world_mut().spawn(Screenshot::image(self.target.clone())).observe(move |ev: On<ScreenshotCaptured>| {
-            *sink.lock().expect("capture") = Some(ev.image.clone());
-        });
+        self.app
+            .world_mut()
+            .spawn(Screenshot::image(self.target.clone()))
+            .observe(move |ev: On<ScreenshotCaptured>| {
+                *sink.lock().expect("capture") = Some(ev.image.clone());
+            });
         for _ in 0..20 {
             self.update();
             if let Some(img) = got.lock().expect("capture").take() {
                 let data = img.data.expect("screenshot data");
                 let px: &[f32] = bytemuck::cast_slice(&data);
-                assert_eq!(px.len(), (self.size * self.size * 4) as usize, "capture size");
-                return px.chunks_exact(4).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
+                assert_eq!(
+                    px.len(),
+                    (self.size * self.size * 4) as usize,
+                    "capture size"
+                );
+                return px
+                    .chunks_exact(4)
+                    .map(|c| Vec3::new(c[0], c[1], c[2]))
+                    .collect();
             }
         }
         panic!("no capture of the render target after 20 frames");

@@ -29,8 +29,8 @@ pub use timing::{EnvisTimings, PassTimes};
 use crate::render::Settings;
 use bevy::prelude::*;
 use bevy::render::extract_resource::ExtractResource;
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Sampling settings of the app (the core's [`Settings`]) plus display options.
 #[derive(Resource, Clone, ExtractResource)]
@@ -62,13 +62,22 @@ pub struct EnvisSettings {
 impl EnvisSettings {
     /// The seed of this frame: the user's seed, mixed with the accumulation frame when accumulating.
     pub fn frame_seed(&self) -> u32 {
-        if self.accumulate && self.frame > 0 { crate::sampling::rng::hash_combine(&[self.sampling.seed, self.frame]) } else { self.sampling.seed }
+        if self.accumulate && self.frame > 0 {
+            crate::sampling::rng::hash_combine(&[self.sampling.seed, self.frame])
+        } else {
+            self.sampling.seed
+        }
     }
 }
 
 /// Restart the running mean when the camera, the environment frame, the settings or the scene
 /// changed; otherwise count one more frame.
-pub fn track_accumulation(mut settings: ResMut<EnvisSettings>, cams: Query<&GlobalTransform, With<EnvisCamera>>, frame: Res<EnvFrame>, mut last: Local<Option<String>>) {
+pub fn track_accumulation(
+    mut settings: ResMut<EnvisSettings>,
+    cams: Query<&GlobalTransform, With<EnvisCamera>>,
+    frame: Res<EnvFrame>,
+    mut last: Local<Option<String>>,
+) {
     if !settings.accumulate {
         if settings.frame != 0 {
             settings.frame = 0;
@@ -85,7 +94,9 @@ pub fn track_accumulation(mut settings: ResMut<EnvisSettings>, cams: Query<&Glob
         s.overlay,
         s.scene_revision,
         frame.generation,
-        cams.iter().map(|t| format!("{:?}", t.to_matrix().to_cols_array())).collect::<String>()
+        cams.iter()
+            .map(|t| format!("{:?}", t.to_matrix().to_cols_array()))
+            .collect::<String>()
     );
     if last.as_deref() == Some(key.as_str()) {
         settings.frame += 1;
@@ -97,7 +108,17 @@ pub fn track_accumulation(mut settings: ResMut<EnvisSettings>, cams: Query<&Glob
 
 impl Default for EnvisSettings {
     fn default() -> Self {
-        EnvisSettings { sampling: Settings::default(), exposure: 1.0, show_sky: true, overlay: Overlay::None, probe: None, accumulate: false, frame: 0, scene_revision: 0, always_rebuild: false }
+        EnvisSettings {
+            sampling: Settings::default(),
+            exposure: 1.0,
+            show_sky: true,
+            overlay: Overlay::None,
+            probe: None,
+            accumulate: false,
+            frame: 0,
+            scene_revision: 0,
+            always_rebuild: false,
+        }
     }
 }
 
@@ -115,7 +136,12 @@ pub enum Overlay {
 }
 
 impl Overlay {
-    pub const ALL: [Overlay; 4] = [Overlay::None, Overlay::EffectiveSamples, Overlay::Wasted, Overlay::CountsDifference];
+    pub const ALL: [Overlay; 4] = [
+        Overlay::None,
+        Overlay::EffectiveSamples,
+        Overlay::Wasted,
+        Overlay::CountsDifference,
+    ];
     pub fn name(self) -> &'static str {
         match self {
             Overlay::None => "none",
@@ -176,6 +202,10 @@ pub struct EnvisPlugins;
 
 impl Plugin for EnvisPlugins {
     fn build(&self, app: &mut App) {
-        app.add_plugins((EnvMapStreamPlugin::default(), EnvMapSamplingPlugin, MisLightingPlugin));
+        app.add_plugins((
+            EnvMapStreamPlugin::default(),
+            EnvMapSamplingPlugin,
+            MisLightingPlugin,
+        ));
     }
 }

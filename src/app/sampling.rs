@@ -30,7 +30,9 @@ pub struct EnvMapSamplingPlugin;
 
 impl Plugin for EnvMapSamplingPlugin {
     fn build(&self, app: &mut App) {
-        let Some(render_app) = app.get_sub_app_mut(RenderApp) else { return };
+        let Some(render_app) = app.get_sub_app_mut(RenderApp) else {
+            return;
+        };
         render_app
             .init_resource::<EnvSamplingState>()
             .init_resource::<EnvisCounters>()
@@ -50,7 +52,9 @@ pub fn prepare_env_sampler(
     counters: Res<EnvisCounters>,
     timings: Res<EnvisTimings>,
 ) {
-    let (Some(frame), Some(settings)) = (frame, settings) else { return };
+    let (Some(frame), Some(settings)) = (frame, settings) else {
+        return;
+    };
     let t0 = std::time::Instant::now();
     if let Some(ms) = state.timer.as_ref().and_then(|t| t.poll()) {
         timings.set(|t| t.build_gpu_ms = Some(ms));
@@ -67,7 +71,12 @@ pub fn prepare_env_sampler(
             Ok(s) => {
                 let timer = AsyncTimer::new(device.wgpu_device(), &queue, "envis build timer");
                 let pool_timer = AsyncTimer::new(device.wgpu_device(), &queue, "envis pool timer");
-                *state = EnvSamplingState { sampler: Some(s), timer, pool_timer, ..default() };
+                *state = EnvSamplingState {
+                    sampler: Some(s),
+                    timer,
+                    pool_timer,
+                    ..default()
+                };
                 counters.bump(|c| &c.allocations);
             }
             Err(e) => {
@@ -78,7 +87,9 @@ pub fn prepare_env_sampler(
         }
     }
     let state = &mut *state;
-    if settings.sampling.strategy == crate::render::Strategy::Global && state.sampler.as_ref().is_some_and(|s| !s.has_global()) {
+    if settings.sampling.strategy == crate::render::Strategy::Global
+        && state.sampler.as_ref().is_some_and(|s| !s.has_global())
+    {
         let s = state.sampler.as_mut().expect("allocated above");
         match s.enable_global(device.wgpu_device(), &queue) {
             Ok(()) => state.dirty = true,
@@ -108,7 +119,12 @@ pub fn prepare_env_sampler(
 }
 
 /// Record the build (five compute dispatches) into this frame's command stream, before any camera.
-pub fn build_env_distribution(mut ctx: RenderContext, mut state: ResMut<EnvSamplingState>, counters: Res<EnvisCounters>, timings: Res<EnvisTimings>) {
+pub fn build_env_distribution(
+    mut ctx: RenderContext,
+    mut state: ResMut<EnvSamplingState>,
+    counters: Res<EnvisCounters>,
+    timings: Res<EnvisTimings>,
+) {
     if !state.dirty {
         return;
     }
@@ -117,7 +133,11 @@ pub fn build_env_distribution(mut ctx: RenderContext, mut state: ResMut<EnvSampl
         let timer = state.timer.as_ref().filter(|t| t.ready());
         let pool_timer = state.pool_timer.as_ref().filter(|t| t.ready());
         let enc = ctx.command_encoder();
-        s.encode_with(enc, timer.map(|t| t.compute_writes()), pool_timer.map(|t| t.compute_writes()));
+        s.encode_with(
+            enc,
+            timer.map(|t| t.compute_writes()),
+            pool_timer.map(|t| t.compute_writes()),
+        );
         for t in [timer, pool_timer].into_iter().flatten() {
             t.resolve(enc);
         }

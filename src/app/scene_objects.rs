@@ -33,12 +33,22 @@ pub fn envis_material(m: &crate::sampling::Material) -> EnvisMaterial {
     use crate::sampling::Lobe;
     match m.lobe {
         Lobe::None => EnvisMaterial::Lambert { albedo: m.kd },
-        Lobe::Phong { exponent } => EnvisMaterial::Phong { albedo: m.ks + m.kd, exponent },
-        Lobe::Ggx { alpha } if m.kd.max_element() <= 0.0 => EnvisMaterial::Ggx { albedo: m.ks, alpha },
+        Lobe::Phong { exponent } => EnvisMaterial::Phong {
+            albedo: m.ks + m.kd,
+            exponent,
+        },
+        Lobe::Ggx { alpha } if m.kd.max_element() <= 0.0 => EnvisMaterial::Ggx {
+            albedo: m.ks,
+            alpha,
+        },
         Lobe::Ggx { alpha } => {
             let all = m.kd + m.ks;
             let lum = crate::envmap::luminance;
-            EnvisMaterial::Mix { albedo: all, specular: lum(m.ks) / lum(all).max(1e-6), alpha }
+            EnvisMaterial::Mix {
+                albedo: all,
+                specular: lum(m.ks) / lum(all).max(1e-6),
+                alpha,
+            }
         }
     }
 }
@@ -47,28 +57,67 @@ pub fn envis_material(m: &crate::sampling::Material) -> EnvisMaterial {
 pub fn bevy_mesh(m: &crate::scene::TriMesh) -> Mesh {
     use bevy::asset::RenderAssetUsages;
     use bevy::mesh::{Indices, PrimitiveTopology};
-    Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default())
-        .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, m.positions.iter().map(|p| p.to_array()).collect::<Vec<_>>())
-        .with_inserted_attribute(Mesh::ATTRIBUTE_NORMAL, m.normals.iter().map(|p| p.to_array()).collect::<Vec<_>>())
-        .with_inserted_indices(Indices::U32(m.indices.iter().flatten().copied().collect()))
+    Mesh::new(
+        PrimitiveTopology::TriangleList,
+        RenderAssetUsages::default(),
+    )
+    .with_inserted_attribute(
+        Mesh::ATTRIBUTE_POSITION,
+        m.positions.iter().map(|p| p.to_array()).collect::<Vec<_>>(),
+    )
+    .with_inserted_attribute(
+        Mesh::ATTRIBUTE_NORMAL,
+        m.normals.iter().map(|p| p.to_array()).collect::<Vec<_>>(),
+    )
+    .with_inserted_indices(Indices::U32(m.indices.iter().flatten().copied().collect()))
 }
 
 /// Spawn every object of `sc` (spheres and planes as Bevy primitives, tori and glTF meshes as the
 /// same world-space triangles the CPU ray caster uses) and return its camera.
-pub fn spawn_scene_objects(commands: &mut Commands, meshes: &mut Assets<Mesh>, materials: &mut Assets<StandardMaterial>, sc: &Scene) -> SceneCamera {
+pub fn spawn_scene_objects(
+    commands: &mut Commands,
+    meshes: &mut Assets<Mesh>,
+    materials: &mut Assets<StandardMaterial>,
+    sc: &Scene,
+) -> SceneCamera {
     for o in &sc.objects {
         let material = envis_material(&o.material);
         let (mesh, transform) = match &o.shape {
-            Shape::Sphere { center, radius } => (meshes.add(Sphere::new(*radius).mesh().ico(6).expect("icosphere")), Transform::from_translation(*center)),
-            Shape::Plane { center, normal, u, half, .. } => {
+            Shape::Sphere { center, radius } => (
+                meshes.add(Sphere::new(*radius).mesh().ico(6).expect("icosphere")),
+                Transform::from_translation(*center),
+            ),
+            Shape::Plane {
+                center,
+                normal,
+                u,
+                half,
+                ..
+            } => {
                 let rot = Quat::from_mat3(&Mat3::from_cols(*u, *normal, u.cross(*normal)));
-                (meshes.add(Plane3d::default().mesh().size(2.0 * half, 2.0 * half)), Transform::from_translation(*center).with_rotation(rot))
+                (
+                    meshes.add(Plane3d::default().mesh().size(2.0 * half, 2.0 * half)),
+                    Transform::from_translation(*center).with_rotation(rot),
+                )
             }
             Shape::Mesh(m) => (meshes.add(bevy_mesh(m)), Transform::IDENTITY),
         };
         let handle = materials.add(material.standard());
-        commands.spawn((Mesh3d(mesh), MeshMaterial3d(handle.clone()), transform, SceneObject { name: o.name.clone(), material, handle }));
+        commands.spawn((
+            Mesh3d(mesh),
+            MeshMaterial3d(handle.clone()),
+            transform,
+            SceneObject {
+                name: o.name.clone(),
+                material,
+                handle,
+            },
+        ));
     }
     let c = &sc.file.camera;
-    SceneCamera { eye: Vec3::from(c.position), target: Vec3::from(c.target), fov: c.fov.clamp(1.0, 170.0).to_radians() }
+    SceneCamera {
+        eye: Vec3::from(c.position),
+        target: Vec3::from(c.target),
+        fov: c.fov.clamp(1.0, 170.0).to_radians(),
+    }
 }

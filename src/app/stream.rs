@@ -58,7 +58,13 @@ pub struct EnvMapStreamPlugin {
 
 impl Default for EnvMapStreamPlugin {
     fn default() -> Self {
-        EnvMapStreamPlugin { source: StreamSource::Sky { hours: 9.0, speed: 0.5 }, face_size: 64 }
+        EnvMapStreamPlugin {
+            source: StreamSource::Sky {
+                hours: 9.0,
+                speed: 0.5,
+            },
+            face_size: 64,
+        }
     }
 }
 
@@ -66,20 +72,55 @@ impl Plugin for EnvMapStreamPlugin {
     fn build(&self, app: &mut App) {
         let stream = EnvStream::open(self.source.clone(), self.face_size).unwrap_or_else(|e| {
             error!("envis: {e}; falling back to the built-in sky");
-            EnvStream::open(StreamSource::Sky { hours: 9.0, speed: 0.5 }, self.face_size.clamp(1, 4096)).expect("built-in sky")
+            EnvStream::open(
+                StreamSource::Sky {
+                    hours: 9.0,
+                    speed: 0.5,
+                },
+                self.face_size.clamp(1, 4096),
+            )
+            .expect("built-in sky")
         });
-        let frame = EnvFrame { generation: stream.generation(), map: stream.frame().clone() };
-        let counters = app.world_mut().get_resource_or_insert_with(EnvisCounters::default).clone();
-        let timings = app.world_mut().get_resource_or_insert_with(super::EnvisTimings::default).clone();
-        let probe = app.world_mut().get_resource_or_insert_with(super::EnvisProbe::default).clone();
-        app.insert_resource(EnvMapStream { stream, log: Vec::new() })
-            .insert_resource(frame)
-            .init_resource::<EnvisSettings>()
-            .add_plugins((ExtractResourcePlugin::<EnvFrame>::default(), ExtractResourcePlugin::<EnvisSettings>::default()))
-            .add_systems(PostUpdate, (advance_stream, super::track_accumulation.after(bevy::transform::TransformSystems::Propagate)).chain());
+        let frame = EnvFrame {
+            generation: stream.generation(),
+            map: stream.frame().clone(),
+        };
+        let counters = app
+            .world_mut()
+            .get_resource_or_insert_with(EnvisCounters::default)
+            .clone();
+        let timings = app
+            .world_mut()
+            .get_resource_or_insert_with(super::EnvisTimings::default)
+            .clone();
+        let probe = app
+            .world_mut()
+            .get_resource_or_insert_with(super::EnvisProbe::default)
+            .clone();
+        app.insert_resource(EnvMapStream {
+            stream,
+            log: Vec::new(),
+        })
+        .insert_resource(frame)
+        .init_resource::<EnvisSettings>()
+        .add_plugins((
+            ExtractResourcePlugin::<EnvFrame>::default(),
+            ExtractResourcePlugin::<EnvisSettings>::default(),
+        ))
+        .add_systems(
+            PostUpdate,
+            (
+                advance_stream,
+                super::track_accumulation.after(bevy::transform::TransformSystems::Propagate),
+            )
+                .chain(),
+        );
         // Share the counters with the render world.
         if let Some(render_app) = app.get_sub_app_mut(bevy::render::RenderApp) {
-            render_app.insert_resource(counters).insert_resource(timings).insert_resource(probe);
+            render_app
+                .insert_resource(counters)
+                .insert_resource(timings)
+                .insert_resource(probe);
         }
     }
 }
@@ -87,13 +128,20 @@ impl Plugin for EnvMapStreamPlugin {
 /// Advance the stream by the frame time; publish a new [`EnvFrame`] only when the map changed
 /// (a new frame, or a switched stream: every frame is a new `Arc`). Generations increase across
 /// switches, so the render world never mistakes a new stream's frame for an old one.
-pub fn advance_stream(time: Res<Time>, mut stream: ResMut<EnvMapStream>, mut frame: ResMut<EnvFrame>) {
+pub fn advance_stream(
+    time: Res<Time>,
+    mut stream: ResMut<EnvMapStream>,
+    mut frame: ResMut<EnvFrame>,
+) {
     stream.stream.advance(time.delta_secs_f64());
     for m in stream.stream.take_messages() {
         stream.push_log(m);
     }
     if !Arc::ptr_eq(&frame.map, stream.stream.frame()) {
         let generation = frame.generation + 1;
-        *frame = EnvFrame { generation, map: stream.stream.frame().clone() };
+        *frame = EnvFrame {
+            generation,
+            map: stream.stream.frame().clone(),
+        };
     }
 }

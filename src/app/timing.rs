@@ -48,8 +48,17 @@ pub struct AsyncRead {
 
 impl AsyncRead {
     pub fn new(device: &wgpu::Device, label: &str, size: u64) -> Self {
-        let readback = device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ, mapped_at_creation: false });
-        AsyncRead { readback, size, state: Arc::new(AtomicU8::new(IDLE)) }
+        let readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size,
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        AsyncRead {
+            readback,
+            size,
+            state: Arc::new(AtomicU8::new(IDLE)),
+        }
     }
     /// Whether a new copy can be recorded (the previous bytes have been collected).
     pub fn ready(&self) -> bool {
@@ -66,9 +75,11 @@ impl AsyncRead {
             WRITTEN => {
                 self.state.store(MAPPING, Ordering::Release);
                 let st = self.state.clone();
-                self.readback.slice(..).map_async(wgpu::MapMode::Read, move |r| {
-                    st.store(if r.is_ok() { MAPPED } else { IDLE }, Ordering::Release);
-                });
+                self.readback
+                    .slice(..)
+                    .map_async(wgpu::MapMode::Read, move |r| {
+                        st.store(if r.is_ok() { MAPPED } else { IDLE }, Ordering::Release);
+                    });
                 None
             }
             MAPPED => {
@@ -96,9 +107,23 @@ impl AsyncTimer {
         if !device.features().contains(wgpu::Features::TIMESTAMP_QUERY) {
             return None;
         }
-        let set = device.create_query_set(&wgpu::QuerySetDescriptor { label: Some(label), ty: wgpu::QueryType::Timestamp, count: 2 });
-        let resolve = device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size: 16, usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC, mapped_at_creation: false });
-        Some(AsyncTimer { set, resolve, read: AsyncRead::new(device, label, 16), period_ns: queue.get_timestamp_period() })
+        let set = device.create_query_set(&wgpu::QuerySetDescriptor {
+            label: Some(label),
+            ty: wgpu::QueryType::Timestamp,
+            count: 2,
+        });
+        let resolve = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: 16,
+            usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        Some(AsyncTimer {
+            set,
+            resolve,
+            read: AsyncRead::new(device, label, 16),
+            period_ns: queue.get_timestamp_period(),
+        })
     }
 
     /// Whether this pass should be timed now (the previous result has been collected).
@@ -106,10 +131,18 @@ impl AsyncTimer {
         self.read.ready()
     }
     pub fn compute_writes(&self) -> wgpu::ComputePassTimestampWrites<'_> {
-        wgpu::ComputePassTimestampWrites { query_set: &self.set, beginning_of_pass_write_index: Some(0), end_of_pass_write_index: Some(1) }
+        wgpu::ComputePassTimestampWrites {
+            query_set: &self.set,
+            beginning_of_pass_write_index: Some(0),
+            end_of_pass_write_index: Some(1),
+        }
     }
     pub fn render_writes(&self) -> wgpu::RenderPassTimestampWrites<'_> {
-        wgpu::RenderPassTimestampWrites { query_set: &self.set, beginning_of_pass_write_index: Some(0), end_of_pass_write_index: Some(1) }
+        wgpu::RenderPassTimestampWrites {
+            query_set: &self.set,
+            beginning_of_pass_write_index: Some(0),
+            end_of_pass_write_index: Some(1),
+        }
     }
     /// After the timed pass: resolve into the readback buffer.
     pub fn resolve(&self, enc: &mut wgpu::CommandEncoder) {

@@ -8,10 +8,10 @@
 //! Output: `accuracy.csv`, `accuracy.json` and `accuracy-vs-time.md` (tables, Pareto fronts, the
 //! exact command) in the output directory.
 
-use crate::envmap::load::{load_env, EnvSource};
+use crate::envmap::load::{EnvSource, load_env};
 use crate::envmap::luminance_f64;
 use crate::error::{Error, Result};
-use crate::render::{self, reference, Settings, Strategy};
+use crate::render::{self, Settings, Strategy, reference};
 use crate::sampling::{Counts, Heuristic, Material};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -39,7 +39,13 @@ pub struct Point {
 }
 
 /// Renders one point on a GPU backend and returns `(build_ms, shade_ms)`.
-pub type GpuTimer<'a> = dyn FnMut(&crate::envmap::CubeMap, &[Option<render::GPixel>], usize, &Settings) -> Result<(f64, f64)> + 'a;
+pub type GpuTimer<'a> = dyn FnMut(
+        &crate::envmap::CubeMap,
+        &[Option<render::GPixel>],
+        usize,
+        &Settings,
+    ) -> Result<(f64, f64)>
+    + 'a;
 
 /// Sweep configuration.
 pub struct Config {
@@ -53,8 +59,14 @@ pub struct Config {
 
 impl Config {
     pub fn new(quick: bool, maps: Option<&Path>) -> Result<Self> {
-        let mut envs: Vec<String> =
-            if quick { vec!["builtin:sky:10".into()] } else { ["builtin:sky:8", "builtin:sky:12", "builtin:sky:17"].iter().map(|s| s.to_string()).collect() };
+        let mut envs: Vec<String> = if quick {
+            vec!["builtin:sky:10".into()]
+        } else {
+            ["builtin:sky:8", "builtin:sky:12", "builtin:sky:17"]
+                .iter()
+                .map(|s| s.to_string())
+                .collect()
+        };
         if let Some(dir) = maps {
             let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
                 .map_err(|e| Error::file(dir, format!("cannot list: {e}")))?
@@ -68,7 +80,10 @@ impl Config {
             envs.extend(files.iter().map(|p| p.display().to_string()));
         }
         let materials = if quick {
-            vec![("diffuse".into(), Material::diffuse(0.8)), ("ggx 0.3".into(), Material::ggx(0.8, 0.3))]
+            vec![
+                ("diffuse".into(), Material::diffuse(0.8)),
+                ("ggx 0.3".into(), Material::ggx(0.8, 0.3)),
+            ]
         } else {
             vec![
                 ("diffuse".into(), Material::diffuse(0.8)),
@@ -77,7 +92,11 @@ impl Config {
                 ("ggx 0.05".into(), Material::ggx(0.8, 0.05)),
             ]
         };
-        let budgets = if quick { vec![4, 16, 64] } else { vec![4, 8, 16, 32, 64, 128, 256, 512] };
+        let budgets = if quick {
+            vec![4, 16, 64]
+        } else {
+            vec![4, 8, 16, 32, 64, 128, 256, 512]
+        };
         Ok(Config {
             envs,
             materials,
@@ -91,19 +110,59 @@ impl Config {
 
 /// The (label, settings) pairs swept at total budget `n`.
 fn strategies(n: usize) -> Vec<(String, Settings)> {
-    let half = Settings { light_samples: n / 2, brdf_samples: n - n / 2, ..Default::default() };
+    let half = Settings {
+        light_samples: n / 2,
+        brdf_samples: n - n / 2,
+        ..Default::default()
+    };
     let mut v = vec![
         ("paper-fractional".to_string(), half),
-        ("paper-integer".to_string(), Settings { counts: Counts::Integer, ..half }),
-        ("global".to_string(), Settings { strategy: Strategy::Global, mis: Heuristic::Power, ..half }),
-        ("light".to_string(), Settings { strategy: Strategy::Light, ..half }),
-        ("brdf".to_string(), Settings { strategy: Strategy::Brdf, ..half }),
+        (
+            "paper-integer".to_string(),
+            Settings {
+                counts: Counts::Integer,
+                ..half
+            },
+        ),
+        (
+            "global".to_string(),
+            Settings {
+                strategy: Strategy::Global,
+                mis: Heuristic::Power,
+                ..half
+            },
+        ),
+        (
+            "light".to_string(),
+            Settings {
+                strategy: Strategy::Light,
+                ..half
+            },
+        ),
+        (
+            "brdf".to_string(),
+            Settings {
+                strategy: Strategy::Brdf,
+                ..half
+            },
+        ),
     ];
     if n >= 8 {
         for (tag, nl) in [("L1/4", n / 4), ("L3/4", 3 * n / 4)] {
-            let s = Settings { light_samples: nl, brdf_samples: n - nl, ..Default::default() };
+            let s = Settings {
+                light_samples: nl,
+                brdf_samples: n - nl,
+                ..Default::default()
+            };
             v.push((format!("paper-fractional {tag}"), s));
-            v.push((format!("global {tag}"), Settings { strategy: Strategy::Global, mis: Heuristic::Power, ..s }));
+            v.push((
+                format!("global {tag}"),
+                Settings {
+                    strategy: Strategy::Global,
+                    mis: Heuristic::Power,
+                    ..s
+                },
+            ));
         }
     }
     v
@@ -111,36 +170,85 @@ fn strategies(n: usize) -> Vec<(String, Settings)> {
 
 /// Number of points [`sweep`] will measure.
 pub fn point_count(cfg: &Config) -> usize {
-    cfg.envs.len() * cfg.materials.len() * cfg.budgets.iter().map(|&n| strategies(n).len()).sum::<usize>()
+    cfg.envs.len()
+        * cfg.materials.len()
+        * cfg
+            .budgets
+            .iter()
+            .map(|&n| strategies(n).len())
+            .sum::<usize>()
 }
 
 /// A fingerprint of everything that decides the sweep's points: a resumed sweep must match it.
 pub fn fingerprint(cfg: &Config, gpu_device: Option<&str>) -> String {
-    let mats: Vec<String> = cfg.materials.iter().map(|(n, m)| format!("{n}={m:?}")).collect();
-    format!("envs={:?} materials={:?} budgets={:?} size={} face={} seeds={} gpu={gpu_device:?} version={}", cfg.envs, mats, cfg.budgets, cfg.size, cfg.face_size, cfg.seeds, env!("CARGO_PKG_VERSION"))
+    let mats: Vec<String> = cfg
+        .materials
+        .iter()
+        .map(|(n, m)| format!("{n}={m:?}"))
+        .collect();
+    format!(
+        "envs={:?} materials={:?} budgets={:?} size={} face={} seeds={} gpu={gpu_device:?} version={}",
+        cfg.envs,
+        mats,
+        cfg.budgets,
+        cfg.size,
+        cfg.face_size,
+        cfg.seeds,
+        env!("CARGO_PKG_VERSION")
+    )
 }
 
 /// Key of a point within a sweep.
-fn key(env: &str, material: &str, strategy: &str, budget: usize) -> (String, String, String, usize) {
-    (env.to_string(), material.to_string(), strategy.to_string(), budget)
+fn key(
+    env: &str,
+    material: &str,
+    strategy: &str,
+    budget: usize,
+) -> (String, String, String, usize) {
+    (
+        env.to_string(),
+        material.to_string(),
+        strategy.to_string(),
+        budget,
+    )
 }
 
 /// Run the sweep, calling `progress(done, total, point, resumed)` after each point. Points found
 /// in `resume` (from an interrupted run with the same [`fingerprint`]) are taken as they are,
 /// not measured again. With `gpu`, each measured point is also rendered (seed 0) and timed on
 /// the GPU backend.
-pub fn sweep(cfg: &Config, resume: &[Point], mut gpu: Option<&mut GpuTimer>, mut progress: impl FnMut(usize, usize, &Point, bool)) -> Result<Vec<Point>> {
+pub fn sweep(
+    cfg: &Config,
+    resume: &[Point],
+    mut gpu: Option<&mut GpuTimer>,
+    mut progress: impl FnMut(usize, usize, &Point, bool),
+) -> Result<Vec<Point>> {
     let total = point_count(cfg);
     let mut points = Vec::with_capacity(total);
-    let saved: std::collections::HashMap<_, &Point> = resume.iter().map(|p| (key(&p.env, &p.material, &p.strategy, p.budget), p)).collect();
+    let saved: std::collections::HashMap<_, &Point> = resume
+        .iter()
+        .map(|p| (key(&p.env, &p.material, &p.strategy, p.budget), p))
+        .collect();
     for env_name in &cfg.envs {
-        let todo = |mname: &str| cfg.budgets.iter().any(|&n| strategies(n).iter().any(|(label, _)| !saved.contains_key(&key(env_name, mname, label, n))));
+        let todo = |mname: &str| {
+            cfg.budgets.iter().any(|&n| {
+                strategies(n)
+                    .iter()
+                    .any(|(label, _)| !saved.contains_key(&key(env_name, mname, label, n)))
+            })
+        };
         // An environment whose points were all resumed is not even loaded.
-        let env = if cfg.materials.iter().any(|(m, _)| todo(m)) { Some(load_env(&env_name.parse::<EnvSource>()?, cfg.face_size)?) } else { None };
+        let env = if cfg.materials.iter().any(|(m, _)| todo(m)) {
+            Some(load_env(&env_name.parse::<EnvSource>()?, cfg.face_size)?)
+        } else {
+            None
+        };
         for (mname, mat) in &cfg.materials {
             let gbuf = render::sphere_gbuffer(cfg.size, cfg.size, *mat);
             let refimg = match &env {
-                Some(env) if todo(mname) => reference::reference_image(&env.cube, &gbuf, cfg.size, cfg.size, 1.0).1,
+                Some(env) if todo(mname) => {
+                    reference::reference_image(&env.cube, &gbuf, cfg.size, cfg.size, 1.0).1
+                }
                 _ => Vec::new(),
             };
             let ref_rgb: Vec<glam::Vec3> = refimg.iter().map(|c| c.as_vec3()).collect();
@@ -152,19 +260,32 @@ pub fn sweep(cfg: &Config, resume: &[Point], mut gpu: Option<&mut GpuTimer>, mut
                         points.push((*p).clone());
                         continue;
                     }
-                    let Some(env) = &env else { unreachable!("a point to measure means its environment was loaded") };
-                    let (mut relmse, mut mse, mut build, mut shade, mut wasted, mut flip) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+                    let Some(env) = &env else {
+                        unreachable!("a point to measure means its environment was loaded")
+                    };
+                    let (mut relmse, mut mse, mut build, mut shade, mut wasted, mut flip) =
+                        (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
                     for seed in 0..cfg.seeds {
-                        let out = render::render(&env.cube, &gbuf, cfg.size, cfg.size, &Settings { seed, ..s })?;
+                        let out = render::render(
+                            &env.cube,
+                            &gbuf,
+                            cfg.size,
+                            cfg.size,
+                            &Settings { seed, ..s },
+                        )?;
                         for &i in &idx {
-                            let (x, r) = (luminance_f64(out.image.data[i].as_dvec3()), luminance_f64(refimg[i]));
+                            let (x, r) = (
+                                luminance_f64(out.image.data[i].as_dvec3()),
+                                luminance_f64(refimg[i]),
+                            );
                             relmse += (x - r) * (x - r) / (r * r + 1e-2);
                             mse += (x - r) * (x - r);
                         }
                         build += out.stats.build_ms;
                         shade += out.stats.shade_ms;
                         wasted += out.stats.wasted;
-                        flip += super::flip::hdr_flip(&ref_rgb, &out.image.data, cfg.size, cfg.size).1 as f64;
+                        flip += super::flip::hdr_flip(&ref_rgb, &out.image.data, cfg.size, cfg.size)
+                            .1 as f64;
                     }
                     let (gpu_build_ms, gpu_shade_ms) = match gpu.as_deref_mut() {
                         Some(time) => {
@@ -210,7 +331,9 @@ pub fn sweep(cfg: &Config, resume: &[Point], mut gpu: Option<&mut GpuTimer>, mut
 /// error than every faster point.
 pub fn pareto_front(pts: &[Point]) -> Vec<usize> {
     let mut order: Vec<usize> = (0..pts.len()).collect();
-    order.sort_by(|&a, &b| (pts[a].build_ms + pts[a].shade_ms).total_cmp(&(pts[b].build_ms + pts[b].shade_ms)));
+    order.sort_by(|&a, &b| {
+        (pts[a].build_ms + pts[a].shade_ms).total_cmp(&(pts[b].build_ms + pts[b].shade_ms))
+    });
     let mut best = f64::INFINITY;
     order
         .into_iter()
@@ -242,10 +365,17 @@ fn mean(xs: impl Iterator<Item = f64>) -> f64 {
 
 /// Points of one material pooled over environments (geometric means), one per (strategy, N).
 fn pooled(pts: &[Point], material: &str) -> Vec<Point> {
-    let keys: std::collections::BTreeSet<(String, usize)> = pts.iter().filter(|p| p.material == material).map(|p| (p.strategy.clone(), p.budget)).collect();
+    let keys: std::collections::BTreeSet<(String, usize)> = pts
+        .iter()
+        .filter(|p| p.material == material)
+        .map(|p| (p.strategy.clone(), p.budget))
+        .collect();
     keys.into_iter()
         .map(|(s, n)| {
-            let sel: Vec<&Point> = pts.iter().filter(|p| p.material == material && p.strategy == s && p.budget == n).collect();
+            let sel: Vec<&Point> = pts
+                .iter()
+                .filter(|p| p.material == material && p.strategy == s && p.budget == n)
+                .collect();
             Point {
                 env: "geomean".into(),
                 material: material.into(),
@@ -259,16 +389,33 @@ fn pooled(pts: &[Point], material: &str) -> Vec<Point> {
                 shade_ms: geomean(sel.iter().map(|p| p.shade_ms)),
                 wasted: mean(sel.iter().map(|p| p.wasted)),
                 flip: mean(sel.iter().map(|p| p.flip)),
-                gpu_build_ms: sel.iter().all(|p| p.gpu_build_ms.is_some()).then(|| geomean(sel.iter().filter_map(|p| p.gpu_build_ms))),
-                gpu_shade_ms: sel.iter().all(|p| p.gpu_shade_ms.is_some()).then(|| geomean(sel.iter().filter_map(|p| p.gpu_shade_ms))),
+                gpu_build_ms: sel
+                    .iter()
+                    .all(|p| p.gpu_build_ms.is_some())
+                    .then(|| geomean(sel.iter().filter_map(|p| p.gpu_build_ms))),
+                gpu_shade_ms: sel
+                    .iter()
+                    .all(|p| p.gpu_shade_ms.is_some())
+                    .then(|| geomean(sel.iter().filter_map(|p| p.gpu_shade_ms))),
             }
         })
         .collect()
 }
 
 /// A Markdown table: one row per budget, one column per strategy, `cell` for each pooled point.
-fn strategy_table(md: &mut String, budgets: &[usize], pool: &[Point], strategies: &[&str], cell: impl Fn(&Point) -> String) {
-    let _ = writeln!(md, "| N | {} |\n|---:|{}", strategies.join(" | "), "---:|".repeat(strategies.len()));
+fn strategy_table(
+    md: &mut String,
+    budgets: &[usize],
+    pool: &[Point],
+    strategies: &[&str],
+    cell: impl Fn(&Point) -> String,
+) {
+    let _ = writeln!(
+        md,
+        "| N | {} |\n|---:|{}",
+        strategies.join(" | "),
+        "---:|".repeat(strategies.len())
+    );
     for &n in budgets {
         let _ = write!(md, "| {n} |");
         for s in strategies {
@@ -301,27 +448,64 @@ pub fn report(cfg: &Config, pts: &[Point], command: &str, gpu_device: Option<&st
         "FLIP is the mean HDR-FLIP (Andersson et al. 2021, `src/bench/flip.rs`, checked against NVIDIA's flip-evaluator) of the image against the reference, 67 pixels per degree. GPU: {}.\n",
         gpu_device.map_or("not run (no GPU backend in this build, or no adapter)".to_string(), |d| format!("each point also rendered once (seed 0) on {d}; build and shade times are timestamp queries, or wall time where the device has none"))
     );
-    let main = ["paper-fractional", "paper-integer", "global", "light", "brdf"];
+    let main = [
+        "paper-fractional",
+        "paper-integer",
+        "global",
+        "light",
+        "brdf",
+    ];
     for (mname, _) in &cfg.materials {
         let pool = pooled(pts, mname);
-        let _ = writeln!(md, "## {mname}\n\nGeometric mean over environments of relMSE (time in ms). N_L = N_B = N/2 where both are used:\n");
-        strategy_table(&mut md, &cfg.budgets, &pool, &main, |p| format!("{:.3e} ({:.2})", p.relmse, p.build_ms + p.shade_ms));
-        let _ = writeln!(md, "\nMean HDR-FLIP{}:\n", if gpu_device.is_some() { " (GPU build + shade ms)" } else { "" });
-        strategy_table(&mut md, &cfg.budgets, &pool, &main, |p| match (p.gpu_build_ms, p.gpu_shade_ms) {
-            (Some(b), Some(t)) => format!("{:.4} ({:.2})", p.flip, b + t),
-            _ => format!("{:.4}", p.flip),
+        let _ = writeln!(
+            md,
+            "## {mname}\n\nGeometric mean over environments of relMSE (time in ms). N_L = N_B = N/2 where both are used:\n"
+        );
+        strategy_table(&mut md, &cfg.budgets, &pool, &main, |p| {
+            format!("{:.3e} ({:.2})", p.relmse, p.build_ms + p.shade_ms)
+        });
+        let _ = writeln!(
+            md,
+            "\nMean HDR-FLIP{}:\n",
+            if gpu_device.is_some() {
+                " (GPU build + shade ms)"
+            } else {
+                ""
+            }
+        );
+        strategy_table(&mut md, &cfg.budgets, &pool, &main, |p| {
+            match (p.gpu_build_ms, p.gpu_shade_ms) {
+                (Some(b), Some(t)) => format!("{:.4} ({:.2})", p.flip, b + t),
+                _ => format!("{:.4}", p.flip),
+            }
         });
         let (mut wins, mut cases) = (0, 0);
         for env in &cfg.envs {
             for &n in &cfg.budgets {
-                let get = |s: &str| pts.iter().find(|p| &p.env == env && &p.material == mname && p.strategy == s && p.budget == n).map(|p| p.relmse);
+                let get = |s: &str| {
+                    pts.iter()
+                        .find(|p| {
+                            &p.env == env
+                                && &p.material == mname
+                                && p.strategy == s
+                                && p.budget == n
+                        })
+                        .map(|p| p.relmse)
+                };
                 if let (Some(a), Some(b)) = (get("paper-fractional"), get("global")) {
                     cases += 1;
                     wins += (a < b) as usize;
                 }
             }
         }
-        let wasted = |s: &str| 100.0 * mean(pts.iter().filter(|p| &p.material == mname && p.strategy == s).map(|p| p.wasted));
+        let wasted = |s: &str| {
+            100.0
+                * mean(
+                    pts.iter()
+                        .filter(|p| &p.material == mname && p.strategy == s)
+                        .map(|p| p.wasted),
+                )
+        };
         let _ = writeln!(
             md,
             "\npaper-fractional has lower relMSE than global in **{wins} of {cases}** (environment, N) cases at equal samples. Mean wasted (negative-cosine) light-sample fraction: paper-fractional {:.1}%, global {:.1}%, light {:.1}%.\n",
@@ -329,10 +513,21 @@ pub fn report(cfg: &Config, pts: &[Point], command: &str, gpu_device: Option<&st
             wasted("global"),
             wasted("light")
         );
-        let _ = writeln!(md, "Pareto front (error vs time, pooled over environments):\n\n| strategy | N_L + N_B | time (ms) | relMSE |\n|---|---:|---:|---:|");
+        let _ = writeln!(
+            md,
+            "Pareto front (error vs time, pooled over environments):\n\n| strategy | N_L + N_B | time (ms) | relMSE |\n|---|---:|---:|---:|"
+        );
         for i in pareto_front(&pool) {
             let p = &pool[i];
-            let _ = writeln!(md, "| {} | {} + {} | {:.2} | {:.3e} |", p.strategy, p.light_samples, p.brdf_samples, p.build_ms + p.shade_ms, p.relmse);
+            let _ = writeln!(
+                md,
+                "| {} | {} + {} | {:.2} | {:.3e} |",
+                p.strategy,
+                p.light_samples,
+                p.brdf_samples,
+                p.build_ms + p.shade_ms,
+                p.relmse
+            );
         }
         md.push('\n');
     }
@@ -341,13 +536,28 @@ pub fn report(cfg: &Config, pts: &[Point], command: &str, gpu_device: Option<&st
 
 /// CSV of all points (one header line).
 pub fn csv(pts: &[Point]) -> String {
-    let mut s = String::from("env,material,strategy,light_samples,brdf_samples,budget,relmse,rmse,build_ms,shade_ms,wasted,flip,gpu_build_ms,gpu_shade_ms\n");
+    let mut s = String::from(
+        "env,material,strategy,light_samples,brdf_samples,budget,relmse,rmse,build_ms,shade_ms,wasted,flip,gpu_build_ms,gpu_shade_ms\n",
+    );
     let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.4}"));
     for p in pts {
         let _ = writeln!(
             s,
             "\"{}\",\"{}\",\"{}\",{},{},{},{:.6e},{:.6e},{:.4},{:.4},{:.4},{:.5},{},{}",
-            p.env, p.material, p.strategy, p.light_samples, p.brdf_samples, p.budget, p.relmse, p.rmse, p.build_ms, p.shade_ms, p.wasted, p.flip, opt(p.gpu_build_ms), opt(p.gpu_shade_ms)
+            p.env,
+            p.material,
+            p.strategy,
+            p.light_samples,
+            p.brdf_samples,
+            p.budget,
+            p.relmse,
+            p.rmse,
+            p.build_ms,
+            p.shade_ms,
+            p.wasted,
+            p.flip,
+            opt(p.gpu_build_ms),
+            opt(p.gpu_shade_ms)
         );
     }
     s
@@ -355,10 +565,20 @@ pub fn csv(pts: &[Point]) -> String {
 
 pub use super::chart::{Chart, Series};
 
-const MAIN: [(&str, &str); 5] = [("paper-fractional", "#d62728"), ("paper-integer", "#ff9896"), ("global", "#1f77b4"), ("light", "#2ca02c"), ("brdf", "#9467bd")];
+const MAIN: [(&str, &str); 5] = [
+    ("paper-fractional", "#d62728"),
+    ("paper-integer", "#ff9896"),
+    ("global", "#1f77b4"),
+    ("light", "#2ca02c"),
+    ("brdf", "#9467bd"),
+];
 
 /// One series per main strategy through its budgets, `(x, y)` picked from the pooled points.
-fn strategy_series(pool: &[Point], x: impl Fn(&Point) -> f64, y: impl Fn(&Point) -> f64) -> Vec<Series> {
+fn strategy_series(
+    pool: &[Point],
+    x: impl Fn(&Point) -> f64,
+    y: impl Fn(&Point) -> f64,
+) -> Vec<Series> {
     MAIN.iter()
         .map(|(name, color)| {
             let mut line: Vec<&Point> = pool.iter().filter(|p| p.strategy == *name).collect();
@@ -379,33 +599,72 @@ pub fn plot_error_vs_time(pts: &[Point], material: &str) -> Chart {
     let pool = pooled(pts, material);
     let t = |p: &Point| p.build_ms + p.shade_ms;
     let mut series = strategy_series(&pool, t, |p| p.relmse);
-    let front = pareto_front(&pool).into_iter().map(|i| (t(&pool[i]), pool[i].relmse)).collect();
-    series.push(Series { name: "Pareto front (all)".into(), color: "#000000", points: front, dashed: true });
+    let front = pareto_front(&pool)
+        .into_iter()
+        .map(|i| (t(&pool[i]), pool[i].relmse))
+        .collect();
+    series.push(Series {
+        name: "Pareto front (all)".into(),
+        color: "#000000",
+        points: front,
+        dashed: true,
+    });
     let title = format!("{material}: relMSE vs time (geometric mean over environments)");
-    Chart { title, xlabel: "time per frame, ms (build + shade, CPU)", ylabel: "relMSE", xlog: true, ylog: true, series }
+    Chart {
+        title,
+        xlabel: "time per frame, ms (build + shade, CPU)",
+        ylabel: "relMSE",
+        xlog: true,
+        ylog: true,
+        series,
+    }
 }
 
 /// Error against the sample budget N = N_L + N_B (log-log) for one material.
 pub fn plot_error_vs_samples(pts: &[Point], material: &str) -> Chart {
     let pool = pooled(pts, material);
     let title = format!("{material}: relMSE vs samples per pixel");
-    Chart { title, xlabel: "samples per pixel, N = N_L + N_B", ylabel: "relMSE", xlog: true, ylog: true, series: strategy_series(&pool, |p| p.budget as f64, |p| p.relmse) }
+    Chart {
+        title,
+        xlabel: "samples per pixel, N = N_L + N_B",
+        ylabel: "relMSE",
+        xlog: true,
+        ylog: true,
+        series: strategy_series(&pool, |p| p.budget as f64, |p| p.relmse),
+    }
 }
 
 /// The fraction of light samples wasted on negative cosines, against the budget, per strategy
 /// (mean over materials and environments).
 pub fn plot_wasted(pts: &[Point]) -> Chart {
-    let keys: std::collections::BTreeSet<(String, usize)> = pts.iter().map(|p| (p.strategy.clone(), p.budget)).collect();
+    let keys: std::collections::BTreeSet<(String, usize)> =
+        pts.iter().map(|p| (p.strategy.clone(), p.budget)).collect();
     let pool: Vec<Point> = keys
         .into_iter()
         .map(|(st, n)| {
-            let sel: Vec<&Point> = pts.iter().filter(|p| p.strategy == st && p.budget == n).collect();
-            Point { wasted: mean(sel.iter().map(|p| p.wasted)), ..sel[0].clone() }
+            let sel: Vec<&Point> = pts
+                .iter()
+                .filter(|p| p.strategy == st && p.budget == n)
+                .collect();
+            Point {
+                wasted: mean(sel.iter().map(|p| p.wasted)),
+                ..sel[0].clone()
+            }
         })
         .filter(|p| p.strategy != "brdf")
         .collect();
-    let series = strategy_series(&pool, |p| p.budget as f64, |p| 100.0 * p.wasted).into_iter().filter(|s| !s.points.is_empty()).collect();
-    Chart { title: "Light samples wasted on negative cosines (mean over materials and maps)".into(), xlabel: "samples per pixel, N = N_L + N_B", ylabel: "wasted light samples, %", xlog: true, ylog: false, series }
+    let series = strategy_series(&pool, |p| p.budget as f64, |p| 100.0 * p.wasted)
+        .into_iter()
+        .filter(|s| !s.points.is_empty())
+        .collect();
+    Chart {
+        title: "Light samples wasted on negative cosines (mean over materials and maps)".into(),
+        xlabel: "samples per pixel, N = N_L + N_B",
+        ylabel: "wasted light samples, %",
+        xlog: true,
+        ylog: false,
+        series,
+    }
 }
 
 /// File stem of a material's plots: `accuracy-<material>` with spaces and dots made dashes.

@@ -46,8 +46,18 @@ fn rgb(hex: &str) -> RGBColor {
 impl Chart {
     /// Axis range in plot coordinates (log10 of the data on a log axis), whole decades on log axes.
     fn range(&self, pick: impl Fn(&(f64, f64)) -> f64, log: bool) -> (f64, f64) {
-        let v: Vec<f64> = self.series.iter().flat_map(|s| s.points.iter()).map(pick).filter(|v| v.is_finite() && (!log || *v > 0.0)).map(|v| if log { v.log10() } else { v }).collect();
-        let (lo, hi) = (v.iter().copied().fold(f64::INFINITY, f64::min), v.iter().copied().fold(f64::NEG_INFINITY, f64::max));
+        let v: Vec<f64> = self
+            .series
+            .iter()
+            .flat_map(|s| s.points.iter())
+            .map(pick)
+            .filter(|v| v.is_finite() && (!log || *v > 0.0))
+            .map(|v| if log { v.log10() } else { v })
+            .collect();
+        let (lo, hi) = (
+            v.iter().copied().fold(f64::INFINITY, f64::min),
+            v.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        );
         if v.is_empty() {
             (0.0, 1.0)
         } else if log {
@@ -57,7 +67,10 @@ impl Chart {
         }
     }
 
-    fn draw<DB: DrawingBackend>(&self, root: DrawingArea<DB, Shift>) -> std::result::Result<(), String> {
+    fn draw<DB: DrawingBackend>(
+        &self,
+        root: DrawingArea<DB, Shift>,
+    ) -> std::result::Result<(), String> {
         let e = |x: DrawingAreaErrorKind<DB::ErrorType>| x.to_string();
         root.fill(&WHITE).map_err(e)?;
         let (x0, x1) = self.range(|p| p.0, self.xlog);
@@ -71,12 +84,25 @@ impl Chart {
             .build_cartesian_2d(x0..x1, y0..y1)
             .map_err(e)?;
         fn decade(v: &f64) -> String {
-            if (v - v.round()).abs() < 1e-6 { format!("1e{}", v.round() as i64) } else { String::new() }
+            if (v - v.round()).abs() < 1e-6 {
+                format!("1e{}", v.round() as i64)
+            } else {
+                String::new()
+            }
         }
         fn plain(v: &f64) -> String {
-            format!("{v:.3}").trim_end_matches('0').trim_end_matches('.').to_string()
+            format!("{v:.3}")
+                .trim_end_matches('0')
+                .trim_end_matches('.')
+                .to_string()
         }
-        let pick = |log: bool| if log { decade as fn(&f64) -> String } else { plain };
+        let pick = |log: bool| {
+            if log {
+                decade as fn(&f64) -> String
+            } else {
+                plain
+            }
+        };
         let (xf, yf) = (pick(self.xlog), pick(self.ylog));
         cc.configure_mesh()
             .x_desc(self.xlabel)
@@ -92,14 +118,31 @@ impl Chart {
             .map_err(e)?;
         for s in &self.series {
             let color = rgb(s.color);
-            let pts: Vec<(f64, f64)> = s.points.iter().filter(|p| p.0.is_finite() && p.1.is_finite()).map(|p| (to(self.xlog, p.0), to(self.ylog, p.1))).collect();
-            let style = ShapeStyle { color: color.to_rgba(), filled: false, stroke_width: if s.dashed { 1 } else { 2 } };
-            let legend = move |(x, y): (i32, i32)| PathElement::new(vec![(x, y), (x + 20, y)], style);
+            let pts: Vec<(f64, f64)> = s
+                .points
+                .iter()
+                .filter(|p| p.0.is_finite() && p.1.is_finite())
+                .map(|p| (to(self.xlog, p.0), to(self.ylog, p.1)))
+                .collect();
+            let style = ShapeStyle {
+                color: color.to_rgba(),
+                filled: false,
+                stroke_width: if s.dashed { 1 } else { 2 },
+            };
+            let legend =
+                move |(x, y): (i32, i32)| PathElement::new(vec![(x, y), (x + 20, y)], style);
             if s.dashed {
-                cc.draw_series(DashedLineSeries::new(pts, 5, 4, style)).map_err(e)?.label(s.name.as_str()).legend(legend);
+                cc.draw_series(DashedLineSeries::new(pts, 5, 4, style))
+                    .map_err(e)?
+                    .label(s.name.as_str())
+                    .legend(legend);
             } else {
-                cc.draw_series(LineSeries::new(pts.iter().copied(), style)).map_err(e)?.label(s.name.as_str()).legend(legend);
-                cc.draw_series(pts.iter().map(|p| Circle::new(*p, 3, color.filled()))).map_err(e)?;
+                cc.draw_series(LineSeries::new(pts.iter().copied(), style))
+                    .map_err(e)?
+                    .label(s.name.as_str())
+                    .legend(legend);
+                cc.draw_series(pts.iter().map(|p| Circle::new(*p, 3, color.filled())))
+                    .map_err(e)?;
             }
         }
         cc.configure_series_labels()
@@ -116,7 +159,8 @@ impl Chart {
     pub fn svg(&self) -> Result<String> {
         register_font();
         let mut s = String::new();
-        self.draw(SVGBackend::with_string(&mut s, SIZE).into_drawing_area()).map_err(|e| Error::invalid(format!("chart '{}': {e}", self.title)))?;
+        self.draw(SVGBackend::with_string(&mut s, SIZE).into_drawing_area())
+            .map_err(|e| Error::invalid(format!("chart '{}': {e}", self.title)))?;
         s.push('\n');
         Ok(s)
     }
@@ -125,7 +169,8 @@ impl Chart {
     pub fn rgb8(&self) -> Result<Vec<u8>> {
         register_font();
         let mut buf = vec![0u8; (SIZE.0 * SIZE.1 * 3) as usize];
-        self.draw(BitMapBackend::with_buffer(&mut buf, SIZE).into_drawing_area()).map_err(|e| Error::invalid(format!("chart '{}': {e}", self.title)))?;
+        self.draw(BitMapBackend::with_buffer(&mut buf, SIZE).into_drawing_area())
+            .map_err(|e| Error::invalid(format!("chart '{}': {e}", self.title)))?;
         Ok(buf)
     }
 
@@ -133,8 +178,14 @@ impl Chart {
     pub fn write(&self, dir: &Path, stem: &str) -> Result<(String, String)> {
         let (svg, png) = (format!("{stem}.svg"), format!("{stem}.png"));
         let p = dir.join(&svg);
-        std::fs::write(&p, self.svg()?).map_err(|e| Error::file(&p, format!("cannot write: {e}")))?;
-        crate::render::output::write_png_rgb8(&dir.join(&png), SIZE.0 as usize, SIZE.1 as usize, &self.rgb8()?)?;
+        std::fs::write(&p, self.svg()?)
+            .map_err(|e| Error::file(&p, format!("cannot write: {e}")))?;
+        crate::render::output::write_png_rgb8(
+            &dir.join(&png),
+            SIZE.0 as usize,
+            SIZE.1 as usize,
+            &self.rgb8()?,
+        )?;
         Ok((svg, png))
     }
 }

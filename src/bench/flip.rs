@@ -32,22 +32,43 @@ const WHITE: Vec3 = Vec3::new(0.950428545, 1.0, 1.088900371);
 const INV_WHITE: Vec3 = Vec3::new(1.052156925, 1.0, 0.918357670);
 
 /// ACES (Narkowicz fit, with FLIP's 0.6 pre-exposure folded in): `y = (k0 x^2 + k1 x + k2) / (k3 x^2 + k4 x + k5)`.
-const ACES: [f32; 6] = [0.6 * 0.6 * 2.51, 0.6 * 0.03, 0.0, 0.6 * 0.6 * 2.43, 0.6 * 0.59, 0.14];
+const ACES: [f32; 6] = [
+    0.6 * 0.6 * 2.51,
+    0.6 * 0.03,
+    0.0,
+    0.6 * 0.6 * 2.43,
+    0.6 * 0.59,
+    0.14,
+];
 
 #[inline]
 fn srgb_to_linear(x: f32) -> f32 {
-    if x > 0.04045 { ((x + 0.055) / 1.055).powf(2.4) } else { x / 12.92 }
+    if x > 0.04045 {
+        ((x + 0.055) / 1.055).powf(2.4)
+    } else {
+        x / 12.92
+    }
 }
 #[inline]
 fn linear_to_srgb(x: f32) -> f32 {
-    if x > 0.0031308 { 1.055 * x.powf(1.0 / 2.4) - 0.055 } else { 12.92 * x }
+    if x > 0.0031308 {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    } else {
+        12.92 * x
+    }
 }
 #[inline]
 fn rgb_to_xyz(c: Vec3) -> Vec3 {
     Vec3::new(
-        (10135552.0 / 24577794.0) * c.x + (8788810.0 / 24577794.0) * c.y + (4435075.0 / 24577794.0) * c.z,
-        (2613072.0 / 12288897.0) * c.x + (8788810.0 / 12288897.0) * c.y + (887015.0 / 12288897.0) * c.z,
-        (1425312.0 / 73733382.0) * c.x + (8788810.0 / 73733382.0) * c.y + (70074185.0 / 73733382.0) * c.z,
+        (10135552.0 / 24577794.0) * c.x
+            + (8788810.0 / 24577794.0) * c.y
+            + (4435075.0 / 24577794.0) * c.z,
+        (2613072.0 / 12288897.0) * c.x
+            + (8788810.0 / 12288897.0) * c.y
+            + (887015.0 / 12288897.0) * c.z,
+        (1425312.0 / 73733382.0) * c.x
+            + (8788810.0 / 73733382.0) * c.y
+            + (70074185.0 / 73733382.0) * c.z,
     )
 }
 #[inline]
@@ -74,10 +95,20 @@ fn ycxcz_to_xyz(c: Vec3) -> Vec3 {
 fn xyz_to_hunt_lab(c: Vec3) -> Vec3 {
     let c = c * INV_WHITE;
     const D: f32 = 6.0 / 29.0;
-    let f = |t: f32| if t > D * D * D { t.cbrt() } else { t / (3.0 * D * D) + 4.0 / 29.0 };
+    let f = |t: f32| {
+        if t > D * D * D {
+            t.cbrt()
+        } else {
+            t / (3.0 * D * D) + 4.0 / 29.0
+        }
+    };
     let (fx, fy, fz) = (f(c.x), f(c.y), f(c.z));
     let l = 116.0 * fy - 16.0;
-    Vec3::new(l, 0.01 * l * 500.0 * (fx - fy), 0.01 * l * 200.0 * (fy - fz))
+    Vec3::new(
+        l,
+        0.01 * l * 500.0 * (fx - fy),
+        0.01 * l * 200.0 * (fy - fz),
+    )
 }
 /// HyAB distance: `|dL| + ||(da, db)||`.
 #[inline]
@@ -113,7 +144,10 @@ fn correlate_1d(src: &[f32], w: usize, h: usize, k: &[f32], step: (isize, isize)
             let mut s = 0.0;
             for (i, kv) in k.iter().enumerate() {
                 let d = i as isize - r;
-                let (xx, yy) = ((x + d * step.0).clamp(0, w as isize - 1), (y + d * step.1).clamp(0, h as isize - 1));
+                let (xx, yy) = (
+                    (x + d * step.0).clamp(0, w as isize - 1),
+                    (y + d * step.1).clamp(0, h as isize - 1),
+                );
                 s += kv * src[yy as usize * w + xx as usize];
             }
             out[y as usize * w + x as usize] = s;
@@ -129,14 +163,27 @@ fn csf_filter(ppd: f32, (a1, b1, a2, b2): (f32, f32, f32, f32)) -> Vec<Separable
     const MAX_B: f32 = 0.04;
     let r = (3.0 * (MAX_B / (2.0 * std::f32::consts::PI.powi(2))).sqrt() * ppd).ceil() as isize;
     let pi2 = std::f32::consts::PI.powi(2);
-    let gauss = |b: f32| -> Vec<f32> { (-r..=r).map(|i| (-pi2 * (i as f32 / ppd).powi(2) / b).exp()).collect() };
+    let gauss = |b: f32| -> Vec<f32> {
+        (-r..=r)
+            .map(|i| (-pi2 * (i as f32 / ppd).powi(2) / b).exp())
+            .collect()
+    };
     let (g1, g2) = (gauss(b1), gauss(b2));
     let (s1, s2) = (g1.iter().sum::<f32>(), g2.iter().sum::<f32>());
-    let (c1, c2) = (a1 * (std::f32::consts::PI / b1).sqrt(), a2 * (std::f32::consts::PI / b2).sqrt());
+    let (c1, c2) = (
+        a1 * (std::f32::consts::PI / b1).sqrt(),
+        a2 * (std::f32::consts::PI / b2).sqrt(),
+    );
     let total = c1 * s1 * s1 + c2 * s2 * s2;
-    let mut terms = vec![Separable { kx: g1.iter().map(|g| g * c1 / total).collect(), ky: g1 }];
+    let mut terms = vec![Separable {
+        kx: g1.iter().map(|g| g * c1 / total).collect(),
+        ky: g1,
+    }];
     if a2 != 0.0 {
-        terms.push(Separable { kx: g2.iter().map(|g| g * c2 / total).collect(), ky: g2 });
+        terms.push(Separable {
+            kx: g2.iter().map(|g| g * c2 / total).collect(),
+            ky: g2,
+        });
     }
     terms
 }
@@ -147,38 +194,83 @@ fn csf_filter(ppd: f32, (a1, b1, a2, b2): (f32, f32, f32, f32)) -> Vec<Separable
 fn feature_filter(ppd: f32, point: bool) -> Separable {
     let sd = 0.5 * 0.082 * ppd;
     let r = (3.0 * sd).ceil() as isize;
-    let g: Vec<f32> = (-r..=r).map(|i| (-((i * i) as f32) / (2.0 * sd * sd)).exp()).collect();
-    let f: Vec<f32> = (-r..=r).zip(&g).map(|(i, g)| if point { ((i * i) as f32 / (sd * sd) - 1.0) * g } else { -(i as f32) * g }).collect();
+    let g: Vec<f32> = (-r..=r)
+        .map(|i| (-((i * i) as f32) / (2.0 * sd * sd)).exp())
+        .collect();
+    let f: Vec<f32> = (-r..=r)
+        .zip(&g)
+        .map(|(i, g)| {
+            if point {
+                ((i * i) as f32 / (sd * sd) - 1.0) * g
+            } else {
+                -(i as f32) * g
+            }
+        })
+        .collect();
     let gs: f32 = g.iter().sum();
     let pos: f32 = f.iter().filter(|v| **v > 0.0).sum::<f32>() * gs;
     let neg: f32 = -f.iter().filter(|v| **v < 0.0).sum::<f32>() * gs;
-    Separable { kx: f.iter().map(|v| if *v < 0.0 { v / neg } else { v / pos }).collect(), ky: g }
+    Separable {
+        kx: f
+            .iter()
+            .map(|v| if *v < 0.0 { v / neg } else { v / pos })
+            .collect(),
+        ky: g,
+    }
 }
 
 /// Per-pixel LDR-FLIP of two sRGB-encoded images (values in `[0, 1]`, row-major `w x h`).
 pub fn ldr_flip(reference: &[Vec3], test: &[Vec3], w: usize, h: usize, ppd: f32) -> Vec<f32> {
     assert_eq!(reference.len(), w * h);
     assert_eq!(test.len(), w * h);
-    let filters = [csf_filter(ppd, (1.0, 0.0047, 0.0, 1e-5)), csf_filter(ppd, (1.0, 0.0053, 0.0, 1e-5)), csf_filter(ppd, (34.1, 0.04, 13.5, 0.025))];
+    let filters = [
+        csf_filter(ppd, (1.0, 0.0047, 0.0, 1e-5)),
+        csf_filter(ppd, (1.0, 0.0053, 0.0, 1e-5)),
+        csf_filter(ppd, (34.1, 0.04, 13.5, 0.025)),
+    ];
     let (edge, point) = (feature_filter(ppd, false), feature_filter(ppd, true));
-    let transpose = |s: &Separable| Separable { kx: s.ky.clone(), ky: s.kx.clone() };
+    let transpose = |s: &Separable| Separable {
+        kx: s.ky.clone(),
+        ky: s.kx.clone(),
+    };
     let (edge_t, point_t) = (transpose(&edge), transpose(&point));
 
     // Per image: filtered Hunt-adjusted Lab, edge magnitude and point magnitude.
     let prepare = |img: &[Vec3]| {
-        let opp: Vec<Vec3> = img.iter().map(|c| xyz_to_ycxcz(rgb_to_xyz(c.to_array().map(srgb_to_linear).into()))).collect();
+        let opp: Vec<Vec3> = img
+            .iter()
+            .map(|c| xyz_to_ycxcz(rgb_to_xyz(c.to_array().map(srgb_to_linear).into())))
+            .collect();
         let channel = |k: usize| -> Vec<f32> { opp.iter().map(|c| c[k]).collect() };
-        let filtered: Vec<Vec<f32>> = (0..3).map(|k| filter(&channel(k), w, h, &filters[k])).collect();
+        let filtered: Vec<Vec<f32>> = (0..3)
+            .map(|k| filter(&channel(k), w, h, &filters[k]))
+            .collect();
         let lab: Vec<Vec3> = (0..w * h)
             .map(|i| {
-                let rgb = xyz_to_rgb(ycxcz_to_xyz(Vec3::new(filtered[0][i], filtered[1][i], filtered[2][i]))).clamp(Vec3::ZERO, Vec3::ONE);
+                let rgb = xyz_to_rgb(ycxcz_to_xyz(Vec3::new(
+                    filtered[0][i],
+                    filtered[1][i],
+                    filtered[2][i],
+                )))
+                .clamp(Vec3::ZERO, Vec3::ONE);
                 xyz_to_hunt_lab(rgb_to_xyz(rgb))
             })
             .collect();
         let y: Vec<f32> = opp.iter().map(|c| (c.x + 16.0) / 116.0).collect();
-        let mag = |a: Vec<f32>, b: Vec<f32>| -> Vec<f32> { a.iter().zip(&b).map(|(a, b)| (a * a + b * b).sqrt()).collect() };
-        let edges = mag(filter(&y, w, h, std::slice::from_ref(&edge)), filter(&y, w, h, std::slice::from_ref(&edge_t)));
-        let points = mag(filter(&y, w, h, std::slice::from_ref(&point)), filter(&y, w, h, std::slice::from_ref(&point_t)));
+        let mag = |a: Vec<f32>, b: Vec<f32>| -> Vec<f32> {
+            a.iter()
+                .zip(&b)
+                .map(|(a, b)| (a * a + b * b).sqrt())
+                .collect()
+        };
+        let edges = mag(
+            filter(&y, w, h, std::slice::from_ref(&edge)),
+            filter(&y, w, h, std::slice::from_ref(&edge_t)),
+        );
+        let points = mag(
+            filter(&y, w, h, std::slice::from_ref(&point)),
+            filter(&y, w, h, std::slice::from_ref(&point_t)),
+        );
         (lab, edges, points)
     };
     let (lr, er, pr) = prepare(reference);
@@ -187,13 +279,22 @@ pub fn ldr_flip(reference: &[Vec3], test: &[Vec3], w: usize, h: usize, ppd: f32)
     const QC: f32 = 0.7;
     const PC: f32 = 0.4;
     const PT: f32 = 0.95;
-    let cmax = hyab(xyz_to_hunt_lab(rgb_to_xyz(Vec3::Y)), xyz_to_hunt_lab(rgb_to_xyz(Vec3::Z))).powf(QC);
+    let cmax = hyab(
+        xyz_to_hunt_lab(rgb_to_xyz(Vec3::Y)),
+        xyz_to_hunt_lab(rgb_to_xyz(Vec3::Z)),
+    )
+    .powf(QC);
     let pccmax = PC * cmax;
     (0..w * h)
         .map(|i| {
             let e = hyab(lr[i], lt[i]).powf(QC);
-            let dc = if e < pccmax { (PT / pccmax) * e } else { PT + ((e - pccmax) / (cmax - pccmax)) * (1.0 - PT) };
-            let df = ((er[i] - et[i]).abs().max((pr[i] - pt[i]).abs()) / std::f32::consts::SQRT_2).sqrt();
+            let dc = if e < pccmax {
+                (PT / pccmax) * e
+            } else {
+                PT + ((e - pccmax) / (cmax - pccmax)) * (1.0 - PT)
+            };
+            let df = ((er[i] - et[i]).abs().max((pr[i] - pt[i]).abs()) / std::f32::consts::SQRT_2)
+                .sqrt();
             dc.powf(1.0 - df)
         })
         .collect()
@@ -219,7 +320,10 @@ pub fn exposure_range(reference: &[Vec3]) -> (f32, f32, usize) {
     let c0 = (k1 - k4 * t) / (k0 - k3 * t);
     let c1 = (k2 - k5 * t) / (k0 - k3 * t);
     let x_max = -0.5 * c0 + (0.25 * c0 * c0 - c1).sqrt();
-    let mut lum: Vec<f32> = reference.iter().map(|c| 0.2126 * c.x.max(0.0) + 0.7152 * c.y.max(0.0) + 0.0722 * c.z.max(0.0)).collect();
+    let mut lum: Vec<f32> = reference
+        .iter()
+        .map(|c| 0.2126 * c.x.max(0.0) + 0.7152 * c.y.max(0.0) + 0.0722 * c.z.max(0.0))
+        .collect();
     lum.sort_by(f32::total_cmp);
     let y_hi = lum.last().copied().unwrap_or(0.0);
     if y_hi <= 0.0 || !y_hi.is_finite() {
@@ -232,7 +336,11 @@ pub fn exposure_range(reference: &[Vec3]) -> (f32, f32, usize) {
     let start = (x_max / y_hi).log2();
     // A reference that is black in more than half its pixels has no median exposure: one
     // exposure step past the start is then the range (FLIP itself would diverge).
-    let stop = if y_med > 0.0 { (x_max / y_med).log2() } else { start + 1.0 };
+    let stop = if y_med > 0.0 {
+        (x_max / y_med).log2()
+    } else {
+        start + 1.0
+    };
     (start, stop, ((stop - start).ceil() as usize).max(2))
 }
 
@@ -247,10 +355,22 @@ pub fn hdr_flip(reference: &[Vec3], test: &[Vec3], w: usize, h: usize) -> (Vec<f
         .into_par_iter()
         .map(|k| {
             let scale = (start + k as f32 * step).exp2();
-            let ldr = |img: &[Vec3]| -> Vec<Vec3> { img.iter().map(|c| (*c * scale).to_array().map(|x| linear_to_srgb(aces(x))).into()).collect() };
+            let ldr = |img: &[Vec3]| -> Vec<Vec3> {
+                img.iter()
+                    .map(|c| {
+                        (*c * scale)
+                            .to_array()
+                            .map(|x| linear_to_srgb(aces(x)))
+                            .into()
+                    })
+                    .collect()
+            };
             ldr_flip(&ldr(reference), &ldr(test), w, h, ppd)
         })
-        .reduce(|| vec![0.0f32; w * h], |a, b| a.iter().zip(&b).map(|(a, b)| a.max(*b)).collect());
+        .reduce(
+            || vec![0.0f32; w * h],
+            |a, b| a.iter().zip(&b).map(|(a, b)| a.max(*b)).collect(),
+        );
     let mean = map.iter().map(|&e| e as f64).sum::<f64>() / map.len().max(1) as f64;
     (map, mean as f32)
 }

@@ -7,11 +7,11 @@
 //! GPU figures are timestamp queries around each compute pass (when the device has them) and wall
 //! time from submission to completion; each is the median of `--repeat` runs after one warm-up.
 
-use super::{median, BenchArgs};
-use crate::envmap::load::{load_env, EnvSource};
+use super::{BenchArgs, median};
+use crate::envmap::load::{EnvSource, load_env};
 use crate::error::{Error, Result};
 use crate::gpu::{EnvSampler, GpuContext, GpuGPixel, Shader};
-use crate::render::{self, pool_seed, Settings};
+use crate::render::{self, Settings, pool_seed};
 use crate::sampling::{CubeDistribution, LightPool, Material};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -45,9 +45,16 @@ struct FrameRow {
 pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
     let ctx = GpuContext::new()?;
     let repeat = a.repeat.max(1);
-    eprintln!("gpu bench on {} ({:?}), timestamps: {}", ctx.info.name, ctx.info.backend, ctx.timestamps);
+    eprintln!(
+        "gpu bench on {} ({:?}), timestamps: {}",
+        ctx.info.name, ctx.info.backend, ctx.timestamps
+    );
     let m = a.light_samples.max(1);
-    let faces: Vec<usize> = if a.quick { vec![16, 64, 256] } else { vec![16, 64, 256, 1024] };
+    let faces: Vec<usize> = if a.quick {
+        vec![16, 64, 256]
+    } else {
+        vec![16, 64, 256, 1024]
+    };
     let mut builds = Vec::new();
     for &n in &faces {
         let sampler = match EnvSampler::new(&ctx, n, m) {
@@ -80,19 +87,41 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
         }
         let gpu_ms = (!g.is_empty()).then(|| median(g));
         let (gpu_wall_ms, cpu_ms) = (median(w), median(c));
-        let row = BuildRow { face: n, texels: 6 * n * n, pool_per_face: m, gpu_ms, gpu_wall_ms, cpu_ms, cpu_over_gpu: gpu_ms.map(|g| cpu_ms / g) };
-        eprintln!("  build+pool 6x{n}^2, M={m}: GPU {} ms (wall {gpu_wall_ms:.3} ms), CPU {cpu_ms:.3} ms", fmt(gpu_ms));
+        let row = BuildRow {
+            face: n,
+            texels: 6 * n * n,
+            pool_per_face: m,
+            gpu_ms,
+            gpu_wall_ms,
+            cpu_ms,
+            cpu_over_gpu: gpu_ms.map(|g| cpu_ms / g),
+        };
+        eprintln!(
+            "  build+pool 6x{n}^2, M={m}: GPU {} ms (wall {gpu_wall_ms:.3} ms), CPU {cpu_ms:.3} ms",
+            fmt(gpu_ms)
+        );
         builds.push(row);
     }
 
     // A full frame.
-    let (width, height) = if a.quick { (480, 270) } else { (a.size.max(1), a.height.unwrap_or(a.size * 9 / 16).max(1)) };
+    let (width, height) = if a.quick {
+        (480, 270)
+    } else {
+        (a.size.max(1), a.height.unwrap_or(a.size * 9 / 16).max(1))
+    };
     let face = a.face_size;
     let map = load_env(&a.env.parse::<EnvSource>()?, face)?.cube;
-    let s = Settings { light_samples: a.light_samples, brdf_samples: a.brdf_samples, ..Default::default() };
+    let s = Settings {
+        light_samples: a.light_samples,
+        brdf_samples: a.brdf_samples,
+        ..Default::default()
+    };
     s.validate()?;
     let mut frames = Vec::new();
-    for (name, mat) in [("diffuse", Material::diffuse(0.8)), ("ggx 0.2", Material::ggx(0.8, 0.2))] {
+    for (name, mat) in [
+        ("diffuse", Material::diffuse(0.8)),
+        ("ggx 0.2", Material::ggx(0.8, 0.2)),
+    ] {
         let gbuf = render::sphere_gbuffer(width, height, mat);
         let shaded = gbuf.iter().filter(|p| p.is_some()).count();
         let pixels: Vec<GpuGPixel> = gbuf.iter().map(GpuGPixel::from).collect();
@@ -106,10 +135,16 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
             let t = Instant::now();
             let job = shader.shade(&ctx, &sampler, &pixels, &s)?;
             let wall = t.elapsed().as_secs_f64() * 1e3;
-            let cpu = render::render(&map, &gbuf, width, height, &s)?.stats.shade_ms;
+            let cpu = render::render(&map, &gbuf, width, height, &s)?
+                .stats
+                .shade_ms;
             if k > 0 {
-                if let Some(x) = b { gb.push(x) }
-                if let Some(x) = job.gpu_ms { gs.push(x) }
+                if let Some(x) = b {
+                    gb.push(x)
+                }
+                if let Some(x) = job.gpu_ms {
+                    gs.push(x)
+                }
                 gw.push(wall);
                 cs.push(cpu);
             }
@@ -129,7 +164,13 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
             cpu_shade_ms,
             cpu_over_gpu: gpu_shade_ms.map(|g| cpu_shade_ms / g),
         };
-        eprintln!("  frame {width}x{height} {name}, {}+{}: GPU shade {} ms (wall incl. upload/readback {:.1} ms), CPU {cpu_shade_ms:.1} ms", s.light_samples, s.brdf_samples, fmt(row.gpu_shade_ms), row.gpu_shade_wall_ms);
+        eprintln!(
+            "  frame {width}x{height} {name}, {}+{}: GPU shade {} ms (wall incl. upload/readback {:.1} ms), CPU {cpu_shade_ms:.1} ms",
+            s.light_samples,
+            s.brdf_samples,
+            fmt(row.gpu_shade_ms),
+            row.gpu_shade_wall_ms
+        );
         frames.push(row);
     }
     let out = serde_json::json!({
@@ -142,7 +183,11 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
         "frame": frames,
     });
     let path = dir.join("bench-gpu.json");
-    std::fs::write(&path, serde_json::to_string_pretty(&out).expect("json") + "\n").map_err(|e| Error::file(&path, format!("cannot write: {e}")))?;
+    std::fs::write(
+        &path,
+        serde_json::to_string_pretty(&out).expect("json") + "\n",
+    )
+    .map_err(|e| Error::file(&path, format!("cannot write: {e}")))?;
     eprintln!("wrote {}", path.display());
     Ok(())
 }
@@ -174,12 +219,19 @@ pub fn scenes(a: BenchArgs, dir: PathBuf) -> Result<()> {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
     let names = ["diffuse-static.toml", "glossy-dynamic.toml"];
     let frames = 10 * a.repeat.max(1);
-    let (w, h) = if a.quick { (160, 100) } else { (a.size, a.height.unwrap_or(a.size * 10 / 16)) };
+    let (w, h) = if a.quick {
+        (160, 100)
+    } else {
+        (a.size, a.height.unwrap_or(a.size * 10 / 16))
+    };
     let mut rows = Vec::new();
     for name in names {
         let sc = Scene::load(&root.join(name))?;
         let source = match StreamSource::parse(&sc.environment)? {
-            StreamSource::Sky { hours, .. } => StreamSource::Sky { hours, speed: sc.file.environment.speed },
+            StreamSource::Sky { hours, .. } => StreamSource::Sky {
+                hours,
+                speed: sc.file.environment.speed,
+            },
             o => o,
         };
         let mut stream = EnvStream::open(source, sc.file.environment.face_size)?;
@@ -188,7 +240,8 @@ pub fn scenes(a: BenchArgs, dir: PathBuf) -> Result<()> {
         let s = sc.settings;
         let sampler = EnvSampler::new(&ctx, stream.face_size(), s.pool_per_face())?;
         let shader = Shader::new(&ctx);
-        let (mut builds, mut frame_ms, mut build_ms, mut shade_ms, mut gpu) = (0, Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        let (mut builds, mut frame_ms, mut build_ms, mut shade_ms, mut gpu) =
+            (0, Vec::new(), Vec::new(), Vec::new(), Vec::new());
         let mut uploaded = None;
         let (mut brdf, mut light) = (0u64, 0.0f64);
         for f in 0..frames {
@@ -236,7 +289,11 @@ pub fn scenes(a: BenchArgs, dir: PathBuf) -> Result<()> {
     eprintln!("  glossy-dynamic / diffuse-static frame time: {ratio:.2}x");
     let out = serde_json::json!({ "device": ctx.info.name, "width": w, "height": h, "scenes": rows, "dynamic_glossy_over_static_diffuse": ratio });
     let path = dir.join("bench-scene.json");
-    std::fs::write(&path, serde_json::to_string_pretty(&out).expect("json") + "\n").map_err(|e| Error::file(&path, format!("cannot write: {e}")))?;
+    std::fs::write(
+        &path,
+        serde_json::to_string_pretty(&out).expect("json") + "\n",
+    )
+    .map_err(|e| Error::file(&path, format!("cannot write: {e}")))?;
     eprintln!("wrote {}", path.display());
     Ok(())
 }

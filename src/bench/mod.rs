@@ -22,7 +22,7 @@ pub mod flip;
 #[cfg(feature = "gpu")]
 pub mod gpu;
 
-use crate::envmap::{load::load_env, luminance, CubeMap};
+use crate::envmap::{CubeMap, load::load_env, luminance};
 use crate::error::{Error, Result};
 use crate::render::{self, Settings, Strategy};
 use crate::sampling::{CubeDistribution, LightPool, Material};
@@ -93,8 +93,12 @@ pub fn run(a: BenchArgs) -> Result<()> {
         #[cfg(feature = "gpu")]
         "scene" => gpu::scenes(a, dir),
         #[cfg(not(feature = "gpu"))]
-        "gpu" => Err(Error::invalid("bench suite 'gpu': this envis was built without the `gpu` feature")),
-        other => Err(Error::invalid(format!("unknown bench suite '{other}' (available: speed, offset, accuracy, popping, gpu, scene)"))),
+        "gpu" => Err(Error::invalid(
+            "bench suite 'gpu': this envis was built without the `gpu` feature",
+        )),
+        other => Err(Error::invalid(format!(
+            "unknown bench suite '{other}' (available: speed, offset, accuracy, popping, gpu, scene)"
+        ))),
     }
 }
 
@@ -113,16 +117,56 @@ fn popping(a: BenchArgs, dir: PathBuf) -> Result<()> {
     let idx: Vec<usize> = (0..gbuf.len()).filter(|&i| gbuf[i].is_some()).collect();
     let lum = |c: glam::Vec3| crate::envmap::luminance(c) as f64;
     let hours = |t: usize| 9.0 + 2.0 * t as f32 / (frames - 1) as f32;
-    let maps: Vec<crate::envmap::CubeMap> = (0..frames).map(|t| crate::envmap::sky::sky_cube(face, hours(t))).collect();
-    let refs: Vec<Vec<f64>> = maps.iter().map(|m| crate::render::reference::reference_image(m, &gbuf, size, size, 1.0).1.iter().map(|&c| crate::envmap::luminance_f64(c)).collect()).collect();
-    let ref_change: f64 = (1..frames).map(|t| idx.iter().map(|&i| (refs[t][i] - refs[t - 1][i]).abs()).sum::<f64>()).sum::<f64>();
+    let maps: Vec<crate::envmap::CubeMap> = (0..frames)
+        .map(|t| crate::envmap::sky::sky_cube(face, hours(t)))
+        .collect();
+    let refs: Vec<Vec<f64>> = maps
+        .iter()
+        .map(|m| {
+            crate::render::reference::reference_image(m, &gbuf, size, size, 1.0)
+                .1
+                .iter()
+                .map(|&c| crate::envmap::luminance_f64(c))
+                .collect()
+        })
+        .collect();
+    let ref_change: f64 = (1..frames)
+        .map(|t| {
+            idx.iter()
+                .map(|&i| (refs[t][i] - refs[t - 1][i]).abs())
+                .sum::<f64>()
+        })
+        .sum::<f64>();
     let np = idx.len().max(1) as f64;
-    let per_frame = |f: &dyn Fn(usize) -> f64| -> Vec<(f64, f64)> { (1..frames).map(|t| (t as f64, f(t) / np)).collect() };
-    let mut series = vec![accuracy::Series { name: "reference".into(), color: "#000000", points: per_frame(&|t| idx.iter().map(|&i| (refs[t][i] - refs[t - 1][i]).abs()).sum()), dashed: true }];
+    let per_frame = |f: &dyn Fn(usize) -> f64| -> Vec<(f64, f64)> {
+        (1..frames).map(|t| (t as f64, f(t) / np)).collect()
+    };
+    let mut series = vec![accuracy::Series {
+        name: "reference".into(),
+        color: "#000000",
+        points: per_frame(&|t| {
+            idx.iter()
+                .map(|&i| (refs[t][i] - refs[t - 1][i]).abs())
+                .sum()
+        }),
+        dashed: true,
+    }];
     let mut rows = Vec::new();
-    for (name, counts, color) in [("fractional", crate::sampling::Counts::Fractional, "#d62728"), ("integer", crate::sampling::Counts::Integer, "#ff7f0e")] {
-        let s = Settings { light_samples: a.light_samples, brdf_samples: a.brdf_samples, counts, seed: 1, ..Default::default() };
-        let imgs: Vec<crate::envmap::Image> = maps.iter().map(|m| render::render(m, &gbuf, size, size, &s).map(|o| o.image)).collect::<Result<_>>()?;
+    for (name, counts, color) in [
+        ("fractional", crate::sampling::Counts::Fractional, "#d62728"),
+        ("integer", crate::sampling::Counts::Integer, "#ff7f0e"),
+    ] {
+        let s = Settings {
+            light_samples: a.light_samples,
+            brdf_samples: a.brdf_samples,
+            counts,
+            seed: 1,
+            ..Default::default()
+        };
+        let imgs: Vec<crate::envmap::Image> = maps
+            .iter()
+            .map(|m| render::render(m, &gbuf, size, size, &s).map(|o| o.image))
+            .collect::<Result<_>>()?;
         let (mut change, mut jumps, mut pairs) = (0.0, 0usize, 0usize);
         for t in 1..frames {
             for &i in &idx {
@@ -136,10 +180,22 @@ fn popping(a: BenchArgs, dir: PathBuf) -> Result<()> {
                 }
             }
         }
-        series.push(accuracy::Series { name: format!("{name} counts"), color, points: per_frame(&|t| idx.iter().map(|&i| (lum(imgs[t].data[i]) - lum(imgs[t - 1].data[i])).abs()).sum()), dashed: false });
+        series.push(accuracy::Series {
+            name: format!("{name} counts"),
+            color,
+            points: per_frame(&|t| {
+                idx.iter()
+                    .map(|&i| (lum(imgs[t].data[i]) - lum(imgs[t - 1].data[i])).abs())
+                    .sum()
+            }),
+            dashed: false,
+        });
         let ratio = change / ref_change.max(1e-12);
         let jump_frac = jumps as f64 / pairs.max(1) as f64;
-        eprintln!("  {name:10}: mean |frame change| = {ratio:.2} x the reference's; discontinuities {:.3}% of pixel-frames", 100.0 * jump_frac);
+        eprintln!(
+            "  {name:10}: mean |frame change| = {ratio:.2} x the reference's; discontinuities {:.3}% of pixel-frames",
+            100.0 * jump_frac
+        );
         // Strip of 6 frames, spread over the animation.
         let picks: Vec<usize> = (0..6).map(|k| k * (frames - 1) / 5).collect();
         let mut strip = crate::envmap::Image::new(6 * size, size);
@@ -150,15 +206,30 @@ fn popping(a: BenchArgs, dir: PathBuf) -> Result<()> {
                 }
             }
         }
-        crate::render::output::write_png(&dir.join(format!("popping-strip-{name}.png")), &strip, 1.0)?;
+        crate::render::output::write_png(
+            &dir.join(format!("popping-strip-{name}.png")),
+            &strip,
+            1.0,
+        )?;
         rows.push(serde_json::json!({ "counts": name, "change_over_reference": ratio, "discontinuity_fraction": jump_frac, "strip_frames": picks }));
     }
     let report = serde_json::json!({ "suite": "popping", "frames": frames, "hours": [9.0, 11.0], "size": size, "face_size": face, "light_samples": a.light_samples, "brdf_samples": a.brdf_samples, "seed": "1 for every frame", "rows": rows });
     let path = dir.join("popping.json");
-    std::fs::write(&path, serde_json::to_string_pretty(&report).unwrap() + "\n").map_err(|e| Error::file(&path, format!("cannot write: {e}")))?;
-    let chart = accuracy::Chart { title: "Frame-to-frame change, sun moving 9h -> 11h (same seed every frame)".into(), xlabel: "frame", ylabel: "mean |luminance change| per pixel", xlog: false, ylog: false, series };
+    std::fs::write(&path, serde_json::to_string_pretty(&report).unwrap() + "\n")
+        .map_err(|e| Error::file(&path, format!("cannot write: {e}")))?;
+    let chart = accuracy::Chart {
+        title: "Frame-to-frame change, sun moving 9h -> 11h (same seed every frame)".into(),
+        xlabel: "frame",
+        ylabel: "mean |luminance change| per pixel",
+        xlog: false,
+        ylog: false,
+        series,
+    };
     let (svg, png) = chart.write(&dir, "popping")?;
-    eprintln!("wrote {}, {svg}, {png} and popping-strip-*.png", path.display());
+    eprintln!(
+        "wrote {}, {svg}, {png} and popping-strip-*.png",
+        path.display()
+    );
     Ok(())
 }
 
@@ -174,8 +245,17 @@ fn progress_bar(done: usize, total: usize, start: Instant, what: &str) {
     let frac = done as f64 / total.max(1) as f64;
     let filled = ((frac * WIDTH as f64).round() as usize).min(WIDTH);
     let elapsed = start.elapsed().as_secs_f64();
-    let left = if done > 0 { elapsed / done as f64 * (total - done) as f64 } else { 0.0 };
-    let line = format!("[{}{}] {done}/{total} {:3.0}%  {elapsed:.0} s, ~{left:.0} s left  {what}", "#".repeat(filled), ".".repeat(WIDTH - filled), 100.0 * frac);
+    let left = if done > 0 {
+        elapsed / done as f64 * (total - done) as f64
+    } else {
+        0.0
+    };
+    let line = format!(
+        "[{}{}] {done}/{total} {:3.0}%  {elapsed:.0} s, ~{left:.0} s left  {what}",
+        "#".repeat(filled),
+        ".".repeat(WIDTH - filled),
+        100.0 * frac
+    );
     if tty {
         eprint!("\r{line:<110.110}");
         if done == total {
@@ -191,12 +271,24 @@ fn accuracy_suite(a: BenchArgs, dir: PathBuf) -> Result<()> {
     let cfg = accuracy::Config::new(a.quick, a.maps.as_deref())?;
     let start = Instant::now();
     let total = accuracy::point_count(&cfg);
-    eprintln!("envis bench accuracy: {} environments x {} materials, {total} points", cfg.envs.len(), cfg.materials.len());
+    eprintln!(
+        "envis bench accuracy: {} environments x {} materials, {total} points",
+        cfg.envs.len(),
+        cfg.materials.len()
+    );
     // The GPU backend, when this build has it and a device is there (`--cpu-only` skips it).
     #[cfg(feature = "gpu")]
-    let gpu_ctx = if a.cpu_only { None } else { crate::gpu::GpuContext::new().map_err(|e| eprintln!("accuracy: no GPU backend ({e}); CPU only")).ok() };
+    let gpu_ctx = if a.cpu_only {
+        None
+    } else {
+        crate::gpu::GpuContext::new()
+            .map_err(|e| eprintln!("accuracy: no GPU backend ({e}); CPU only"))
+            .ok()
+    };
     #[cfg(feature = "gpu")]
-    let gpu_device = gpu_ctx.as_ref().map(|c| format!("{} ({:?})", c.info.name, c.info.backend));
+    let gpu_device = gpu_ctx
+        .as_ref()
+        .map(|c| format!("{} ({:?})", c.info.name, c.info.backend));
     #[cfg(not(feature = "gpu"))]
     let gpu_device: Option<String> = None;
 
@@ -210,11 +302,19 @@ fn accuracy_suite(a: BenchArgs, dir: PathBuf) -> Result<()> {
             let mut lines = text.lines();
             if lines.next() == Some(serde_json::to_string(&fingerprint).unwrap().as_str()) {
                 // A line cut short by the interruption is dropped (and measured again).
-                let pts: Vec<accuracy::Point> = lines.filter_map(|l| serde_json::from_str(l).ok()).collect();
-                eprintln!("accuracy: resuming {} of {total} points from {}", pts.len(), partial.display());
+                let pts: Vec<accuracy::Point> =
+                    lines.filter_map(|l| serde_json::from_str(l).ok()).collect();
+                eprintln!(
+                    "accuracy: resuming {} of {total} points from {}",
+                    pts.len(),
+                    partial.display()
+                );
                 pts
             } else {
-                eprintln!("accuracy: {} is from a different configuration; starting over", partial.display());
+                eprintln!(
+                    "accuracy: {} is from a different configuration; starting over",
+                    partial.display()
+                );
                 Vec::new()
             }
         }
@@ -225,26 +325,41 @@ fn accuracy_suite(a: BenchArgs, dir: PathBuf) -> Result<()> {
         for p in &resume {
             text += &(serde_json::to_string(p).unwrap() + "\n");
         }
-        std::fs::write(&partial, text).map_err(|e| Error::file(&partial, format!("cannot write: {e}")))?;
-        std::fs::OpenOptions::new().append(true).open(&partial).map_err(|e| Error::file(&partial, format!("cannot append: {e}")))?
+        std::fs::write(&partial, text)
+            .map_err(|e| Error::file(&partial, format!("cannot write: {e}")))?;
+        std::fs::OpenOptions::new()
+            .append(true)
+            .open(&partial)
+            .map_err(|e| Error::file(&partial, format!("cannot append: {e}")))?
     };
     let resumed = resume.len();
     let mut journal_error = None;
     let report_progress = |done: usize, total: usize, p: &accuracy::Point, was_resumed: bool| {
         use std::io::Write as _;
-        if !was_resumed
-            && let Err(e) = writeln!(journal, "{}", serde_json::to_string(p).unwrap()) {
-                journal_error.get_or_insert(e);
-            }
-        progress_bar(done, total, start, &format!("{} / {} / {} N={}", p.env, p.material, p.strategy, p.budget));
+        if !was_resumed && let Err(e) = writeln!(journal, "{}", serde_json::to_string(p).unwrap()) {
+            journal_error.get_or_insert(e);
+        }
+        progress_bar(
+            done,
+            total,
+            start,
+            &format!("{} / {} / {} N={}", p.env, p.material, p.strategy, p.budget),
+        );
     };
     #[cfg(feature = "gpu")]
     let points = match &gpu_ctx {
         Some(ctx) => {
             let mut renderer = crate::gpu::GpuRenderer::new(ctx);
-            let mut time = |map: &CubeMap, gbuf: &[Option<render::GPixel>], size: usize, s: &Settings| -> Result<(f64, f64)> {
+            let mut time = |map: &CubeMap,
+                            gbuf: &[Option<render::GPixel>],
+                            size: usize,
+                            s: &Settings|
+             -> Result<(f64, f64)> {
                 let (_, t) = renderer.render(map, gbuf, size, size, s)?;
-                Ok((t.build_gpu_ms.unwrap_or(t.build_wall_ms), t.shade_gpu_ms.unwrap_or(t.shade_wall_ms)))
+                Ok((
+                    t.build_gpu_ms.unwrap_or(t.build_wall_ms),
+                    t.shade_gpu_ms.unwrap_or(t.shade_wall_ms),
+                ))
             };
             accuracy::sweep(&cfg, &resume, Some(&mut time), report_progress)?
         }
@@ -253,7 +368,10 @@ fn accuracy_suite(a: BenchArgs, dir: PathBuf) -> Result<()> {
     #[cfg(not(feature = "gpu"))]
     let points = accuracy::sweep(&cfg, &resume, None, report_progress)?;
     if let Some(e) = journal_error {
-        eprintln!("accuracy: could not append to {} ({e}); this run is not resumable", partial.display());
+        eprintln!(
+            "accuracy: could not append to {} ({e}); this run is not resumable",
+            partial.display()
+        );
     }
     let mut command = String::from("envis bench --suite accuracy");
     if a.quick {
@@ -267,22 +385,45 @@ fn accuracy_suite(a: BenchArgs, dir: PathBuf) -> Result<()> {
         std::fs::write(&p, text).map_err(|e| Error::file(&p, format!("cannot write: {e}")))
     };
     write("accuracy.csv", accuracy::csv(&points))?;
-    write("accuracy.json", serde_json::to_string_pretty(&serde_json::json!({ "command": command, "points": points })).unwrap() + "\n")?;
+    write(
+        "accuracy.json",
+        serde_json::to_string_pretty(&serde_json::json!({ "command": command, "points": points }))
+            .unwrap()
+            + "\n",
+    )?;
     let mut md = accuracy::report(&cfg, &points, &command, gpu_device.as_deref());
     md.push_str("## Plots\n\n");
     md.push_str("Each plot is written as SVG and PNG (plotters); the PNGs are shown here.\n\n");
     for (mname, _) in &cfg.materials {
         let stem = accuracy::plot_stem(mname);
         let (_, time_png) = accuracy::plot_error_vs_time(&points, mname).write(&dir, &stem)?;
-        let (_, samples_png) = accuracy::plot_error_vs_samples(&points, mname).write(&dir, &format!("{stem}-samples"))?;
-        md.push_str(&format!("![{mname}: error vs time]({time_png}) ![{mname}: error vs samples]({samples_png})\n\n"));
+        let (_, samples_png) = accuracy::plot_error_vs_samples(&points, mname)
+            .write(&dir, &format!("{stem}-samples"))?;
+        md.push_str(&format!(
+            "![{mname}: error vs time]({time_png}) ![{mname}: error vs samples]({samples_png})\n\n"
+        ));
     }
     let (_, wasted_png) = accuracy::plot_wasted(&points).write(&dir, "accuracy-wasted")?;
     md.push_str(&format!("![wasted light samples]({wasted_png})\n\n"));
-    md.push_str(&format!("Sweep time: {:.0} s{}.\n", start.elapsed().as_secs_f64(), if resumed > 0 { format!(" ({resumed} of {} points resumed from an interrupted run)", points.len()) } else { String::new() }));
+    md.push_str(&format!(
+        "Sweep time: {:.0} s{}.\n",
+        start.elapsed().as_secs_f64(),
+        if resumed > 0 {
+            format!(
+                " ({resumed} of {} points resumed from an interrupted run)",
+                points.len()
+            )
+        } else {
+            String::new()
+        }
+    ));
     write("accuracy-vs-time.md", md)?;
     let _ = std::fs::remove_file(&partial);
-    eprintln!("wrote accuracy.csv, accuracy.json, accuracy-vs-time.md to {} in {:.0} s", dir.display(), start.elapsed().as_secs_f64());
+    eprintln!(
+        "wrote accuracy.csv, accuracy.json, accuracy-vs-time.md to {} in {:.0} s",
+        dir.display(),
+        start.elapsed().as_secs_f64()
+    );
     Ok(())
 }
 
@@ -295,18 +436,37 @@ fn offset(a: BenchArgs, dir: PathBuf) -> Result<()> {
     let size = a.size;
     let k = a.repeat.max(4);
     let mut rows = Vec::new();
-    for (mname, mat) in [("diffuse", Material::diffuse(0.8)), ("ggx 0.2", Material::ggx(0.8, 0.2))] {
+    for (mname, mat) in [
+        ("diffuse", Material::diffuse(0.8)),
+        ("ggx 0.2", Material::ggx(0.8, 0.2)),
+    ] {
         let gbuf = render::sphere_gbuffer(size, size, mat);
-        let (_, reference) = crate::render::reference::reference_image(&env.cube, &gbuf, size, size, 1.0);
+        let (_, reference) =
+            crate::render::reference::reference_image(&env.cube, &gbuf, size, size, 1.0);
         let lum = crate::envmap::luminance_f64;
         let idx: Vec<usize> = (0..gbuf.len()).filter(|&i| gbuf[i].is_some()).collect();
         let ref_mean = idx.iter().map(|&i| lum(reference[i])).sum::<f64>() / idx.len() as f64;
         for pool_mult in [1usize, 4] {
             for pixel_offset in [false, true] {
-                let s = Settings { light_samples: a.light_samples, brdf_samples: a.brdf_samples, pool_size: a.light_samples * pool_mult, pixel_offset, ..Default::default() };
+                let s = Settings {
+                    light_samples: a.light_samples,
+                    brdf_samples: a.brdf_samples,
+                    pool_size: a.light_samples * pool_mult,
+                    pixel_offset,
+                    ..Default::default()
+                };
                 let (mut relmse, mut means) = (0.0, Vec::new());
                 for seed in 0..k {
-                    let out = render::render(&env.cube, &gbuf, size, size, &Settings { seed: seed as u32, ..s })?;
+                    let out = render::render(
+                        &env.cube,
+                        &gbuf,
+                        size,
+                        size,
+                        &Settings {
+                            seed: seed as u32,
+                            ..s
+                        },
+                    )?;
                     let mut m = 0.0;
                     for &i in &idx {
                         let (x, r) = (lum(out.image.data[i].as_dvec3()), lum(reference[i]));
@@ -318,14 +478,18 @@ fn offset(a: BenchArgs, dir: PathBuf) -> Result<()> {
                 relmse /= (k * idx.len()) as f64;
                 let (_, se) = crate::stats::mean_se(&means);
                 let mean_sd = se * (k as f64).sqrt() / ref_mean;
-                eprintln!("  {mname:8} pool {:>3}/face offset {:5}: per-pixel relMSE {relmse:.4e}  image-mean rel. SD {mean_sd:.4e}", s.pool_size, pixel_offset);
+                eprintln!(
+                    "  {mname:8} pool {:>3}/face offset {:5}: per-pixel relMSE {relmse:.4e}  image-mean rel. SD {mean_sd:.4e}",
+                    s.pool_size, pixel_offset
+                );
                 rows.push(serde_json::json!({ "material": mname, "pool_per_face": s.pool_size, "pixel_offset": pixel_offset, "relmse": relmse, "image_mean_rel_sd": mean_sd }));
             }
         }
     }
     let report = serde_json::json!({ "suite": "offset", "env": a.env, "face_size": a.face_size, "size": size, "light_samples": a.light_samples, "brdf_samples": a.brdf_samples, "seeds": k, "rows": rows });
     let path = dir.join("bench-offset.json");
-    std::fs::write(&path, serde_json::to_string_pretty(&report).unwrap() + "\n").map_err(|e| Error::file(&path, format!("cannot write: {e}")))?;
+    std::fs::write(&path, serde_json::to_string_pretty(&report).unwrap() + "\n")
+        .map_err(|e| Error::file(&path, format!("cannot write: {e}")))?;
     eprintln!("wrote {}", path.display());
     Ok(())
 }
@@ -335,18 +499,40 @@ fn speed(a: BenchArgs, dir: PathBuf) -> Result<()> {
     let env = load_env(&a.env.parse()?, a.face_size)?;
     let gbuf = render::sphere_gbuffer(a.size, a.size, Material::diffuse(0.8));
     let threads = rayon::current_num_threads();
-    eprintln!("envis bench speed: {} threads, sphere {}^2, {}+{} samples, {} face {}^2", threads, a.size, a.light_samples, a.brdf_samples, a.env, a.face_size);
+    eprintln!(
+        "envis bench speed: {} threads, sphere {}^2, {}+{} samples, {} face {}^2",
+        threads, a.size, a.light_samples, a.brdf_samples, a.env, a.face_size
+    );
 
     let mut shading = Vec::new();
     let mut base_sps = 0.0;
-    for strategy in [Strategy::Brdf, Strategy::Paper, Strategy::Global, Strategy::Light] {
-        let s = Settings { light_samples: a.light_samples, brdf_samples: a.brdf_samples, strategy, ..Default::default() };
+    for strategy in [
+        Strategy::Brdf,
+        Strategy::Paper,
+        Strategy::Global,
+        Strategy::Light,
+    ] {
+        let s = Settings {
+            light_samples: a.light_samples,
+            brdf_samples: a.brdf_samples,
+            strategy,
+            ..Default::default()
+        };
         let mut sps = Vec::new();
         let mut build = Vec::new();
         let mut shade = Vec::new();
         let mut samples = 0;
         for r in 0..repeat {
-            let out = render::render(&env.cube, &gbuf, a.size, a.size, &Settings { seed: r as u32, ..s })?;
+            let out = render::render(
+                &env.cube,
+                &gbuf,
+                a.size,
+                a.size,
+                &Settings {
+                    seed: r as u32,
+                    ..s
+                },
+            )?;
             sps.push(out.stats.samples_per_second);
             build.push(out.stats.build_ms);
             shade.push(out.stats.shade_ms);
@@ -360,7 +546,14 @@ fn speed(a: BenchArgs, dir: PathBuf) -> Result<()> {
             "strategy": strategy.name(), "samples_per_second": m, "ratio_to_brdf": m / base_sps,
             "build_ms": median(build), "shade_ms": median(shade), "samples_evaluated": samples,
         });
-        eprintln!("  shade {:>6}: {:>12.0} samples/s  ({:.2}x brdf)  build {:.2} ms  shade {:.1} ms", strategy.name(), m, m / base_sps, row["build_ms"].as_f64().unwrap(), row["shade_ms"].as_f64().unwrap());
+        eprintln!(
+            "  shade {:>6}: {:>12.0} samples/s  ({:.2}x brdf)  build {:.2} ms  shade {:.1} ms",
+            strategy.name(),
+            m,
+            m / base_sps,
+            row["build_ms"].as_f64().unwrap(),
+            row["shade_ms"].as_f64().unwrap()
+        );
         shading.push(row);
     }
 
@@ -385,7 +578,11 @@ fn speed(a: BenchArgs, dir: PathBuf) -> Result<()> {
             ts.push(t.elapsed().as_secs_f64() * 1e3);
         }
         let (b, p, s) = (median(tb), median(tp), median(ts));
-        eprintln!("  build face {n:>4}^2: cdf {b:8.3} ms  pool {p:7.3} ms  stream {s:7.3} ms  cdf/stream {:6.1}x  ns/texel {:.2}", b / s, b * 1e6 / texels as f64);
+        eprintln!(
+            "  build face {n:>4}^2: cdf {b:8.3} ms  pool {p:7.3} ms  stream {s:7.3} ms  cdf/stream {:6.1}x  ns/texel {:.2}",
+            b / s,
+            b * 1e6 / texels as f64
+        );
         scaling.push(serde_json::json!({
             "face_size": n, "texels": texels, "cdf_ms": b, "pool_ms": p, "pool_per_face": a.light_samples.max(1),
             "stream_ms": s, "cdf_over_stream": b / s, "cdf_ns_per_texel": b * 1e6 / texels as f64,
@@ -406,7 +603,10 @@ fn speed(a: BenchArgs, dir: PathBuf) -> Result<()> {
             })
             .collect();
         let ms = median(times);
-        eprintln!("  pool M = {m:>5} per face (64^2 faces): {ms:8.3} ms  {:.1} ns/sample", ms * 1e6 / (6 * m) as f64);
+        eprintln!(
+            "  pool M = {m:>5} per face (64^2 faces): {ms:8.3} ms  {:.1} ns/sample",
+            ms * 1e6 / (6 * m) as f64
+        );
         pool_scaling.push(serde_json::json!({ "pool_per_face": m, "samples": 6 * m, "pool_ms": ms, "ns_per_sample": ms * 1e6 / (6 * m) as f64 }));
     }
     let report = serde_json::json!({
@@ -415,16 +615,30 @@ fn speed(a: BenchArgs, dir: PathBuf) -> Result<()> {
         "shading": shading, "build_scaling": scaling, "pool_scaling": pool_scaling,
     });
     let path = dir.join("bench-speed.json");
-    std::fs::write(&path, serde_json::to_string_pretty(&report).unwrap() + "\n").map_err(|e| Error::file(&path, format!("cannot write: {e}")))?;
+    std::fs::write(&path, serde_json::to_string_pretty(&report).unwrap() + "\n")
+        .map_err(|e| Error::file(&path, format!("cannot write: {e}")))?;
     let (svg, png) = scaling_plot(&scaling).write(&dir, "build-scaling")?;
-    let pool_points = pool_scaling.iter().map(|r| (r["samples"].as_f64().unwrap_or(0.0), r["pool_ms"].as_f64().unwrap_or(0.0))).collect();
+    let pool_points = pool_scaling
+        .iter()
+        .map(|r| {
+            (
+                r["samples"].as_f64().unwrap_or(0.0),
+                r["pool_ms"].as_f64().unwrap_or(0.0),
+            )
+        })
+        .collect();
     let pool_chart = accuracy::Chart {
         title: "Light-sample pool build vs pool size (CPU, 64^2 faces)".into(),
         xlabel: "pool samples (6 M)",
         ylabel: "ms (median)",
         xlog: true,
         ylog: true,
-        series: vec![accuracy::Series { name: "pool build".into(), color: "#2ca02c", points: pool_points, dashed: false }],
+        series: vec![accuracy::Series {
+            name: "pool build".into(),
+            color: "#2ca02c",
+            points: pool_points,
+            dashed: false,
+        }],
     };
     let (psvg, ppng) = pool_chart.write(&dir, "pool-scaling")?;
     eprintln!("wrote {}, {svg}, {png}, {psvg} and {ppng}", path.display());
@@ -435,11 +649,42 @@ fn speed(a: BenchArgs, dir: PathBuf) -> Result<()> {
 /// pass over the same texels (the memory-bound limit), from the speed suite's scaling rows.
 fn scaling_plot(rows: &[serde_json::Value]) -> accuracy::Chart {
     use accuracy::{Chart, Series};
-    let col = |k: &str| -> Vec<(f64, f64)> { rows.iter().map(|r| (r["texels"].as_f64().unwrap_or(0.0), r[k].as_f64().unwrap_or(0.0))).collect() };
+    let col = |k: &str| -> Vec<(f64, f64)> {
+        rows.iter()
+            .map(|r| {
+                (
+                    r["texels"].as_f64().unwrap_or(0.0),
+                    r[k].as_f64().unwrap_or(0.0),
+                )
+            })
+            .collect()
+    };
     let series = vec![
-        Series { name: "CDF build".into(), color: "#d62728", points: col("cdf_ms"), dashed: false },
-        Series { name: "light pool".into(), color: "#2ca02c", points: col("pool_ms"), dashed: false },
-        Series { name: "streaming pass".into(), color: "#1f77b4", points: col("stream_ms"), dashed: false },
+        Series {
+            name: "CDF build".into(),
+            color: "#d62728",
+            points: col("cdf_ms"),
+            dashed: false,
+        },
+        Series {
+            name: "light pool".into(),
+            color: "#2ca02c",
+            points: col("pool_ms"),
+            dashed: false,
+        },
+        Series {
+            name: "streaming pass".into(),
+            color: "#1f77b4",
+            points: col("stream_ms"),
+            dashed: false,
+        },
     ];
-    Chart { title: "Per-frame build time vs texels (CPU)".into(), xlabel: "texels (6 N^2)", ylabel: "ms (median)", xlog: true, ylog: true, series }
+    Chart {
+        title: "Per-frame build time vs texels (CPU)".into(),
+        xlabel: "texels (6 N^2)",
+        ylabel: "ms (median)",
+        xlog: true,
+        ylog: true,
+        series,
+    }
 }

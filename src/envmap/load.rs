@@ -48,7 +48,9 @@ fn check_dims(path: &Path, width: usize, height: usize) -> Result<()> {
     if width > MAX_SIDE || height > MAX_SIDE || width.saturating_mul(height) > MAX_PIXELS {
         return Err(Error::file(
             path,
-            format!("absurd dimensions {width}x{height} (limit {MAX_SIDE} per side, {MAX_PIXELS} pixels)"),
+            format!(
+                "absurd dimensions {width}x{height} (limit {MAX_SIDE} per side, {MAX_PIXELS} pixels)"
+            ),
         ));
     }
     Ok(())
@@ -58,16 +60,23 @@ fn check_dims(path: &Path, width: usize, height: usize) -> Result<()> {
 /// Returns the raw image: not yet sanitized.
 pub fn read_image(path: &Path) -> Result<Image> {
     let mut head = [0u8; 4];
-    let mut f = std::fs::File::open(path).map_err(|e| Error::file(path, format!("cannot open: {e}")))?;
-    let n = f.read(&mut head).map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
+    let mut f =
+        std::fs::File::open(path).map_err(|e| Error::file(path, format!("cannot open: {e}")))?;
+    let n = f
+        .read(&mut head)
+        .map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
     drop(f);
     if n == 4 && head == [0x76, 0x2f, 0x31, 0x01] {
         read_exr(path)
     } else if n >= 2 && &head[..2] == b"#?" {
-        let bytes = std::fs::read(path).map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
+        let bytes =
+            std::fs::read(path).map_err(|e| Error::file(path, format!("cannot read: {e}")))?;
         read_hdr_bytes(&bytes).map_err(|p| Error::file(path, p))
     } else {
-        Err(Error::file(path, "not an OpenEXR or Radiance HDR file (unknown magic bytes)"))
+        Err(Error::file(
+            path,
+            "not an OpenEXR or Radiance HDR file (unknown magic bytes)",
+        ))
     }
 }
 
@@ -75,15 +84,29 @@ pub fn read_image(path: &Path) -> Result<Image> {
 pub fn read_exr(path: &Path) -> Result<Image> {
     let meta = exr::meta::MetaData::read_from_file(path, false)
         .map_err(|e| Error::file(path, format!("invalid OpenEXR header: {e}")))?;
-    let header = meta.headers.first().ok_or_else(|| Error::file(path, "OpenEXR file has no layer"))?;
+    let header = meta
+        .headers
+        .first()
+        .ok_or_else(|| Error::file(path, "OpenEXR file has no layer"))?;
     let size = header.layer_size;
     check_dims(path, size.0, size.1)?;
-    let names: Vec<String> = header.channels.list.iter().map(|c| c.name.to_string()).collect();
+    let names: Vec<String> = header
+        .channels
+        .list
+        .iter()
+        .map(|c| c.name.to_string())
+        .collect();
     for want in ["R", "G", "B"] {
-        if !names.iter().any(|n| n == want || n.ends_with(&format!(".{want}"))) {
+        if !names
+            .iter()
+            .any(|n| n == want || n.ends_with(&format!(".{want}")))
+        {
             return Err(Error::file(
                 path,
-                format!("OpenEXR file has channels [{}], needs R, G and B", names.join(", ")),
+                format!(
+                    "OpenEXR file has channels [{}], needs R, G and B",
+                    names.join(", ")
+                ),
             ));
         }
     }
@@ -128,24 +151,39 @@ pub fn read_hdr_bytes(bytes: &[u8]) -> std::result::Result<Image, String> {
             break;
         }
         if let Some(fmt) = l.strip_prefix("FORMAT=")
-            && fmt.trim() != "32-bit_rle_rgbe" {
-                return Err(format!("unsupported Radiance pixel format '{}' (needs 32-bit_rle_rgbe)", fmt.trim()));
-            }
+            && fmt.trim() != "32-bit_rle_rgbe"
+        {
+            return Err(format!(
+                "unsupported Radiance pixel format '{}' (needs 32-bit_rle_rgbe)",
+                fmt.trim()
+            ));
+        }
     }
     let res = line(&mut pos)?;
     let parts: Vec<&str> = res.split_whitespace().collect();
     if parts.len() != 4 || parts[0] != "-Y" || parts[2] != "+X" {
-        return Err(format!("unsupported Radiance resolution line '{res}' (needs '-Y H +X W')"));
+        return Err(format!(
+            "unsupported Radiance resolution line '{res}' (needs '-Y H +X W')"
+        ));
     }
-    let h: usize = parts[1].parse().map_err(|_| format!("bad height in '{res}'"))?;
-    let w: usize = parts[3].parse().map_err(|_| format!("bad width in '{res}'"))?;
+    let h: usize = parts[1]
+        .parse()
+        .map_err(|_| format!("bad height in '{res}'"))?;
+    let w: usize = parts[3]
+        .parse()
+        .map_err(|_| format!("bad width in '{res}'"))?;
     if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE || w * h > MAX_PIXELS {
-        return Err(format!("absurd dimensions {w}x{h} (limit {MAX_SIDE} per side, {MAX_PIXELS} pixels)"));
+        return Err(format!(
+            "absurd dimensions {w}x{h} (limit {MAX_SIDE} per side, {MAX_PIXELS} pixels)"
+        ));
     }
     // A file cannot hold more pixels than 4 bytes each (flat), or than it has bytes (RLE, at
     // best ~ 2 bytes per 127 pixels per channel): refuse obvious lies before allocating.
     if (bytes.len() - pos).saturating_mul(128) < w * h {
-        return Err(format!("truncated: {} bytes of pixel data cannot hold {w}x{h} pixels", bytes.len() - pos));
+        return Err(format!(
+            "truncated: {} bytes of pixel data cannot hold {w}x{h} pixels",
+            bytes.len() - pos
+        ));
     }
     let mut img = Image::new(w, h);
     let mut scan = vec![[0u8; 4]; w];
@@ -166,7 +204,11 @@ fn rgbe_to_rgb(p: [u8; 4]) -> Vec3 {
     Vec3::new(p[0] as f32 + 0.5, p[1] as f32 + 0.5, p[2] as f32 + 0.5) * f
 }
 
-fn read_hdr_scanline(bytes: &[u8], pos: &mut usize, scan: &mut [[u8; 4]]) -> std::result::Result<(), String> {
+fn read_hdr_scanline(
+    bytes: &[u8],
+    pos: &mut usize,
+    scan: &mut [[u8; 4]],
+) -> std::result::Result<(), String> {
     let w = scan.len();
     let take = |pos: &mut usize| -> std::result::Result<u8, String> {
         let b = *bytes.get(*pos).ok_or("truncated pixel data")?;
@@ -223,8 +265,22 @@ pub fn cross_to_cube(img: &Image, layout: Layout) -> CubeMap {
     };
     // (face, column block, row block, rotated by 180 degrees)
     let place: [(usize, usize, usize, bool); 6] = match layout {
-        Layout::HorizontalCross => [(0, 2, 1, false), (1, 0, 1, false), (2, 1, 0, false), (3, 1, 2, false), (4, 1, 1, false), (5, 3, 1, false)],
-        _ => [(0, 2, 1, false), (1, 0, 1, false), (2, 1, 0, false), (3, 1, 2, false), (4, 1, 1, false), (5, 1, 3, true)],
+        Layout::HorizontalCross => [
+            (0, 2, 1, false),
+            (1, 0, 1, false),
+            (2, 1, 0, false),
+            (3, 1, 2, false),
+            (4, 1, 1, false),
+            (5, 3, 1, false),
+        ],
+        _ => [
+            (0, 2, 1, false),
+            (1, 0, 1, false),
+            (2, 1, 0, false),
+            (3, 1, 2, false),
+            (4, 1, 1, false),
+            (5, 1, 3, true),
+        ],
     };
     let mut cube = CubeMap::new(n);
     for (face, bx, by, rot) in place {
@@ -255,7 +311,9 @@ impl std::str::FromStr for EnvSource {
             let mut it = rest.splitn(2, ':');
             let name = it.next().unwrap_or("");
             if name != "sky" {
-                return Err(Error::invalid(format!("unknown built-in environment 'builtin:{name}' (expected builtin:sky[:T])")));
+                return Err(Error::invalid(format!(
+                    "unknown built-in environment 'builtin:{name}' (expected builtin:sky[:T])"
+                )));
             }
             let hours = match it.next() {
                 None => super::sky::DEFAULT_HOURS,
@@ -265,7 +323,9 @@ impl std::str::FromStr for EnvSource {
             };
             Ok(EnvSource::Sky { hours })
         } else if s.is_empty() {
-            Err(Error::invalid("empty --env (expected a file path or builtin:sky[:T])"))
+            Err(Error::invalid(
+                "empty --env (expected a file path or builtin:sky[:T])",
+            ))
         } else {
             Ok(EnvSource::File(PathBuf::from(s)))
         }
@@ -283,13 +343,19 @@ pub struct LoadedEnv {
 /// Load an environment source as a sanitized cube map with faces of `face_size` texels.
 pub fn load_env(src: &EnvSource, face_size: usize) -> Result<LoadedEnv> {
     if face_size == 0 || face_size > 4096 {
-        return Err(Error::invalid(format!("face size {face_size} out of range 1..=4096")));
+        return Err(Error::invalid(format!(
+            "face size {face_size} out of range 1..=4096"
+        )));
     }
     match src {
         EnvSource::Sky { hours } => {
             let mut cube = super::sky::sky_cube(face_size, *hours);
             let report = cube.sanitize();
-            Ok(LoadedEnv { cube, report, layout: None })
+            Ok(LoadedEnv {
+                cube,
+                report,
+                layout: None,
+            })
         }
         EnvSource::File(path) => {
             let mut img = read_image(path)?;
@@ -303,7 +369,11 @@ pub fn load_env(src: &EnvSource, face_size: usize) -> Result<LoadedEnv> {
             // Backstop: filtering of clamped data cannot create bad texels, but the distribution
             // must never see one, so check again (counted with the rest).
             report.add(cube.sanitize());
-            Ok(LoadedEnv { cube, report, layout: Some(layout) })
+            Ok(LoadedEnv {
+                cube,
+                report,
+                layout: Some(layout),
+            })
         }
     }
 }
@@ -327,13 +397,25 @@ mod tests {
         assert_eq!((img.width, img.height), (8, 2));
         assert!((img.get(1, 0).x - 10.5 / 128.0).abs() < 1e-6);
         assert!((img.get(5, 1).x - 200.5 / 64.0).abs() < 1e-6);
-        assert!(read_hdr_bytes(&f[..f.len() - 3]).unwrap_err().contains("truncated"));
+        assert!(
+            read_hdr_bytes(&f[..f.len() - 3])
+                .unwrap_err()
+                .contains("truncated")
+        );
     }
 
     #[test]
     fn env_source_syntax() {
-        assert_eq!("builtin:sky".parse::<EnvSource>().unwrap(), EnvSource::Sky { hours: super::super::sky::DEFAULT_HOURS });
-        assert_eq!("builtin:sky:7.5".parse::<EnvSource>().unwrap(), EnvSource::Sky { hours: 7.5 });
+        assert_eq!(
+            "builtin:sky".parse::<EnvSource>().unwrap(),
+            EnvSource::Sky {
+                hours: super::super::sky::DEFAULT_HOURS
+            }
+        );
+        assert_eq!(
+            "builtin:sky:7.5".parse::<EnvSource>().unwrap(),
+            EnvSource::Sky { hours: 7.5 }
+        );
         assert!("builtin:sky:x".parse::<EnvSource>().is_err());
         assert!("builtin:moon".parse::<EnvSource>().is_err());
     }

@@ -38,7 +38,14 @@ pub enum Face {
 }
 
 impl Face {
-    pub const ALL: [Face; 6] = [Face::PosX, Face::NegX, Face::PosY, Face::NegY, Face::PosZ, Face::NegZ];
+    pub const ALL: [Face; 6] = [
+        Face::PosX,
+        Face::NegX,
+        Face::PosY,
+        Face::NegY,
+        Face::PosZ,
+        Face::NegZ,
+    ];
     pub fn from_index(i: usize) -> Face {
         Face::ALL[i]
     }
@@ -119,14 +126,36 @@ pub fn dir_to_texel_lane(x: f32, y: f32, z: f32, n: u32) -> (u32, f32, f32, u32)
     let (ax, ay, az) = (x.abs(), y.abs(), z.abs());
     let is_x = (ax >= ay) & (ax >= az);
     let is_y = !is_x & (ay >= az);
-    let v_axis = if is_x { x } else if is_y { y } else { z };
+    let v_axis = if is_x {
+        x
+    } else if is_y {
+        y
+    } else {
+        z
+    };
     let m = v_axis.abs();
     let neg = v_axis < 0.0;
-    let face = if is_x { 0 } else if is_y { 2 } else { 4 } + neg as u32;
+    let face = if is_x {
+        0
+    } else if is_y {
+        2
+    } else {
+        4
+    } + neg as u32;
     // FACE_AB as selects: a from z on the X faces, else x; b from z on the Y faces, else y.
     let (src_a, src_b) = (if is_x { z } else { x }, if is_y { z } else { y });
-    let sign_a = if is_x { if neg { 1.0 } else { -1.0 } } else if !is_y & neg { -1.0 } else { 1.0 };
-    let sign_b = if is_y { if neg { -1.0 } else { 1.0 } } else { -1.0 };
+    let sign_a = if is_x {
+        if neg { 1.0 } else { -1.0 }
+    } else if !is_y & neg {
+        -1.0
+    } else {
+        1.0
+    };
+    let sign_b = if is_y {
+        if neg { -1.0 } else { 1.0 }
+    } else {
+        -1.0
+    };
     let r = 1.0 / m;
     let zero = m == 0.0;
     let a = if zero { 0.0 } else { sign_a * src_a * r };
@@ -178,7 +207,13 @@ impl TexelHit {
 pub fn dir_to_texel(d: Vec3, n: usize) -> TexelHit {
     let (face, a, b) = dir_to_face_ab(d);
     let (col, row) = uv_to_texel(0.5 * (a + 1.0), 0.5 * (b + 1.0), n);
-    TexelHit { face, a, b, col, row }
+    TexelHit {
+        face,
+        a,
+        b,
+        col,
+        row,
+    }
 }
 
 /// Lat-long (Mitsuba 3) direction of `(u, v)`: `d = (sin t sin p, cos t, -sin t cos p)`.
@@ -260,9 +295,17 @@ impl SanitizeReport {
 
 impl std::fmt::Display for SanitizeReport {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{} NaN, {} Inf, {} negative texels clamped to 0", self.nan, self.inf, self.negative)?;
+        write!(
+            f,
+            "{} NaN, {} Inf, {} negative texels clamped to 0",
+            self.nan, self.inf, self.negative
+        )?;
         if self.huge > 0 {
-            write!(f, ", {} texels above {MAX_RADIANCE:e} clamped to it", self.huge)?;
+            write!(
+                f,
+                ", {} texels above {MAX_RADIANCE:e} clamped to it",
+                self.huge
+            )?;
         }
         Ok(())
     }
@@ -285,7 +328,13 @@ pub fn sanitize_texel(c: Vec3, report: &mut SanitizeReport) -> Vec3 {
     } else {
         return c;
     }
-    Vec3::from_array(a.map(|x| if x.is_finite() && x > 0.0 { x.min(MAX_RADIANCE) } else { 0.0 }))
+    Vec3::from_array(a.map(|x| {
+        if x.is_finite() && x > 0.0 {
+            x.min(MAX_RADIANCE)
+        } else {
+            0.0
+        }
+    }))
 }
 
 /// An RGB image in linear float (row-major, top row first).
@@ -298,7 +347,11 @@ pub struct Image {
 
 impl Image {
     pub fn new(width: usize, height: usize) -> Self {
-        Image { width, height, data: vec![Vec3::ZERO; width * height] }
+        Image {
+            width,
+            height,
+            data: vec![Vec3::ZERO; width * height],
+        }
     }
     #[inline]
     pub fn get(&self, x: usize, y: usize) -> Vec3 {
@@ -327,7 +380,10 @@ pub struct CubeMap {
 impl CubeMap {
     pub fn new(size: usize) -> Self {
         assert!(size > 0, "cube face size must be positive");
-        CubeMap { size, data: vec![Vec3::ZERO; 6 * size * size] }
+        CubeMap {
+            size,
+            data: vec![Vec3::ZERO; 6 * size * size],
+        }
     }
 
     /// Build from a function of the texel centre direction.
@@ -412,7 +468,15 @@ mod tests {
     /// on random directions and on the hard ones (axes, ties between axes, zero, signed zeros).
     #[test]
     fn texel_lane_matches_scalar() {
-        let mut dirs = vec![Vec3::ZERO, Vec3::new(-0.0, 0.0, -0.0), Vec3::ONE, -Vec3::ONE, Vec3::new(1.0, -1.0, 0.0), Vec3::new(0.0, 1.0, -1.0), Vec3::new(-1.0, 0.0, 1.0)];
+        let mut dirs = vec![
+            Vec3::ZERO,
+            Vec3::new(-0.0, 0.0, -0.0),
+            Vec3::ONE,
+            -Vec3::ONE,
+            Vec3::new(1.0, -1.0, 0.0),
+            Vec3::new(0.0, 1.0, -1.0),
+            Vec3::new(-1.0, 0.0, 1.0),
+        ];
         for f in 0..6 {
             let mut v = [0.0f32; 3];
             v[f / 2] = if f % 2 == 0 { 1.0 } else { -1.0 };
@@ -427,7 +491,11 @@ mod tests {
             for &d in &dirs {
                 let h = dir_to_texel(d, n);
                 let (face, a, b, texel) = dir_to_texel_lane(d.x, d.y, d.z, n as u32);
-                assert_eq!((face as usize, a.to_bits(), b.to_bits(), texel as usize), (h.face, h.a.to_bits(), h.b.to_bits(), h.index(n)), "{d} n={n}");
+                assert_eq!(
+                    (face as usize, a.to_bits(), b.to_bits(), texel as usize),
+                    (h.face, h.a.to_bits(), h.b.to_bits(), h.index(n)),
+                    "{d} n={n}"
+                );
             }
         }
     }
@@ -439,7 +507,10 @@ mod tests {
                 let d = face_uv_to_dir(f, u, v);
                 let (g, u2, v2) = dir_to_face_uv(d);
                 assert_eq!(f, g);
-                assert!((u - u2).abs() < 1e-5 && (v - v2).abs() < 1e-5, "{f} {u} {v} -> {u2} {v2}");
+                assert!(
+                    (u - u2).abs() < 1e-5 && (v - v2).abs() < 1e-5,
+                    "{f} {u} {v} -> {u2} {v2}"
+                );
             }
         }
     }

@@ -6,7 +6,7 @@
 //!   (small texels near the poles included), and the total energy is preserved to rounding.
 //! - Growing: each target texel is the solid-angle-weighted mean of `s x s` bilinear sub-points.
 
-use super::{dir_to_face_uv, dir_to_latlong, face_ab_to_vec, CubeMap, Image};
+use super::{CubeMap, Image, dir_to_face_uv, dir_to_latlong, face_ab_to_vec};
 use glam::Vec3;
 use rayon::prelude::*;
 

@@ -29,7 +29,10 @@ pub fn block_on<F: std::future::Future>(fut: F) -> F::Output {
 impl GpuContext {
     pub fn new() -> Result<Self> {
         let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle());
-        let wanted = std::env::var("WGPU_ADAPTER_NAME").ok().filter(|s| !s.is_empty()).map(|s| s.to_lowercase());
+        let wanted = std::env::var("WGPU_ADAPTER_NAME")
+            .ok()
+            .filter(|s| !s.is_empty())
+            .map(|s| s.to_lowercase());
         let adapter = match &wanted {
             Some(name) => {
                 let all = block_on(instance.enumerate_adapters(wgpu::Backends::all()));
@@ -43,7 +46,11 @@ impl GpuContext {
         };
         let info = adapter.get_info();
         let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
-        let features = if timestamps { wgpu::Features::TIMESTAMP_QUERY } else { wgpu::Features::empty() };
+        let features = if timestamps {
+            wgpu::Features::TIMESTAMP_QUERY
+        } else {
+            wgpu::Features::empty()
+        };
         // Everything the adapter offers: 2048^2 faces need storage bindings above WebGPU's 128 MiB.
         let limits = adapter.limits();
         let (device, queue) = block_on(adapter.request_device(&wgpu::DeviceDescriptor {
@@ -53,13 +60,21 @@ impl GpuContext {
             ..Default::default()
         }))
         .map_err(|e| Error::invalid(format!("GPU device request failed on {}: {e}", info.name)))?;
-        Ok(GpuContext { device, queue, info, timestamps })
+        Ok(GpuContext {
+            device,
+            queue,
+            info,
+            timestamps,
+        })
     }
 
     /// Block until the given submission has finished.
     pub fn wait(&self, index: wgpu::SubmissionIndex) -> Result<()> {
         self.device
-            .poll(wgpu::PollType::Wait { submission_index: Some(index), timeout: None })
+            .poll(wgpu::PollType::Wait {
+                submission_index: Some(index),
+                timeout: None,
+            })
             .map(|_| ())
             .map_err(|e| Error::invalid(format!("GPU wait failed: {e}")))
     }
@@ -108,7 +123,12 @@ impl GpuContext {
     }
 
     /// Read back a buffer of plain values.
-    pub fn read<T: bytemuck::Pod>(&self, src: &wgpu::Buffer, first: usize, count: usize) -> Result<Vec<T>> {
+    pub fn read<T: bytemuck::Pod>(
+        &self,
+        src: &wgpu::Buffer,
+        first: usize,
+        count: usize,
+    ) -> Result<Vec<T>> {
         let sz = std::mem::size_of::<T>() as u64;
         let bytes = self.read_buffer(src, first as u64 * sz, count as u64 * sz)?;
         Ok(bytemuck::pod_collect_to_vec(&bytes))

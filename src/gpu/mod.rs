@@ -47,7 +47,14 @@ pub struct GpuTimings {
 
 /// Render a G-buffer on the GPU: the same contract as [`crate::render::render`] (same seed gives
 /// the same random streams, so the images agree to float rounding).
-pub fn render_gpu(ctx: &GpuContext, map: &CubeMap, gbuf: &[Option<GPixel>], width: usize, height: usize, s: &Settings) -> Result<(Rendered, GpuTimings)> {
+pub fn render_gpu(
+    ctx: &GpuContext,
+    map: &CubeMap,
+    gbuf: &[Option<GPixel>],
+    width: usize,
+    height: usize,
+    s: &Settings,
+) -> Result<(Rendered, GpuTimings)> {
     GpuRenderer::new(ctx).render(map, gbuf, width, height, s)
 }
 
@@ -61,11 +68,22 @@ pub struct GpuRenderer<'c> {
 
 impl<'c> GpuRenderer<'c> {
     pub fn new(ctx: &'c GpuContext) -> Self {
-        GpuRenderer { ctx, shader: Shader::new(ctx), samplers: Default::default() }
+        GpuRenderer {
+            ctx,
+            shader: Shader::new(ctx),
+            samplers: Default::default(),
+        }
     }
 
     /// [`render_gpu`] with the cached pipelines.
-    pub fn render(&mut self, map: &CubeMap, gbuf: &[Option<GPixel>], width: usize, height: usize, s: &Settings) -> Result<(Rendered, GpuTimings)> {
+    pub fn render(
+        &mut self,
+        map: &CubeMap,
+        gbuf: &[Option<GPixel>],
+        width: usize,
+        height: usize,
+        s: &Settings,
+    ) -> Result<(Rendered, GpuTimings)> {
         s.validate()?;
         assert_eq!(gbuf.len(), width * height);
         let ctx = self.ctx;
@@ -108,11 +126,26 @@ impl<'c> GpuRenderer<'c> {
             .stats
             .iter()
             .zip(gbuf)
-            .map(|(q, g)| g.as_ref().map(|_| PixelStats { available: q[0], green: q[1], yellow: q[2], brdf: q[3] }))
+            .map(|(q, g)| {
+                g.as_ref().map(|_| PixelStats {
+                    available: q[0],
+                    green: q[1],
+                    yellow: q[2],
+                    brdf: q[3],
+                })
+            })
             .collect();
         stats.accumulate(&per_pixel);
         stats.clamped_texels = clamped;
-        let image = crate::envmap::Image { width, height, data: job.color.iter().map(|c| Vec3::new(c[0], c[1], c[2])).collect() };
+        let image = crate::envmap::Image {
+            width,
+            height,
+            data: job
+                .color
+                .iter()
+                .map(|c| Vec3::new(c[0], c[1], c[2]))
+                .collect(),
+        };
         Ok((Rendered { image, stats }, timings))
     }
 }

@@ -1,10 +1,10 @@
 //! The per-frame distribution build and light-sample pool on the GPU (`shaders/distribution.wgsl`),
 //! twin of [`crate::sampling::CubeDistribution::build`] and [`crate::sampling::LightPool::build`].
 
-use super::{dispatch_size, shaders, GpuContext};
+use super::{GpuContext, dispatch_size, shaders};
 use crate::envmap::{CubeMap, SanitizeReport};
 use crate::error::{Error, Result};
-use crate::sampling::distribution::{face_solid_angles, Distribution1D, FaceDistribution};
+use crate::sampling::distribution::{Distribution1D, FaceDistribution, face_solid_angles};
 use crate::sampling::{CubeDistribution, LightPool, PoolSample};
 use glam::Vec3;
 
@@ -64,16 +64,22 @@ fn storage(device: &wgpu::Device, label: &str, size: u64) -> wgpu::Buffer {
     device.create_buffer(&wgpu::BufferDescriptor {
         label: Some(label),
         size: size.max(16),
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_SRC
+            | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     })
 }
 
 /// Refuse a buffer the device cannot bind, naming it, before allocating anything.
 pub fn check_binding(limits: &wgpu::Limits, what: &str, bytes: u64) -> Result<()> {
-    let max = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
+    let max = limits
+        .max_storage_buffer_binding_size
+        .min(limits.max_buffer_size);
     if bytes > max {
-        return Err(Error::invalid(format!("GPU: {what} needs {bytes} bytes, above this device's storage-binding limit of {max} bytes")));
+        return Err(Error::invalid(format!(
+            "GPU: {what} needs {bytes} bytes, above this device's storage-binding limit of {max} bytes"
+        )));
     }
     Ok(())
 }
@@ -84,14 +90,30 @@ impl EnvSampler {
     }
 
     /// Build on any device (the Bevy render world passes its own).
-    pub fn with_device(device: &wgpu::Device, queue: &wgpu::Queue, n: usize, m: usize, timestamps: bool) -> Result<Self> {
+    pub fn with_device(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        n: usize,
+        m: usize,
+        timestamps: bool,
+    ) -> Result<Self> {
         if n == 0 || m == 0 {
-            return Err(Error::invalid("GPU sampler: face size and pool size must be positive"));
+            return Err(Error::invalid(
+                "GPU sampler: face size and pool size must be positive",
+            ));
         }
         let texel_count = 6 * n * n;
         let limits = device.limits();
-        check_binding(&limits, "the texel table (6 N^2 x 16 bytes)", texel_count as u64 * 16)?;
-        check_binding(&limits, "the CDF tables", (6 * (n + 1) * (n + 1)) as u64 * 4)?;
+        check_binding(
+            &limits,
+            "the texel table (6 N^2 x 16 bytes)",
+            texel_count as u64 * 16,
+        )?;
+        check_binding(
+            &limits,
+            "the CDF tables",
+            (6 * (n + 1) * (n + 1)) as u64 * 4,
+        )?;
         check_binding(&limits, "the light pool", (6 * m) as u64 * 32)?;
         let texels = storage(device, "envis texels", texel_count as u64 * 16);
         let solid_angle = storage(device, "envis solid angles", (n * n) as u64 * 4);
@@ -106,30 +128,69 @@ impl EnvSampler {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        queue.write_buffer(&solid_angle, 0, bytemuck::cast_slice(face_solid_angles(n).as_slice()));
+        queue.write_buffer(
+            &solid_angle,
+            0,
+            bytemuck::cast_slice(face_solid_angles(n).as_slice()),
+        );
 
         let st = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
             binding,
             visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Storage { read_only }, has_dynamic_offset: false, min_binding_size: None },
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
             count: None,
         };
         let mut entries: Vec<wgpu::BindGroupLayoutEntry> = (0..7).map(|b| st(b, b == 1)).collect();
         entries.push(wgpu::BindGroupLayoutEntry {
             binding: 7,
             visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
             count: None,
         });
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("envis build layout"), entries: &entries });
-        let bufs = [&texels, &solid_angle, &weights, &cdfs, &totals, &pool, &problems, &params];
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("envis build layout"),
+            entries: &entries,
+        });
+        let bufs = [
+            &texels,
+            &solid_angle,
+            &weights,
+            &cdfs,
+            &totals,
+            &pool,
+            &problems,
+            &params,
+        ];
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("envis build bind group"),
             layout: &layout,
-            entries: &bufs.iter().enumerate().map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() }).collect::<Vec<_>>(),
+            entries: &bufs
+                .iter()
+                .enumerate()
+                .map(|(i, b)| wgpu::BindGroupEntry {
+                    binding: i as u32,
+                    resource: b.as_entire_binding(),
+                })
+                .collect::<Vec<_>>(),
         });
-        let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("envis build"), bind_group_layouts: &[Some(&layout)], immediate_size: 0 });
-        let module = shaders::module(device, "envis distribution.wgsl", &shaders::distribution_source());
+        let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("envis build"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let module = shaders::module(
+            device,
+            "envis distribution.wgsl",
+            &shaders::distribution_source(),
+        );
         let pipe = |entry: &str| {
             device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some(entry),
@@ -140,11 +201,34 @@ impl EnvSampler {
                 cache: None,
             })
         };
-        let pipelines = [pipe("texel_weights"), pipe("column_cdfs"), pipe("marginal_cdfs"), pipe("pdf_table"), pipe("build_pool")];
+        let pipelines = [
+            pipe("texel_weights"),
+            pipe("column_cdfs"),
+            pipe("marginal_cdfs"),
+            pipe("pdf_table"),
+            pipe("build_pool"),
+        ];
         let timer = timestamps.then(|| super::shading::PassTimer::new(device, "envis build timer"));
-        let pool_timer = timestamps.then(|| super::shading::PassTimer::new(device, "envis pool timer"));
+        let pool_timer =
+            timestamps.then(|| super::shading::PassTimer::new(device, "envis pool timer"));
         let gdist = storage(device, "envis global placeholder", 16);
-        Ok(EnvSampler { n, m, texels, weights, cdfs, totals, pool, problems, gdist, params, bind_group, pipelines, timer, pool_timer, global: None })
+        Ok(EnvSampler {
+            n,
+            m,
+            texels,
+            weights,
+            cdfs,
+            totals,
+            pool,
+            problems,
+            gdist,
+            params,
+            bind_group,
+            pipelines,
+            timer,
+            pool_timer,
+            global: None,
+        })
     }
 
     /// Also build the `global` baseline's lat-long distribution (4N x 2N cells) every frame.
@@ -153,36 +237,84 @@ impl EnvSampler {
             return Ok(());
         }
         let bytes = global_len(self.n) as u64 * 4;
-        check_binding(&device.limits(), "the global distribution (4N x 2N cells)", bytes)?;
+        check_binding(
+            &device.limits(),
+            "the global distribution (4N x 2N cells)",
+            bytes,
+        )?;
         self.gdist = storage(device, "envis global distribution", bytes);
-        let params = device.create_buffer(&wgpu::BufferDescriptor { label: Some("envis global params"), size: 16, usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST, mapped_at_creation: false });
+        let params = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("envis global params"),
+            size: 16,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
         queue.write_buffer(&params, 0, bytemuck::cast_slice(&[self.n as u32, 0, 0, 0]));
         let e = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
             binding,
             visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer { ty, has_dynamic_offset: false, min_binding_size: None },
+            ty: wgpu::BindingType::Buffer {
+                ty,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
             count: None,
         };
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("envis global layout"),
-            entries: &[e(0, wgpu::BufferBindingType::Storage { read_only: true }), e(1, wgpu::BufferBindingType::Storage { read_only: false }), e(2, wgpu::BufferBindingType::Uniform)],
+            entries: &[
+                e(0, wgpu::BufferBindingType::Storage { read_only: true }),
+                e(1, wgpu::BufferBindingType::Storage { read_only: false }),
+                e(2, wgpu::BufferBindingType::Uniform),
+            ],
         });
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("envis global"),
             layout: &layout,
             entries: &[
-                wgpu::BindGroupEntry { binding: 0, resource: self.texels.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 1, resource: self.gdist.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 2, resource: params.as_entire_binding() },
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: self.texels.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: self.gdist.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: params.as_entire_binding(),
+                },
             ],
         });
-        let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("envis global"), bind_group_layouts: &[Some(&layout)], immediate_size: 0 });
+        let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("envis global"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
         let module = shaders::module(device, "envis global.wgsl", &shaders::global_source());
         let pipe = |entry: &str| {
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor { label: Some(entry), layout: Some(&pl), module: &module, entry_point: Some(entry), compilation_options: Default::default(), cache: None })
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: Some(&pl),
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
         };
-        let pipelines = [pipe("global_cells"), pipe("global_row_sums"), pipe("global_floor"), pipe("global_row_cdfs"), pipe("global_marginal"), pipe("global_pdf_table")];
-        self.global = Some(GlobalBuild { bind_group, pipelines, _params: params });
+        let pipelines = [
+            pipe("global_cells"),
+            pipe("global_row_sums"),
+            pipe("global_floor"),
+            pipe("global_row_cdfs"),
+            pipe("global_marginal"),
+            pipe("global_pdf_table"),
+        ];
+        self.global = Some(GlobalBuild {
+            bind_group,
+            pipelines,
+            _params: params,
+        });
         Ok(())
     }
 
@@ -192,7 +324,15 @@ impl EnvSampler {
 
     /// The `global` distribution buffer, read back (tests).
     pub fn read_global(&self, ctx: &GpuContext) -> Result<Vec<f32>> {
-        ctx.read(&self.gdist, 0, if self.global.is_some() { global_len(self.n) } else { 4 })
+        ctx.read(
+            &self.gdist,
+            0,
+            if self.global.is_some() {
+                global_len(self.n)
+            } else {
+                4
+            },
+        )
     }
 
     /// Upload a frame's radiance (the `w` channel is written by the build).
@@ -204,7 +344,12 @@ impl EnvSampler {
 
     /// Set the pool seed for the next [`Self::encode`] (the CPU twin's `render::pool_seed`).
     pub fn set_seed(&self, queue: &wgpu::Queue, seed: u32) {
-        let p = Params { n: self.n as u32, m: self.m as u32, seed, _pad: 0 };
+        let p = Params {
+            n: self.n as u32,
+            m: self.m as u32,
+            seed,
+            _pad: 0,
+        };
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
     }
 
@@ -212,7 +357,11 @@ impl EnvSampler {
     /// (sanitise + weights, column CDFs, marginal CDFs, pdf table, and `global`'s when enabled),
     /// then the light pool.
     pub fn encode(&self, enc: &mut wgpu::CommandEncoder) {
-        self.encode_with(enc, self.timer.as_ref().map(|t| t.writes()), self.pool_timer.as_ref().map(|t| t.writes()));
+        self.encode_with(
+            enc,
+            self.timer.as_ref().map(|t| t.writes()),
+            self.pool_timer.as_ref().map(|t| t.writes()),
+        );
         for t in [&self.timer, &self.pool_timer].into_iter().flatten() {
             t.resolve(enc);
         }
@@ -220,7 +369,12 @@ impl EnvSampler {
 
     /// [`Self::encode`] with the caller's timestamp writes for the distribution pass and the pool
     /// pass (the Bevy app times them asynchronously).
-    pub fn encode_with(&self, enc: &mut wgpu::CommandEncoder, dist_writes: Option<wgpu::ComputePassTimestampWrites<'_>>, pool_writes: Option<wgpu::ComputePassTimestampWrites<'_>>) {
+    pub fn encode_with(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        dist_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
+        pool_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
+    ) {
         let n = self.n as u32;
         let texels = 6 * n * n;
         enc.clear_buffer(&self.problems, 0, None);
@@ -229,7 +383,10 @@ impl EnvSampler {
             pass.dispatch_workgroups(x, y, 1);
         };
         {
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("envis distribution"), timestamp_writes: dist_writes });
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("envis distribution"),
+                timestamp_writes: dist_writes,
+            });
             pass.set_bind_group(0, &self.bind_group, &[]);
             grid(&mut pass, &self.pipelines[0], dispatch_size(texels, 256));
             grid(&mut pass, &self.pipelines[1], dispatch_size(6 * n, 1));
@@ -247,9 +404,16 @@ impl EnvSampler {
             }
         }
         {
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("envis pool"), timestamp_writes: pool_writes });
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("envis pool"),
+                timestamp_writes: pool_writes,
+            });
             pass.set_bind_group(0, &self.bind_group, &[]);
-            grid(&mut pass, &self.pipelines[4], dispatch_size(6 * self.m as u32, 64));
+            grid(
+                &mut pass,
+                &self.pipelines[4],
+                dispatch_size(6 * self.m as u32, 64),
+            );
         }
     }
 
@@ -269,27 +433,50 @@ impl EnvSampler {
 
     /// GPU milliseconds of the last distribution pass and of the last pool pass.
     pub fn last_gpu_ms_split(&self, ctx: &GpuContext) -> (Option<f64>, Option<f64>) {
-        (self.timer.as_ref().and_then(|t| t.read_ms(ctx)), self.pool_timer.as_ref().and_then(|t| t.read_ms(ctx)))
+        (
+            self.timer.as_ref().and_then(|t| t.read_ms(ctx)),
+            self.pool_timer.as_ref().and_then(|t| t.read_ms(ctx)),
+        )
     }
 
     /// The last build's GPU milliseconds (distribution + pool, when the device has timestamps)
     /// and clamped-texel counts, in one readback.
     pub fn read_report(&self, ctx: &GpuContext) -> Result<(Option<f64>, SanitizeReport)> {
         let mut parts = vec![(&self.problems, 0, 16)];
-        parts.extend([&self.timer, &self.pool_timer].into_iter().flatten().map(|t| t.part()));
+        parts.extend(
+            [&self.timer, &self.pool_timer]
+                .into_iter()
+                .flatten()
+                .map(|t| t.part()),
+        );
         let data = ctx.read_many(&parts)?;
         let c: Vec<u32> = bytemuck::pod_collect_to_vec(&data[0]);
         let ms = match (data.get(1), data.get(2)) {
-            (Some(d), Some(p)) => super::shading::PassTimer::ms(ctx, d).zip(super::shading::PassTimer::ms(ctx, p)).map(|(d, p)| d + p),
+            (Some(d), Some(p)) => super::shading::PassTimer::ms(ctx, d)
+                .zip(super::shading::PassTimer::ms(ctx, p))
+                .map(|(d, p)| d + p),
             _ => None,
         };
-        Ok((ms, SanitizeReport { nan: c[0] as u64, inf: c[1] as u64, negative: c[2] as u64, huge: c[3] as u64 }))
+        Ok((
+            ms,
+            SanitizeReport {
+                nan: c[0] as u64,
+                inf: c[1] as u64,
+                negative: c[2] as u64,
+                huge: c[3] as u64,
+            },
+        ))
     }
 
     /// Texels clamped by the GPU sanitise pass of the last build.
     pub fn read_problems(&self, ctx: &GpuContext) -> Result<SanitizeReport> {
         let c: Vec<u32> = ctx.read(&self.problems, 0, 4)?;
-        Ok(SanitizeReport { nan: c[0] as u64, inf: c[1] as u64, negative: c[2] as u64, huge: c[3] as u64 })
+        Ok(SanitizeReport {
+            nan: c[0] as u64,
+            inf: c[1] as u64,
+            negative: c[2] as u64,
+            huge: c[3] as u64,
+        })
     }
 
     /// Read every table back (tests and debugging only; the frame path never does this).
@@ -310,7 +497,11 @@ impl EnvSampler {
             pdf_area: texels.iter().map(|t| t[3]).collect(),
             pool: pool
                 .chunks_exact(2)
-                .map(|p| PoolSample { dir: Vec3::new(p[0][0], p[0][1], p[0][2]), pdf: p[0][3], radiance: Vec3::new(p[1][0], p[1][1], p[1][2]) })
+                .map(|p| PoolSample {
+                    dir: Vec3::new(p[0][0], p[0][1], p[0][2]),
+                    pdf: p[0][3],
+                    radiance: Vec3::new(p[1][0], p[1][1], p[1][2]),
+                })
                 .collect(),
         })
     }
@@ -368,11 +559,17 @@ impl GpuTables {
 
     /// The pool as a CPU [`LightPool`].
     pub fn to_pool(&self) -> LightPool {
-        LightPool { per_face: self.m, samples: self.pool.clone() }
+        LightPool {
+            per_face: self.m,
+            samples: self.pool.clone(),
+        }
     }
 
     /// The sanitised radiance as a cube map.
     pub fn to_map(&self) -> CubeMap {
-        CubeMap { size: self.n, data: self.radiance.clone() }
+        CubeMap {
+            size: self.n,
+            data: self.radiance.clone(),
+        }
     }
 }

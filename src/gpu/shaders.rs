@@ -25,7 +25,10 @@ pub fn shade_source() -> String {
 /// Compile a module, turning a WGSL error into a readable panic (a shader that does not compile
 /// is a build defect, caught by the tests).
 pub fn module(device: &wgpu::Device, label: &str, source: &str) -> wgpu::ShaderModule {
-    device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some(label), source: wgpu::ShaderSource::Wgsl(source.into()) })
+    device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(label),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    })
 }
 
 /// The Bevy deferred lighting pass (fullscreen vertex + fragment `lighting`).

@@ -1,8 +1,8 @@
 //! Per-pixel face-weighted MIS shading on the GPU (`shaders/shade.wgsl`), twin of
 //! [`crate::render::shade_pixel`].
 
-use super::sampler::{check_binding, EnvSampler, TOTALS_COLUMNS};
-use super::{dispatch_size, shaders, GpuContext};
+use super::sampler::{EnvSampler, TOTALS_COLUMNS, check_binding};
+use super::{GpuContext, dispatch_size, shaders};
 use crate::error::Result;
 use crate::render::{GPixel, Settings, Strategy};
 use crate::sampling::{Counts, Heuristic, Lobe};
@@ -20,14 +20,21 @@ pub struct GpuGPixel {
 
 impl From<&Option<GPixel>> for GpuGPixel {
     fn from(p: &Option<GPixel>) -> Self {
-        let Some(p) = p else { return GpuGPixel::default() };
+        let Some(p) = p else {
+            return GpuGPixel::default();
+        };
         let (kind, param) = match p.material.lobe {
             Lobe::None => (0.0, 0.0),
             Lobe::Phong { exponent } => (1.0, exponent),
             Lobe::Ggx { alpha } => (2.0, alpha),
         };
         let m = &p.material;
-        GpuGPixel { n: p.n.extend(1.0).into(), o: p.o.extend(0.0).into(), kd: m.kd.extend(kind).into(), ks: m.ks.extend(param).into() }
+        GpuGPixel {
+            n: p.n.extend(1.0).into(),
+            o: p.o.extend(0.0).into(),
+            kd: m.kd.extend(kind).into(),
+            ks: m.ks.extend(param).into(),
+        }
     }
 }
 
@@ -83,7 +90,11 @@ pub struct PassTimer {
 
 impl PassTimer {
     pub fn new(device: &wgpu::Device, label: &str) -> Self {
-        let set = device.create_query_set(&wgpu::QuerySetDescriptor { label: Some(label), ty: wgpu::QueryType::Timestamp, count: 2 });
+        let set = device.create_query_set(&wgpu::QuerySetDescriptor {
+            label: Some(label),
+            ty: wgpu::QueryType::Timestamp,
+            count: 2,
+        });
         let resolve = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
             size: 16,
@@ -96,10 +107,18 @@ impl PassTimer {
             usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
-        PassTimer { set, resolve, readback }
+        PassTimer {
+            set,
+            resolve,
+            readback,
+        }
     }
     pub fn writes(&self) -> wgpu::ComputePassTimestampWrites<'_> {
-        wgpu::ComputePassTimestampWrites { query_set: &self.set, beginning_of_pass_write_index: Some(0), end_of_pass_write_index: Some(1) }
+        wgpu::ComputePassTimestampWrites {
+            query_set: &self.set,
+            beginning_of_pass_write_index: Some(0),
+            end_of_pass_write_index: Some(1),
+        }
     }
     pub fn resolve(&self, enc: &mut wgpu::CommandEncoder) {
         enc.resolve_query_set(&self.set, 0..2, &self.resolve, 0);
@@ -116,7 +135,8 @@ impl PassTimer {
     /// Milliseconds from the 16 bytes of a resolved pass.
     pub fn ms(ctx: &GpuContext, bytes: &[u8]) -> Option<f64> {
         let t: Vec<u64> = bytemuck::pod_collect_to_vec(bytes);
-        (t.len() == 2 && t[1] > t[0]).then(|| (t[1] - t[0]) as f64 * ctx.queue.get_timestamp_period() as f64 * 1e-6)
+        (t.len() == 2 && t[1] > t[0])
+            .then(|| (t[1] - t[0]) as f64 * ctx.queue.get_timestamp_period() as f64 * 1e-6)
     }
 }
 
@@ -145,16 +165,33 @@ impl Shader {
         let e = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
             binding,
             visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer { ty, has_dynamic_offset: false, min_binding_size: None },
+            ty: wgpu::BindingType::Buffer {
+                ty,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
             count: None,
         };
         let ro = wgpu::BufferBindingType::Storage { read_only: true };
         let rw = wgpu::BufferBindingType::Storage { read_only: false };
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("envis shade layout"),
-            entries: &[e(0, ro), e(1, ro), e(2, ro), e(3, ro), e(4, rw), e(5, rw), e(6, wgpu::BufferBindingType::Uniform), e(7, ro)],
+            entries: &[
+                e(0, ro),
+                e(1, ro),
+                e(2, ro),
+                e(3, ro),
+                e(4, rw),
+                e(5, rw),
+                e(6, wgpu::BufferBindingType::Uniform),
+                e(7, ro),
+            ],
         });
-        let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("envis shade"), bind_group_layouts: &[Some(&layout)], immediate_size: 0 });
+        let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("envis shade"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
         let module = shaders::module(device, "envis shade.wgsl", &shaders::shade_source());
         let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some("shade_gbuffer"),
@@ -170,41 +207,94 @@ impl Shader {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        Shader { pipeline, layout, params, timer: timestamps.then(|| PassTimer::new(device, "envis shade timer")) }
+        Shader {
+            pipeline,
+            layout,
+            params,
+            timer: timestamps.then(|| PassTimer::new(device, "envis shade timer")),
+        }
     }
 
     /// Headless: upload the G-buffer, shade every pixel with the sampler's current frame, read back.
-    pub fn shade(&self, ctx: &GpuContext, sampler: &EnvSampler, pixels: &[GpuGPixel], s: &Settings) -> Result<ShadeJob> {
+    pub fn shade(
+        &self,
+        ctx: &GpuContext,
+        sampler: &EnvSampler,
+        pixels: &[GpuGPixel],
+        s: &Settings,
+    ) -> Result<ShadeJob> {
         let count = pixels.len();
         let limits = ctx.device.limits();
         check_binding(&limits, "the G-buffer", count as u64 * 64)?;
-        let mk = |label: &str, size: u64, usage: wgpu::BufferUsages| ctx.device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size: size.max(16), usage, mapped_at_creation: false });
-        let su = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+        let mk = |label: &str, size: u64, usage: wgpu::BufferUsages| {
+            ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: size.max(16),
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        let su = wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_SRC
+            | wgpu::BufferUsages::COPY_DST;
         let gbuf = mk("envis gbuffer", count as u64 * 64, su);
         let color = mk("envis color", count as u64 * 16, su);
         let stats = mk("envis pixel stats", count as u64 * 16, su);
-        ctx.queue.write_buffer(&gbuf, 0, bytemuck::cast_slice(pixels));
-        ctx.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&ShadeParams::new(s, sampler.n, sampler.m, count)));
+        ctx.queue
+            .write_buffer(&gbuf, 0, bytemuck::cast_slice(pixels));
+        ctx.queue.write_buffer(
+            &self.params,
+            0,
+            bytemuck::bytes_of(&ShadeParams::new(s, sampler.n, sampler.m, count)),
+        );
         let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("envis shade bind group"),
             layout: &self.layout,
             entries: &[
-                wgpu::BindGroupEntry { binding: 0, resource: sampler.texels.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 1, resource: sampler.pool.as_entire_binding() },
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: sampler.texels.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: sampler.pool.as_entire_binding(),
+                },
                 wgpu::BindGroupEntry {
                     binding: 2,
-                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding { buffer: &sampler.totals, offset: 0, size: wgpu::BufferSize::new(TOTALS_COLUMNS as u64 * 4) }),
+                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: &sampler.totals,
+                        offset: 0,
+                        size: wgpu::BufferSize::new(TOTALS_COLUMNS as u64 * 4),
+                    }),
                 },
-                wgpu::BindGroupEntry { binding: 3, resource: gbuf.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 4, resource: color.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 5, resource: stats.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 6, resource: self.params.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 7, resource: sampler.gdist.as_entire_binding() },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: gbuf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: color.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 5,
+                    resource: stats.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 6,
+                    resource: self.params.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 7,
+                    resource: sampler.gdist.as_entire_binding(),
+                },
             ],
         });
         let mut enc = ctx.device.create_command_encoder(&Default::default());
         {
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("envis shade"), timestamp_writes: self.timer.as_ref().map(|t| t.writes()) });
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("envis shade"),
+                timestamp_writes: self.timer.as_ref().map(|t| t.writes()),
+            });
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &bind, &[]);
             let (x, y) = dispatch_size(count as u32, 64);
@@ -216,10 +306,17 @@ impl Shader {
         let idx = ctx.queue.submit([enc.finish()]);
         ctx.wait(idx)?;
         // One readback for the image, the per-pixel statistics and the pass timer.
-        let mut parts = vec![(&color, 0, count as u64 * 16), (&stats, 0, count as u64 * 16)];
+        let mut parts = vec![
+            (&color, 0, count as u64 * 16),
+            (&stats, 0, count as u64 * 16),
+        ];
         parts.extend(self.timer.as_ref().map(|t| t.part()));
         let data = ctx.read_many(&parts)?;
         let gpu_ms = data.get(2).and_then(|b| PassTimer::ms(ctx, b));
-        Ok(ShadeJob { color: bytemuck::pod_collect_to_vec(&data[0]), stats: bytemuck::pod_collect_to_vec(&data[1]), gpu_ms })
+        Ok(ShadeJob {
+            color: bytemuck::pod_collect_to_vec(&data[0]),
+            stats: bytemuck::pod_collect_to_vec(&data[1]),
+            gpu_ms,
+        })
     }
 }

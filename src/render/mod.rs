@@ -8,12 +8,15 @@ pub mod scene;
 
 use crate::envmap::CubeMap;
 use crate::error::{Error, Result};
-use crate::sampling::rng::{hash, Rng};
+use crate::sampling::rng::{Rng, hash};
 use crate::sampling::warp::Frame;
-use crate::sampling::{face_count, face_weights, mis, Counts, LocalBsdf, LANES, CubeDistribution, GlobalDistribution, Heuristic, LightPool};
+use crate::sampling::{
+    Counts, CubeDistribution, GlobalDistribution, Heuristic, LANES, LightPool, LocalBsdf,
+    face_count, face_weights, mis,
+};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
-pub use scene::{sphere_gbuffer, GPixel};
+pub use scene::{GPixel, sphere_gbuffer};
 
 /// Which estimator shades the pixels.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -112,17 +115,26 @@ impl Settings {
     /// Refuse settings that cannot produce an estimate.
     pub fn validate(&self) -> Result<()> {
         if self.light_samples == 0 && self.brdf_samples == 0 {
-            return Err(Error::invalid("--light-samples and --brdf-samples are both 0: nothing to estimate with"));
+            return Err(Error::invalid(
+                "--light-samples and --brdf-samples are both 0: nothing to estimate with",
+            ));
         }
         if self.light_samples > 1 << 16 || self.brdf_samples > 1 << 16 || self.pool_size > 1 << 20 {
-            return Err(Error::invalid("sample counts above 65536 per pixel (or a pool above 2^20 per face) are refused"));
+            return Err(Error::invalid(
+                "sample counts above 65536 per pixel (or a pool above 2^20 per face) are refused",
+            ));
         }
         Ok(())
     }
     /// M, the samples per face in the pool.
     pub fn pool_per_face(&self) -> usize {
-        let all = self.strategy == Strategy::Light || (self.strategy == Strategy::Paper && self.material_budget);
-        if self.pool_size > 0 { self.pool_size } else { self.light_samples.max(1) + if all { self.brdf_samples } else { 0 } }
+        let all = self.strategy == Strategy::Light
+            || (self.strategy == Strategy::Paper && self.material_budget);
+        if self.pool_size > 0 {
+            self.pool_size
+        } else {
+            self.light_samples.max(1) + if all { self.brdf_samples } else { 0 }
+        }
     }
 }
 
@@ -150,12 +162,27 @@ impl<'a> FrameData<'a> {
         let pool = if matches!(s.strategy, Strategy::Paper | Strategy::Light) {
             LightPool::build(map, &dist, s.pool_per_face(), pool_seed(s.seed))
         } else {
-            LightPool { per_face: 0, samples: Vec::new() }
+            LightPool {
+                per_face: 0,
+                samples: Vec::new(),
+            }
         };
         let global = (s.strategy == Strategy::Global).then(|| GlobalDistribution::build(map));
         let nn = map.size * map.size;
-        let texels = map.data.iter().enumerate().map(|(i, c)| c.extend(dist.faces[i / nn].pdf_area[i % nn])).collect();
-        FrameData { map, dist, energies, pool, global, texels }
+        let texels = map
+            .data
+            .iter()
+            .enumerate()
+            .map(|(i, c)| c.extend(dist.faces[i / nn].pdf_area[i % nn]))
+            .collect();
+        FrameData {
+            map,
+            dist,
+            energies,
+            pool,
+            global,
+            texels,
+        }
     }
 }
 
@@ -184,7 +211,12 @@ impl PixelStats {
 /// vectorises the sample loops 8 wide). Rust never fuses a multiply and an add on its own, so
 /// both copies round identically: the result does not depend on the CPU. `ENVIS_PORTABLE=1`
 /// forces the baseline copy (for comparisons).
-pub fn shade_pixel(fd: &FrameData, s: &Settings, px: &GPixel, pixel_index: u32) -> (Vec3, PixelStats) {
+pub fn shade_pixel(
+    fd: &FrameData,
+    s: &Settings,
+    px: &GPixel,
+    pixel_index: u32,
+) -> (Vec3, PixelStats) {
     #[cfg(target_arch = "x86_64")]
     if simd::enabled() {
         // SAFETY: the CPU supports the features `shade_pixel_avx2` is compiled for.
@@ -200,17 +232,31 @@ mod simd {
     #[inline]
     pub fn enabled() -> bool {
         static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-        *ON.get_or_init(|| std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") && std::env::var_os("ENVIS_PORTABLE").is_none())
+        *ON.get_or_init(|| {
+            std::arch::is_x86_feature_detected!("avx2")
+                && std::arch::is_x86_feature_detected!("fma")
+                && std::env::var_os("ENVIS_PORTABLE").is_none()
+        })
     }
     #[target_feature(enable = "avx2,fma")]
-    pub fn shade_pixel_avx2(fd: &FrameData, s: &Settings, px: &GPixel, pixel_index: u32) -> (Vec3, PixelStats) {
+    pub fn shade_pixel_avx2(
+        fd: &FrameData,
+        s: &Settings,
+        px: &GPixel,
+        pixel_index: u32,
+    ) -> (Vec3, PixelStats) {
         shade_pixel_portable(fd, s, px, pixel_index)
     }
 }
 
 /// [`shade_pixel`] compiled for the baseline target.
 #[inline(always)]
-fn shade_pixel_portable(fd: &FrameData, s: &Settings, px: &GPixel, pixel_index: u32) -> (Vec3, PixelStats) {
+fn shade_pixel_portable(
+    fd: &FrameData,
+    s: &Settings,
+    px: &GPixel,
+    pixel_index: u32,
+) -> (Vec3, PixelStats) {
     let n = px.n.normalize_or_zero();
     let o = px.o.normalize_or_zero();
     if n == Vec3::ZERO || o == Vec3::ZERO || n.dot(o) <= 0.0 || px.material.is_black() {
@@ -227,7 +273,15 @@ fn shade_pixel_portable(fd: &FrameData, s: &Settings, px: &GPixel, pixel_index: 
 /// [`shade_pixel`] for a visible pixel (unit `n`, `o`, `<n, o> > 0`) with BRDF `bsdf` (the
 /// pixel's `material`, or a specialised view of it).
 #[inline(always)]
-fn shade_with<B: LocalBsdf>(fd: &FrameData, s: &Settings, material: &crate::sampling::Material, bsdf: &B, n: Vec3, o: Vec3, pixel_index: u32) -> (Vec3, PixelStats) {
+fn shade_with<B: LocalBsdf>(
+    fd: &FrameData,
+    s: &Settings,
+    material: &crate::sampling::Material,
+    bsdf: &B,
+    n: Vec3,
+    o: Vec3,
+    pixel_index: u32,
+) -> (Vec3, PixelStats) {
     let mut st = PixelStats::default();
     let frame = Frame::new(n);
     let ol = frame.to_local(o);
@@ -235,7 +289,9 @@ fn shade_with<B: LocalBsdf>(fd: &FrameData, s: &Settings, material: &crate::samp
     let mut rng = Rng::new(s.seed, pixel_index);
     let mut sum = Vec3::ZERO;
     let (nl, nb) = match s.strategy {
-        Strategy::Paper if s.material_budget => budget_for(material, s.light_samples, s.brdf_samples),
+        Strategy::Paper if s.material_budget => {
+            budget_for(material, s.light_samples, s.brdf_samples)
+        }
         Strategy::Paper | Strategy::Global => (s.light_samples, s.brdf_samples),
         Strategy::Light => (s.light_samples + s.brdf_samples, 0),
         Strategy::Brdf => (0, s.light_samples + s.brdf_samples),
@@ -250,7 +306,11 @@ fn shade_with<B: LocalBsdf>(fd: &FrameData, s: &Settings, material: &crate::samp
             let m = fd.pool.per_face;
             st.available = (6 * m) as u32;
             let fw = face_weights(n, &fd.energies, s.strategy == Strategy::Paper);
-            let offset = if s.pixel_offset && m > 0 { rng.next_u32() as usize % m } else { 0 };
+            let offset = if s.pixel_offset && m > 0 {
+                rng.next_u32() as usize % m
+            } else {
+                0
+            };
             for (f, dens) in density.iter_mut().enumerate() {
                 let c = face_count(fw.mu[f] * nl as f32, m, s.counts);
                 *dens = c.density;
@@ -274,13 +334,22 @@ fn shade_with<B: LocalBsdf>(fd: &FrameData, s: &Settings, material: &crate::samp
                     let weight = if k + 1 == c.taken { c.last_weight } else { 1.0 };
                     let il = frame.to_local(ls.dir);
                     let n_l = c.density * ls.pdf;
-                    let n_b = if nb > 0 { nb_f * mat.pdf_local(ol, il) } else { 0.0 };
-                    sum += mat.eval_local(ol, il) * ls.radiance * (weight * cos * mis::weight_over_density(s.mis, n_l, n_b));
+                    let n_b = if nb > 0 {
+                        nb_f * mat.pdf_local(ol, il)
+                    } else {
+                        0.0
+                    };
+                    sum += mat.eval_local(ol, il)
+                        * ls.radiance
+                        * (weight * cos * mis::weight_over_density(s.mis, n_l, n_b));
                 }
             }
         }
         Strategy::Global => {
-            let g = fd.global.as_ref().expect("global distribution built for Strategy::Global");
+            let g = fd
+                .global
+                .as_ref()
+                .expect("global distribution built for Strategy::Global");
             st.available = nl as u32;
             for _ in 0..nl {
                 let u = Vec2::new(rng.next_f32(), rng.next_f32());
@@ -293,8 +362,14 @@ fn shade_with<B: LocalBsdf>(fd: &FrameData, s: &Settings, material: &crate::samp
                 st.green += 1;
                 let il = frame.to_local(d);
                 let n_l = nl as f32 * p;
-                let n_b = if nb > 0 { nb_f * mat.pdf_local(ol, il) } else { 0.0 };
-                sum += mat.eval_local(ol, il) * fd.map.lookup(d) * (cos * mis::weight_over_density(s.mis, n_l, n_b));
+                let n_b = if nb > 0 {
+                    nb_f * mat.pdf_local(ol, il)
+                } else {
+                    0.0
+                };
+                sum += mat.eval_local(ol, il)
+                    * fd.map.lookup(d)
+                    * (cos * mis::weight_over_density(s.mis, n_l, n_b));
             }
         }
         Strategy::Brdf => {}
@@ -333,11 +408,18 @@ fn shade_with<B: LocalBsdf>(fd: &FrameData, s: &Settings, material: &crate::samp
             let t = fd.texels[hit.texel[k] as usize];
             let n_l = match s.strategy {
                 Strategy::Paper => density[hit.face[k] as usize] * t.w * hit.jac[k],
-                Strategy::Global => nl as f32 * fd.global.as_ref().map_or(0.0, |g| g.pdf(Vec3::new(hit.x[k], hit.y[k], hit.z[k]))),
+                Strategy::Global => {
+                    nl as f32
+                        * fd.global
+                            .as_ref()
+                            .map_or(0.0, |g| g.pdf(Vec3::new(hit.x[k], hit.y[k], hit.z[k])))
+                }
                 _ => 0.0,
             };
             let il = smp.dir(k);
-            sum += mat.eval_local(ol, il) * t.truncate() * (il.z * mis::weight_over_density(s.mis, nb_f * p, n_l));
+            sum += mat.eval_local(ol, il)
+                * t.truncate()
+                * (il.z * mis::weight_over_density(s.mis, nb_f * p, n_l));
         }
     }
     (sum, st)
@@ -443,7 +525,8 @@ impl RenderStats {
             }
         }
         let np = self.shaded_pixels.max(1) as f64;
-        (self.red, self.green, self.yellow, self.wasted) = (red / np, green / np, yellow / np, wasted / np);
+        (self.red, self.green, self.yellow, self.wasted) =
+            (red / np, green / np, yellow / np, wasted / np);
         self.samples_per_second = self.samples_evaluated as f64 / (self.shade_ms / 1e3).max(1e-9);
     }
 }
@@ -455,7 +538,13 @@ pub struct Rendered {
 }
 
 /// Render a G-buffer of `width x height` pixels (row-major, `None` = no geometry).
-pub fn render(map: &CubeMap, gbuf: &[Option<GPixel>], width: usize, height: usize, s: &Settings) -> Result<Rendered> {
+pub fn render(
+    map: &CubeMap,
+    gbuf: &[Option<GPixel>],
+    width: usize,
+    height: usize,
+    s: &Settings,
+) -> Result<Rendered> {
     s.validate()?;
     assert_eq!(gbuf.len(), width * height);
     let t0 = std::time::Instant::now();
@@ -480,7 +569,11 @@ pub fn render(map: &CubeMap, gbuf: &[Option<GPixel>], width: usize, height: usiz
     stats.shade_ms = shade_ms;
     let per_pixel: Vec<Option<PixelStats>> = out.iter().map(|(_, st)| *st).collect();
     stats.accumulate(&per_pixel);
-    let image = crate::envmap::Image { width, height, data: out.into_iter().map(|(c, _)| c).collect() };
+    let image = crate::envmap::Image {
+        width,
+        height,
+        data: out.into_iter().map(|(c, _)| c).collect(),
+    };
     Ok(Rendered { image, stats })
 }
 
@@ -522,15 +615,25 @@ pub fn debug_pixel(fd: &FrameData, s: &Settings, px: &GPixel, pixel_index: u32) 
     let m = fd.pool.per_face;
     let nl = match s.strategy {
         Strategy::Light => s.light_samples + s.brdf_samples,
-        Strategy::Paper if s.material_budget => budget_for(&px.material, s.light_samples, s.brdf_samples).0,
+        Strategy::Paper if s.material_budget => {
+            budget_for(&px.material, s.light_samples, s.brdf_samples).0
+        }
         _ => s.light_samples,
     };
     let fw = face_weights(n, &fd.energies, s.strategy != Strategy::Light);
     let mut rng = Rng::new(s.seed, pixel_index);
-    let offset = if s.pixel_offset && m > 0 { rng.next_u32() as usize % m } else { 0 };
+    let offset = if s.pixel_offset && m > 0 {
+        rng.next_u32() as usize % m
+    } else {
+        0
+    };
     let mut samples = Vec::with_capacity(6 * m);
     let o = px.o.normalize_or_zero();
-    let live = matches!(s.strategy, Strategy::Paper | Strategy::Light) && n != Vec3::ZERO && o != Vec3::ZERO && n.dot(o) > 0.0 && !px.material.is_black();
+    let live = matches!(s.strategy, Strategy::Paper | Strategy::Light)
+        && n != Vec3::ZERO
+        && o != Vec3::ZERO
+        && n.dot(o) > 0.0
+        && !px.material.is_black();
     for f in 0..6 {
         let c = face_count(fw.mu[f] * nl as f32, m, s.counts);
         for j in 0..m {
@@ -543,10 +646,19 @@ pub fn debug_pixel(fd: &FrameData, s: &Settings, px: &GPixel, pixel_index: u32) 
             } else {
                 SampleKind::Used
             };
-            samples.push(DebugSample { face: f, dir: ls.dir, kind });
+            samples.push(DebugSample {
+                face: f,
+                dir: ls.dir,
+                kind,
+            });
         }
     }
-    PixelDebug { mu: fw.mu, n_f: std::array::from_fn(|f| fw.mu[f] * nl as f32), samples, estimate }
+    PixelDebug {
+        mu: fw.mu,
+        n_f: std::array::from_fn(|f| fw.mu[f] * nl as f32),
+        samples,
+        estimate,
+    }
 }
 
 #[cfg(test)]
@@ -564,9 +676,22 @@ mod tests {
         for (i, px) in gbuf.iter_mut().flatten().enumerate() {
             px.material.kd = Vec3::new(0.2 + 0.01 * (i % 50) as f32, 0.5, 0.9);
         }
-        for strategy in [Strategy::Paper, Strategy::Global, Strategy::Light, Strategy::Brdf] {
+        for strategy in [
+            Strategy::Paper,
+            Strategy::Global,
+            Strategy::Light,
+            Strategy::Brdf,
+        ] {
             for mis in [Heuristic::Balance, Heuristic::Power] {
-                let s = Settings { strategy, mis, light_samples: 7, brdf_samples: 5, seed: 11, pixel_offset: true, ..Default::default() };
+                let s = Settings {
+                    strategy,
+                    mis,
+                    light_samples: 7,
+                    brdf_samples: 5,
+                    seed: 11,
+                    pixel_offset: true,
+                    ..Default::default()
+                };
                 let fd = FrameData::prepare(&map, &s);
                 let mut lit = 0;
                 for (i, px) in gbuf.iter().enumerate() {
@@ -575,8 +700,15 @@ mod tests {
                     let lambert = px.material.as_lambert().unwrap();
                     let (a, sa) = shade_with(&fd, &s, &px.material, &lambert, n, o, i as u32);
                     let (b, sb) = shade_with(&fd, &s, &px.material, &px.material, n, o, i as u32);
-                    assert_eq!(a.to_array().map(f32::to_bits), b.to_array().map(f32::to_bits), "{strategy:?} {mis:?} pixel {i}");
-                    assert_eq!((sa.green, sa.yellow, sa.brdf), (sb.green, sb.yellow, sb.brdf));
+                    assert_eq!(
+                        a.to_array().map(f32::to_bits),
+                        b.to_array().map(f32::to_bits),
+                        "{strategy:?} {mis:?} pixel {i}"
+                    );
+                    assert_eq!(
+                        (sa.green, sa.yellow, sa.brdf),
+                        (sb.green, sb.yellow, sb.brdf)
+                    );
                     lit += (a.max_element() > 0.0) as usize;
                 }
                 assert!(lit > 100, "{strategy:?}: only {lit} lit pixels");
@@ -589,16 +721,35 @@ mod tests {
     #[test]
     fn simd_copy_is_bit_identical() {
         let map = crate::envmap::sky::sky_cube(16, 10.0);
-        for mat in [Material::diffuse(0.8), Material::phong(0.9, 150.0), Material::ggx(0.9, 0.3), Material { kd: Vec3::splat(0.4), ks: Vec3::splat(0.5), lobe: crate::sampling::Lobe::Ggx { alpha: 0.1 } }] {
+        for mat in [
+            Material::diffuse(0.8),
+            Material::phong(0.9, 150.0),
+            Material::ggx(0.9, 0.3),
+            Material {
+                kd: Vec3::splat(0.4),
+                ks: Vec3::splat(0.5),
+                lobe: crate::sampling::Lobe::Ggx { alpha: 0.1 },
+            },
+        ] {
             let gbuf = sphere_gbuffer(20, 20, mat);
             for strategy in [Strategy::Paper, Strategy::Global] {
-                let s = Settings { strategy, light_samples: 9, brdf_samples: 19, seed: 4, ..Default::default() };
+                let s = Settings {
+                    strategy,
+                    light_samples: 9,
+                    brdf_samples: 19,
+                    seed: 4,
+                    ..Default::default()
+                };
                 let fd = FrameData::prepare(&map, &s);
                 for (i, px) in gbuf.iter().enumerate() {
                     let Some(px) = px else { continue };
                     let (a, _) = shade_pixel(&fd, &s, px, i as u32);
                     let (b, _) = shade_pixel_portable(&fd, &s, px, i as u32);
-                    assert_eq!(a.to_array().map(f32::to_bits), b.to_array().map(f32::to_bits), "{mat:?} {strategy:?} pixel {i}");
+                    assert_eq!(
+                        a.to_array().map(f32::to_bits),
+                        b.to_array().map(f32::to_bits),
+                        "{mat:?} {strategy:?} pixel {i}"
+                    );
                 }
             }
         }

@@ -16,7 +16,11 @@ pub fn write_exr(path: &Path, img: &Image) -> Result<()> {
 /// sRGB-encode a linear value in [0, 1].
 fn srgb(x: f32) -> u8 {
     let x = x.clamp(0.0, 1.0);
-    let y = if x <= 0.003_130_8 { 12.92 * x } else { 1.055 * x.powf(1.0 / 2.4) - 0.055 };
+    let y = if x <= 0.003_130_8 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    };
     (y * 255.0 + 0.5) as u8
 }
 
@@ -34,10 +38,14 @@ pub fn write_png(path: &Path, img: &Image, exposure: f32) -> Result<()> {
 
 /// Write raw 8-bit RGB rows as a PNG.
 pub fn write_png_rgb8(path: &Path, width: usize, height: usize, rgb: &[u8]) -> Result<()> {
-    let f = std::fs::File::create(path).map_err(|e| Error::file(path, format!("cannot create: {e}")))?;
+    let f = std::fs::File::create(path)
+        .map_err(|e| Error::file(path, format!("cannot create: {e}")))?;
     let mut enc = png::Encoder::new(std::io::BufWriter::new(f), width as u32, height as u32);
     enc.set_color(png::ColorType::Rgb);
     enc.set_depth(png::BitDepth::Eight);
-    let mut w = enc.write_header().map_err(|e| Error::file(path, format!("cannot write PNG: {e}")))?;
-    w.write_image_data(rgb).map_err(|e| Error::file(path, format!("cannot write PNG: {e}")))
+    let mut w = enc
+        .write_header()
+        .map_err(|e| Error::file(path, format!("cannot write PNG: {e}")))?;
+    w.write_image_data(rgb)
+        .map_err(|e| Error::file(path, format!("cannot write PNG: {e}")))
 }

@@ -9,7 +9,7 @@
 //! with the f32 run-time code it checks.
 
 use super::scene::GPixel;
-use crate::envmap::{face_ab_to_dvec, texel_solid_angle, CubeMap, Image};
+use crate::envmap::{CubeMap, Image, face_ab_to_dvec, texel_solid_angle};
 use crate::sampling::{Lobe, Material};
 use glam::DVec3;
 use rayon::prelude::*;
@@ -46,7 +46,15 @@ impl BrdfF64 {
                 lambda_o = ggx_lambda(a2, no);
             }
         }
-        BrdfF64 { m: *m, n, o, no, r, a2, lambda_o }
+        BrdfF64 {
+            m: *m,
+            n,
+            o,
+            no,
+            r,
+            a2,
+            lambda_o,
+        }
     }
 
     #[inline]
@@ -131,22 +139,42 @@ impl Quadrature {
 
     fn build(size: usize, k: usize, with_samples: bool) -> Self {
         let h = 2.0 / size as f64;
-        let omega = (0..size * size).map(|i| texel_solid_angle(i % size, i / size, size)).collect();
+        let omega = (0..size * size)
+            .map(|i| texel_solid_angle(i % size, i / size, size))
+            .collect();
         let corners = (0..6 * (size + 1) * (size + 1))
             .map(|i| {
                 let (f, j) = (i / ((size + 1) * (size + 1)), i % ((size + 1) * (size + 1)));
-                face_ab_to_dvec(f, -1.0 + (j % (size + 1)) as f64 * h, -1.0 + (j / (size + 1)) as f64 * h)
+                face_ab_to_dvec(
+                    f,
+                    -1.0 + (j % (size + 1)) as f64 * h,
+                    -1.0 + (j / (size + 1)) as f64 * h,
+                )
             })
             .collect();
-        let fits = with_samples && 6 * size * size * k * k * std::mem::size_of::<(DVec3, f64)>() <= 64 << 20;
+        let fits = with_samples
+            && 6 * size * size * k * k * std::mem::size_of::<(DVec3, f64)>() <= 64 << 20;
         let (samples, wsum) = if fits {
-            let per_texel: Vec<Vec<(DVec3, f64)>> = (0..6 * size * size).into_par_iter().map(|t| subsamples(t / (size * size), t % size, (t / size) % size, h, k)).collect();
-            let wsum = per_texel.iter().map(|sub| sub.iter().map(|s| s.1).sum()).collect();
+            let per_texel: Vec<Vec<(DVec3, f64)>> = (0..6 * size * size)
+                .into_par_iter()
+                .map(|t| subsamples(t / (size * size), t % size, (t / size) % size, h, k))
+                .collect();
+            let wsum = per_texel
+                .iter()
+                .map(|sub| sub.iter().map(|s| s.1).sum())
+                .collect();
             (per_texel.into_iter().flatten().collect(), wsum)
         } else {
             (Vec::new(), Vec::new())
         };
-        Quadrature { size, k, omega, corners, samples, wsum }
+        Quadrature {
+            size,
+            k,
+            omega,
+            corners,
+            samples,
+            wsum,
+        }
     }
 }
 
@@ -193,7 +221,9 @@ pub fn reference_pixel_with(map: &CubeMap, px: &GPixel, q: &Quadrature) -> DVec3
                 if l.max_element() <= 0.0 {
                     continue;
                 }
-                let at = |dc: usize, dr: usize| n.dot(q.corners[f * side * side + (r + dr) * side + c + dc]);
+                let at = |dc: usize, dr: usize| {
+                    n.dot(q.corners[f * side * side + (r + dr) * side + c + dc])
+                };
                 let cos = [at(0, 0), at(1, 0), at(0, 1), at(1, 1)];
                 if cos.iter().all(|&x| x <= 0.0) {
                     continue;
@@ -208,7 +238,11 @@ pub fn reference_pixel_with(map: &CubeMap, px: &GPixel, q: &Quadrature) -> DVec3
                 };
                 let wsum = if cos.iter().any(|&x| x <= 0.0) || q.samples.is_empty() {
                     // Horizon texels (and maps too large for the table): midpoints on the fly.
-                    let k = if cos.iter().any(|&x| x <= 0.0) { kh } else { k0 };
+                    let k = if cos.iter().any(|&x| x <= 0.0) {
+                        kh
+                    } else {
+                        k0
+                    };
                     let mut wsum = 0.0;
                     for (d, w) in subsamples(f, c, r, h, k) {
                         wsum += w;
@@ -229,14 +263,33 @@ pub fn reference_pixel_with(map: &CubeMap, px: &GPixel, q: &Quadrature) -> DVec3
 }
 
 /// Reference image of a G-buffer (f64 internally, stored as f32 RGB).
-pub fn reference_image(map: &CubeMap, gbuf: &[Option<GPixel>], width: usize, height: usize, refine: f64) -> (Image, Vec<DVec3>) {
+pub fn reference_image(
+    map: &CubeMap,
+    gbuf: &[Option<GPixel>],
+    width: usize,
+    height: usize,
+    refine: f64,
+) -> (Image, Vec<DVec3>) {
     // One table per sub-texel resolution in use (one per material).
     let mut tables: std::collections::HashMap<usize, Quadrature> = Default::default();
     for p in gbuf.iter().flatten() {
         let k = subdivision(map.size, &p.material, refine);
-        tables.entry(k).or_insert_with(|| Quadrature::new(map.size, k));
+        tables
+            .entry(k)
+            .or_insert_with(|| Quadrature::new(map.size, k));
     }
-    let px: Vec<DVec3> = gbuf.par_iter().map(|p| p.as_ref().map_or(DVec3::ZERO, |p| reference_pixel_with(map, p, &tables[&subdivision(map.size, &p.material, refine)]))).collect();
-    let img = Image { width, height, data: px.iter().map(|c| c.as_vec3()).collect() };
+    let px: Vec<DVec3> = gbuf
+        .par_iter()
+        .map(|p| {
+            p.as_ref().map_or(DVec3::ZERO, |p| {
+                reference_pixel_with(map, p, &tables[&subdivision(map.size, &p.material, refine)])
+            })
+        })
+        .collect();
+    let img = Image {
+        width,
+        height,
+        data: px.iter().map(|c| c.as_vec3()).collect(),
+    };
     (img, px)
 }

@@ -21,7 +21,11 @@ pub fn sphere_gbuffer(width: usize, height: usize, material: Material) -> Vec<Op
             let x = -1.0 + 2.0 * (i as f32 + 0.5) / width as f32;
             let y = 1.0 - 2.0 * (j as f32 + 0.5) / height as f32;
             let r2 = x * x + y * y;
-            g.push((r2 < 1.0).then(|| GPixel { n: Vec3::new(x, y, (1.0 - r2).sqrt()), o: Vec3::Z, material }));
+            g.push((r2 < 1.0).then(|| GPixel {
+                n: Vec3::new(x, y, (1.0 - r2).sqrt()),
+                o: Vec3::Z,
+                material,
+            }));
         }
     }
     g

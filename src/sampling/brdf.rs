@@ -5,8 +5,8 @@
 //! All directions are world-space unit vectors pointing away from the surface; `o` is the view
 //! direction. Back-facing views (`<n, o> <= 0`) reflect nothing.
 
+use super::rng::{Rng, to_unit};
 use super::warp::*;
-use super::rng::{to_unit, Rng};
 use crate::envmap::luminance;
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, PI};
@@ -22,9 +22,13 @@ fn mirror_cos(ol: Vec3, il: Vec3) -> f32 {
 pub enum Lobe {
     None,
     /// Normalised Phong around the mirror direction: `f = ks (e+2)/(2 pi) max(0, <r, i>)^e`.
-    Phong { exponent: f32 },
+    Phong {
+        exponent: f32,
+    },
     /// GGX microfacet, perfect conductor (F = 1), height-correlated Smith masking.
-    Ggx { alpha: f32 },
+    Ggx {
+        alpha: f32,
+    },
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -94,11 +98,19 @@ pub struct Lambert {
 impl LocalBsdf for Lambert {
     #[inline(always)]
     fn eval_local(&self, ol: Vec3, il: Vec3) -> Vec3 {
-        if ol.z <= 0.0 || il.z <= 0.0 { Vec3::ZERO } else { self.kd * FRAC_1_PI }
+        if ol.z <= 0.0 || il.z <= 0.0 {
+            Vec3::ZERO
+        } else {
+            self.kd * FRAC_1_PI
+        }
     }
     #[inline(always)]
     fn pdf_local(&self, ol: Vec3, il: Vec3) -> f32 {
-        if ol.z <= 0.0 { 0.0 } else { cosine_hemisphere_pdf(il) }
+        if ol.z <= 0.0 {
+            0.0
+        } else {
+            cosine_hemisphere_pdf(il)
+        }
     }
     #[inline(always)]
     fn sample_local(&self, ol: Vec3, u: Vec2) -> Option<(Vec3, f32)> {
@@ -110,7 +122,11 @@ impl LocalBsdf for Lambert {
             return None;
         }
         let p = cosine_hemisphere_pdf(il);
-        if p > 0.0 && p.is_finite() { Some((il, p)) } else { None }
+        if p > 0.0 && p.is_finite() {
+            Some((il, p))
+        } else {
+            None
+        }
     }
     /// [`LocalBsdf::sample_local`] on all lanes at once: the random draws come from one
     /// jump-ahead fill and the warp is branch-free, so the loop vectorises.
@@ -120,7 +136,10 @@ impl LocalBsdf for Lambert {
         rng.fill_u32(&mut r[..2 * count]);
         let live = ol.z > 0.0;
         for k in 0..LANES {
-            let u = Vec2::new(to_unit(r[2 * k]).min(1.0 - f32::EPSILON / 2.0), to_unit(r[2 * k + 1]));
+            let u = Vec2::new(
+                to_unit(r[2 * k]).min(1.0 - f32::EPSILON / 2.0),
+                to_unit(r[2 * k + 1]),
+            );
             let il = sample_cosine_hemisphere(u);
             let p = cosine_hemisphere_pdf(il);
             let ok = live & (il.z > 0.0) & (p > 0.0) & p.is_finite();
@@ -154,13 +173,29 @@ impl Material {
         (self.lobe == Lobe::None).then_some(Lambert { kd: self.kd })
     }
     pub fn diffuse(albedo: f32) -> Self {
-        Material { kd: Vec3::splat(albedo), ks: Vec3::ZERO, lobe: Lobe::None }
+        Material {
+            kd: Vec3::splat(albedo),
+            ks: Vec3::ZERO,
+            lobe: Lobe::None,
+        }
     }
     pub fn phong(albedo: f32, exponent: f32) -> Self {
-        Material { kd: Vec3::ZERO, ks: Vec3::splat(albedo), lobe: Lobe::Phong { exponent: exponent.clamp(0.0, MAX_EXPONENT) } }
+        Material {
+            kd: Vec3::ZERO,
+            ks: Vec3::splat(albedo),
+            lobe: Lobe::Phong {
+                exponent: exponent.clamp(0.0, MAX_EXPONENT),
+            },
+        }
     }
     pub fn ggx(albedo: f32, alpha: f32) -> Self {
-        Material { kd: Vec3::ZERO, ks: Vec3::splat(albedo), lobe: Lobe::Ggx { alpha: alpha.clamp(MIN_ALPHA, 1.0) } }
+        Material {
+            kd: Vec3::ZERO,
+            ks: Vec3::splat(albedo),
+            lobe: Lobe::Ggx {
+                alpha: alpha.clamp(MIN_ALPHA, 1.0),
+            },
+        }
     }
 
     /// Probability of choosing the diffuse lobe when sampling.
@@ -195,7 +230,8 @@ impl Material {
     /// or a back-facing view).
     #[inline]
     pub fn sample(&self, f: &Frame, o: Vec3, u: Vec2) -> Option<(Vec3, f32)> {
-        self.sample_local(f.to_local(o), u).map(|(il, p)| (f.to_world(il).normalize(), p))
+        self.sample_local(f.to_local(o), u)
+            .map(|(il, p)| (f.to_world(il).normalize(), p))
     }
 
     /// [`Self::eval`] in the shading frame (z = normal).
@@ -268,7 +304,11 @@ impl Material {
             return None;
         }
         let p = self.pdf_local(ol, il);
-        if p > 0.0 && p.is_finite() { Some((il, p)) } else { None }
+        if p > 0.0 && p.is_finite() {
+            Some((il, p))
+        } else {
+            None
+        }
     }
 
     /// Angular width (radians) of the narrowest lobe, for quadrature refinement in the reference.

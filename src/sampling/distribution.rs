@@ -11,7 +11,7 @@
 //! `energy() == 0` and is never asked to sample (its pdf is 0 everywhere), an all-zero map gives
 //! six empty faces.
 
-use crate::envmap::{face_ab_to_vec, luminance, texel_solid_angle, CubeMap};
+use crate::envmap::{CubeMap, face_ab_to_vec, luminance, texel_solid_angle};
 use glam::{Vec2, Vec3};
 
 /// Piecewise-constant 1D distribution on `[0, 1)` with `n` bins.
@@ -44,7 +44,11 @@ impl Distribution1D {
         };
         let mut cdf = cdf;
         cdf[n] = 1.0;
-        Distribution1D { func, cdf, total: acc }
+        Distribution1D {
+            func,
+            cdf,
+            total: acc,
+        }
     }
 
     pub fn len(&self) -> usize {
@@ -57,7 +61,11 @@ impl Distribution1D {
     /// Discrete probability of bin `i`: `func[i] / total` (0 for an empty distribution).
     #[inline]
     pub fn bin_pmf(&self, i: usize) -> f32 {
-        if self.total > 0.0 { (self.func[i] as f64 / self.total) as f32 } else { 0.0 }
+        if self.total > 0.0 {
+            (self.func[i] as f64 / self.total) as f32
+        } else {
+            0.0
+        }
     }
 
     /// Sample: bin `i` with `cdf[i] <= u < cdf[i+1]` (zero-width bins are never returned for
@@ -68,7 +76,11 @@ impl Distribution1D {
         // Largest i in [0, n-1] with cdf[i] <= u.
         let i = self.cdf[..n].partition_point(|&c| c <= u).saturating_sub(1);
         let w = self.cdf[i + 1] - self.cdf[i];
-        let du = if w > 0.0 { ((u - self.cdf[i]) / w).clamp(0.0, 1.0 - f32::EPSILON / 2.0) } else { 0.0 };
+        let du = if w > 0.0 {
+            ((u - self.cdf[i]) / w).clamp(0.0, 1.0 - f32::EPSILON / 2.0)
+        } else {
+            0.0
+        };
         (i, du)
     }
 
@@ -106,13 +118,24 @@ pub struct FaceSample {
 impl FaceDistribution {
     /// Build from texel weights `w[row * n + col]` (already luminance x solid angle).
     pub fn from_weights(n: usize, w: &[f32]) -> Self {
-        let conditional: Vec<Distribution1D> =
-            (0..n).map(|c| Distribution1D::new((0..n).map(|r| w[r * n + c]).collect())).collect();
+        let conditional: Vec<Distribution1D> = (0..n)
+            .map(|c| Distribution1D::new((0..n).map(|r| w[r * n + c]).collect()))
+            .collect();
         let marginal = Distribution1D::new(conditional.iter().map(|d| d.total as f32).collect());
         let energy: f64 = conditional.iter().map(|d| d.total).sum();
-        let scale = if energy > 0.0 { (n * n) as f64 * 0.25 / energy } else { 0.0 };
+        let scale = if energy > 0.0 {
+            (n * n) as f64 * 0.25 / energy
+        } else {
+            0.0
+        };
         let pdf_area = w.iter().map(|&x| (x as f64 * scale) as f32).collect();
-        FaceDistribution { size: n, marginal, conditional, energy, pdf_area }
+        FaceDistribution {
+            size: n,
+            marginal,
+            conditional,
+            energy,
+            pdf_area,
+        }
     }
 
     /// Discrete probability of texel `(col, row)`.
@@ -135,7 +158,12 @@ impl FaceDistribution {
         let a = -1.0 + (col as f32 + du) * h;
         let b = -1.0 + (row as f32 + dv) * h;
         let pdf = self.pdf_ab(col, row, a, b);
-        Some(FaceSample { dir: face_ab_to_vec(face, a, b).normalize(), col, row, pdf })
+        Some(FaceSample {
+            dir: face_ab_to_vec(face, a, b).normalize(),
+            col,
+            row,
+            pdf,
+        })
     }
 
     /// Solid-angle pdf at face coordinates `(a, b)` in texel `(col, row)`:
@@ -152,7 +180,10 @@ impl FaceDistribution {
         let x = ((a + 1.0) * 0.5 * n as f32).clamp(0.0, n as f32 - 1e-3);
         let y = ((b + 1.0) * 0.5 * n as f32).clamp(0.0, n as f32 - 1e-3);
         let (col, row) = (x as usize, y as usize);
-        Vec2::new(self.marginal.invert(col, x - col as f32), self.conditional[col].invert(row, y - row as f32))
+        Vec2::new(
+            self.marginal.invert(col, x - col as f32),
+            self.conditional[col].invert(row, y - row as f32),
+        )
     }
 }
 
@@ -173,7 +204,11 @@ pub fn face_solid_angles(n: usize) -> std::sync::Arc<Vec<f32>> {
     if let Some(t) = cache.lock().unwrap().get(&n) {
         return t.clone();
     }
-    let t = Arc::new((0..n * n).map(|i| texel_solid_angle(i % n, i / n, n) as f32).collect::<Vec<f32>>());
+    let t = Arc::new(
+        (0..n * n)
+            .map(|i| texel_solid_angle(i % n, i / n, n) as f32)
+            .collect::<Vec<f32>>(),
+    );
     cache.lock().unwrap().insert(n, t.clone());
     t
 }
@@ -183,7 +218,11 @@ pub fn texel_weights(map: &CubeMap) -> Vec<f32> {
     use rayon::prelude::*;
     let n = map.size;
     let omega = face_solid_angles(n);
-    map.data.par_iter().enumerate().map(|(i, &c)| luminance(c).max(0.0) * omega[i % (n * n)]).collect()
+    map.data
+        .par_iter()
+        .enumerate()
+        .map(|(i, &c)| luminance(c).max(0.0) * omega[i % (n * n)])
+        .collect()
 }
 
 impl CubeDistribution {
@@ -191,7 +230,10 @@ impl CubeDistribution {
         use rayon::prelude::*;
         let n = map.size;
         let w = texel_weights(map);
-        let faces = (0..6).into_par_iter().map(|f| FaceDistribution::from_weights(n, &w[f * n * n..(f + 1) * n * n])).collect();
+        let faces = (0..6)
+            .into_par_iter()
+            .map(|f| FaceDistribution::from_weights(n, &w[f * n * n..(f + 1) * n * n]))
+            .collect();
         CubeDistribution { size: n, faces }
     }
 
@@ -212,6 +254,10 @@ impl CubeDistribution {
     #[inline]
     pub fn locate(&self, d: Vec3) -> (usize, usize, f32) {
         let t = crate::envmap::dir_to_texel(d, self.size);
-        (t.face, t.index(self.size), self.faces[t.face].pdf_ab(t.col, t.row, t.a, t.b))
+        (
+            t.face,
+            t.index(self.size),
+            self.faces[t.face].pdf_ab(t.col, t.row, t.a, t.b),
+        )
     }
 }

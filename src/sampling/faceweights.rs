@@ -54,7 +54,11 @@ pub fn corner_cosines(n: Vec3) -> [f32; 6] {
 /// `F_f` and `mu_f` for normal `n` and face energies `I_f`. With `use_cosine == false` this is
 /// the `light` baseline (`mu_f = I_f / sum I_f`). All-zero when nothing can contribute.
 pub fn face_weights(n: Vec3, energy: &[f64; 6], use_cosine: bool) -> FaceWeights {
-    let c = if use_cosine { corner_cosines(n) } else { [1.0; 6] };
+    let c = if use_cosine {
+        corner_cosines(n)
+    } else {
+        [1.0; 6]
+    };
     let csum: f32 = c.iter().sum();
     let mut w = FaceWeights::default();
     if csum <= 0.0 {
@@ -85,21 +89,41 @@ pub struct FaceCount {
 /// the count that is divided by, so it stays unbiased in fractional mode).
 #[inline]
 pub fn face_count(n_f: f32, m: usize, counts: Counts) -> FaceCount {
-    let n_f = if n_f.is_finite() { n_f.clamp(0.0, m as f32) } else { 0.0 };
+    let n_f = if n_f.is_finite() {
+        n_f.clamp(0.0, m as f32)
+    } else {
+        0.0
+    };
     if n_f <= 0.0 {
-        return FaceCount { taken: 0, last_weight: 0.0, density: 0.0 };
+        return FaceCount {
+            taken: 0,
+            last_weight: 0.0,
+            density: 0.0,
+        };
     }
     match counts {
         Counts::Fractional => {
             let whole = n_f.floor();
             let frac = n_f - whole;
             if frac > 0.0 {
-                FaceCount { taken: whole as usize + 1, last_weight: frac, density: n_f }
+                FaceCount {
+                    taken: whole as usize + 1,
+                    last_weight: frac,
+                    density: n_f,
+                }
             } else {
-                FaceCount { taken: whole as usize, last_weight: 1.0, density: n_f }
+                FaceCount {
+                    taken: whole as usize,
+                    last_weight: 1.0,
+                    density: n_f,
+                }
             }
         }
-        Counts::Integer => FaceCount { taken: (n_f.round() as usize).min(m), last_weight: 1.0, density: n_f },
+        Counts::Integer => FaceCount {
+            taken: (n_f.round() as usize).min(m),
+            last_weight: 1.0,
+            density: n_f,
+        },
     }
 }
 

@@ -8,7 +8,7 @@
 //! `p(w) = p(u, v) / (2 pi^2 sin t)`.
 
 use super::distribution::Distribution1D;
-use crate::envmap::{dir_to_latlong, latlong_to_dir, luminance, CubeMap};
+use crate::envmap::{CubeMap, dir_to_latlong, latlong_to_dir, luminance};
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
 
@@ -45,7 +45,11 @@ impl GlobalDistribution {
             })
             .collect();
         let mean = cells.iter().map(|&c| c as f64).sum::<f64>() / cells.len() as f64;
-        let floor = if mean > 0.0 { (0.01 * mean) as f32 } else { 1.0 };
+        let floor = if mean > 0.0 {
+            (0.01 * mean) as f32
+        } else {
+            1.0
+        };
         for (i, c) in cells.iter_mut().enumerate() {
             let y = i / w;
             let t0 = PI * y as f32 / h as f32;
@@ -53,9 +57,16 @@ impl GlobalDistribution {
             // Floor per unit solid angle, so it does not favour the poles.
             *c += floor * (t0.cos() - t1.cos()) * h as f32 / 2.0;
         }
-        let conditional: Vec<Distribution1D> = (0..h).map(|y| Distribution1D::new(cells[y * w..(y + 1) * w].to_vec())).collect();
+        let conditional: Vec<Distribution1D> = (0..h)
+            .map(|y| Distribution1D::new(cells[y * w..(y + 1) * w].to_vec()))
+            .collect();
         let marginal = Distribution1D::new(conditional.iter().map(|d| d.total as f32).collect());
-        GlobalDistribution { width: w, height: h, marginal, conditional }
+        GlobalDistribution {
+            width: w,
+            height: h,
+            marginal,
+            conditional,
+        }
     }
 
     /// Sample a direction and its solid-angle pdf; `None` at the (measure-zero) poles.
@@ -67,7 +78,11 @@ impl GlobalDistribution {
         let vv = (y as f32 + dv) / self.height as f32;
         let d = latlong_to_dir(uu, vv);
         let p = self.pdf_cell(x, y, vv);
-        if p > 0.0 && p.is_finite() { Some((d, p)) } else { None }
+        if p > 0.0 && p.is_finite() {
+            Some((d, p))
+        } else {
+            None
+        }
     }
 
     #[inline]
@@ -76,7 +91,9 @@ impl GlobalDistribution {
         if st <= 0.0 {
             return 0.0;
         }
-        let puv = self.marginal.bin_pmf(y) * self.conditional[y].bin_pmf(x) * (self.width * self.height) as f32;
+        let puv = self.marginal.bin_pmf(y)
+            * self.conditional[y].bin_pmf(x)
+            * (self.width * self.height) as f32;
         puv / (2.0 * PI * PI * st)
     }
 

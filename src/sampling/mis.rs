@@ -55,7 +55,10 @@ mod tests {
             for &(a, b) in &[(1.0f32, 2.0f32), (3.0, 0.0), (1e-10, 1e10), (5e3, 2.0)] {
                 let x = weight_over_density(h, a, b);
                 let y = weight(h, a, b) / a;
-                assert!((x - y).abs() <= 1e-5 * y.abs().max(1e-35), "{h:?} {a} {b}: {x} vs {y}");
+                assert!(
+                    (x - y).abs() <= 1e-5 * y.abs().max(1e-35),
+                    "{h:?} {a} {b}: {x} vs {y}"
+                );
             }
         }
     }

@@ -11,9 +11,9 @@ pub mod pool;
 pub mod rng;
 pub mod warp;
 
-pub use brdf::{Lambert, LocalBsdf, Lobe, Material, SampleLanes, LANES};
+pub use brdf::{LANES, Lambert, Lobe, LocalBsdf, Material, SampleLanes};
 pub use distribution::{CubeDistribution, Distribution1D, FaceDistribution};
-pub use faceweights::{face_count, face_weights, Counts, FaceWeights};
+pub use faceweights::{Counts, FaceWeights, face_count, face_weights};
 pub use global::GlobalDistribution;
 pub use mis::Heuristic;
 pub use pool::{LightPool, PoolSample};

@@ -50,12 +50,19 @@ impl LightPool {
                 let (f, i) = (k / m.max(1), k % m.max(1));
                 let p = pool_point(seed, f as u32, i as u32, m as u32);
                 match dist.faces[f].sample(f, p) {
-                    Some(s) => PoolSample { dir: s.dir, radiance: map.texel(f, s.col, s.row), pdf: s.pdf },
+                    Some(s) => PoolSample {
+                        dir: s.dir,
+                        radiance: map.texel(f, s.col, s.row),
+                        pdf: s.pdf,
+                    },
                     None => PoolSample::default(),
                 }
             })
             .collect();
-        LightPool { per_face: m, samples }
+        LightPool {
+            per_face: m,
+            samples,
+        }
     }
 
     #[inline]

@@ -37,7 +37,9 @@ pub struct Rng {
 
 impl Rng {
     pub fn new(seed: u32, stream: u32) -> Self {
-        Rng { state: hash_combine(&[seed, stream]) }
+        Rng {
+            state: hash_combine(&[seed, stream]),
+        }
     }
     #[inline]
     pub fn next_u32(&mut self) -> u32 {
@@ -101,7 +103,11 @@ pub fn permute(i: u32, n: u32, seed: u32) -> u32 {
         return 0;
     }
     let bits = 32 - (n - 1).leading_zeros();
-    let mask = if bits >= 32 { u32::MAX } else { (1u32 << bits) - 1 };
+    let mask = if bits >= 32 {
+        u32::MAX
+    } else {
+        (1u32 << bits) - 1
+    };
     let s1 = hash(seed);
     let s2 = hash(s1);
     let mut x = i;

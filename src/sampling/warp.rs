@@ -42,8 +42,17 @@ pub fn sin_cos_fast(x: f32) -> (f32, f32) {
     let fold = x.abs() > FRAC_PI_2;
     let y = if fold { PI.copysign(x) - x } else { x };
     let y2 = y * y;
-    let s = y * (1.0 + y2 * (-1.0 / 6.0 + y2 * (1.0 / 120.0 + y2 * (-1.0 / 5040.0 + y2 * (1.0 / 362_880.0 + y2 * (-1.0 / 39_916_800.0))))));
-    let c = 1.0 + y2 * (-0.5 + y2 * (1.0 / 24.0 + y2 * (-1.0 / 720.0 + y2 * (1.0 / 40_320.0 + y2 * (-1.0 / 3_628_800.0 + y2 * (1.0 / 479_001_600.0))))));
+    let s = y
+        * (1.0
+            + y2 * (-1.0 / 6.0
+                + y2 * (1.0 / 120.0
+                    + y2 * (-1.0 / 5040.0 + y2 * (1.0 / 362_880.0 + y2 * (-1.0 / 39_916_800.0))))));
+    let c = 1.0
+        + y2 * (-0.5
+            + y2 * (1.0 / 24.0
+                + y2 * (-1.0 / 720.0
+                    + y2 * (1.0 / 40_320.0
+                        + y2 * (-1.0 / 3_628_800.0 + y2 * (1.0 / 479_001_600.0))))));
     (s, if fold { -c } else { c })
 }
 
@@ -60,7 +69,10 @@ pub fn sample_cosine_hemisphere(u: Vec2) -> Vec3 {
 #[inline]
 pub fn invert_cosine_hemisphere(v: Vec3) -> Vec2 {
     let phi = v.y.atan2(v.x); // in [-pi, pi]
-    Vec2::new((v.x * v.x + v.y * v.y).min(1.0), ((phi + PI) / (2.0 * PI)).min(1.0 - f32::EPSILON / 2.0))
+    Vec2::new(
+        (v.x * v.x + v.y * v.y).min(1.0),
+        ((phi + PI) / (2.0 * PI)).min(1.0 - f32::EPSILON / 2.0),
+    )
 }
 #[inline]
 pub fn cosine_hemisphere_pdf(v: Vec3) -> f32 {
@@ -79,7 +91,11 @@ pub fn sample_phong_lobe(u: Vec2, e: f32) -> Vec3 {
 /// pdf of [`sample_phong_lobe`] given `cos_a`, the cosine between the direction and the lobe axis.
 #[inline]
 pub fn phong_lobe_pdf(cos_a: f32, e: f32) -> f32 {
-    if cos_a <= 0.0 { 0.0 } else { (e + 1.0) * 0.5 * FRAC_1_PI * cos_a.powf(e) }
+    if cos_a <= 0.0 {
+        0.0
+    } else {
+        (e + 1.0) * 0.5 * FRAC_1_PI * cos_a.powf(e)
+    }
 }
 /// Inverse of [`sample_phong_lobe`].
 #[inline]
@@ -113,7 +129,11 @@ pub fn ggx_s(z: f32, alpha: f32) -> f32 {
 /// Smith G1 in stable form: `G1(z) = 2 z / (z + s(z))`.
 #[inline]
 pub fn ggx_g1(z: f32, alpha: f32) -> f32 {
-    if z <= 0.0 { 0.0 } else { 2.0 * z / (z + ggx_s(z, alpha)) }
+    if z <= 0.0 {
+        0.0
+    } else {
+        2.0 * z / (z + ggx_s(z, alpha))
+    }
 }
 
 /// Visible-normal sampling by spherical caps (Dupuy & Benyoub 2023): view `o` (local, `o.z > 0`)
@@ -171,7 +191,10 @@ mod tests {
             for &(a, b) in &[(0.1f32, 0.2f32), (0.5, 0.5), (0.9, 0.01), (0.33, 0.77)] {
                 let v = sample_phong_lobe(Vec2::new(a, b), e);
                 let u = invert_phong_lobe(v, e);
-                assert!((u.x - a).abs() < 1e-4 && (u.y - b).abs() < 1e-5, "e={e} ({a},{b}) -> {u}");
+                assert!(
+                    (u.x - a).abs() < 1e-4 && (u.y - b).abs() < 1e-5,
+                    "e={e} ({a},{b}) -> {u}"
+                );
             }
         }
     }
@@ -182,7 +205,10 @@ mod tests {
             let v = sample_cosine_hemisphere(Vec2::new(a, b));
             assert!((v.length() - 1.0).abs() < 1e-6);
             let u = invert_cosine_hemisphere(v);
-            assert!((u.x - a).abs() < 1e-5 && (u.y - b).abs() < 1e-5, "({a},{b}) -> {u}");
+            assert!(
+                (u.x - a).abs() < 1e-5 && (u.y - b).abs() < 1e-5,
+                "({a},{b}) -> {u}"
+            );
         }
     }
 }

@@ -8,10 +8,16 @@ use super::*;
 fn shade_seeds(map: &CubeMap, px: &GPixel, s: Settings, k: u32) -> Vec<f64> {
     (0..k)
         .map(|seed| {
-            let s = Settings { seed: seed * 104_729 + 17, ..s };
+            let s = Settings {
+                seed: seed * 104_729 + 17,
+                ..s
+            };
             let fd = envis::render::FrameData::prepare(map, &s);
             let (c, _) = envis::render::shade_pixel(&fd, &s, px, seed);
-            assert!(c.is_finite() && c.min_element() >= 0.0, "pixel value {c} for {px:?}");
+            assert!(
+                c.is_finite() && c.min_element() >= 0.0,
+                "pixel value {c} for {px:?}"
+            );
             luminance_f64(c.as_dvec3())
         })
         .collect()
@@ -21,10 +27,20 @@ fn shade_seeds(map: &CubeMap, px: &GPixel, s: Settings, k: u32) -> Vec<f64> {
 fn assert_unbiased(label: &str, xs: &[f64], reference: f64, z: f64) {
     let (m, se) = mean_se(xs);
     let tol = z * se + 1e-6 * reference.abs() + 1e-12;
-    assert!((m - reference).abs() <= tol, "{label}: mean {m} vs reference {reference} (se {se})");
+    assert!(
+        (m - reference).abs() <= tol,
+        "{label}: mean {m} vs reference {reference} (se {se})"
+    );
 }
 
-fn single_texel_map(n: usize, face: usize, col: usize, row: usize, value: f32, background: f32) -> CubeMap {
+fn single_texel_map(
+    n: usize,
+    face: usize,
+    col: usize,
+    row: usize,
+    value: f32,
+    background: f32,
+) -> CubeMap {
     let mut m = CubeMap::from_fn(n, |_| Vec3::splat(background));
     let i = m.index(face, col, row);
     m.data[i] = Vec3::splat(value);
@@ -34,7 +50,11 @@ fn single_texel_map(n: usize, face: usize, col: usize, row: usize, value: f32, b
 #[test]
 fn hard_single_bright_texel_centre_edge_corner() {
     let n = 16;
-    for (label, col, row) in [("centre", 8usize, 8usize), ("edge", 0, 7), ("corner", 15, 15)] {
+    for (label, col, row) in [
+        ("centre", 8usize, 8usize),
+        ("edge", 0, 7),
+        ("corner", 15, 15),
+    ] {
         let map = single_texel_map(n, 4, col, row, 1e6, 1e-3);
         let dist = CubeDistribution::build(&map);
         let fd = &dist.faces[4];
@@ -50,12 +70,46 @@ fn hard_single_bright_texel_centre_edge_corner() {
             hits += (s.col == col && s.row == row) as u32;
         }
         let sd = (20_000.0 * p * (1.0 - p)).sqrt().max(1.0);
-        assert!((hits as f64 - 20_000.0 * p).abs() < 5.0 * sd, "{label}: {hits} hits, expected {}", 20_000.0 * p);
+        assert!(
+            (hits as f64 - 20_000.0 * p).abs() < 5.0 * sd,
+            "{label}: {hits} hits, expected {}",
+            20_000.0 * p
+        );
         // Unbiased renders of a normal facing the texel.
-        let px = GPixel { n: face_uv_to_dir(4, (col as f32 + 0.5) / n as f32, (row as f32 + 0.5) / n as f32), o: Vec3::Z, material: Material::diffuse(0.8) };
+        let px = GPixel {
+            n: face_uv_to_dir(
+                4,
+                (col as f32 + 0.5) / n as f32,
+                (row as f32 + 0.5) / n as f32,
+            ),
+            o: Vec3::Z,
+            material: Material::diffuse(0.8),
+        };
         let reference = luminance_f64(reference_pixel(&map, &px, 1.0));
-        for (name, s) in [("paper", Settings { light_samples: 4, brdf_samples: 4, ..Default::default() }), ("paper light-only", Settings { light_samples: 4, brdf_samples: 0, ..Default::default() })] {
-            assert_unbiased(&format!("{label} {name}"), &shade_seeds(&map, &px, s, 64), reference, 3.5);
+        for (name, s) in [
+            (
+                "paper",
+                Settings {
+                    light_samples: 4,
+                    brdf_samples: 4,
+                    ..Default::default()
+                },
+            ),
+            (
+                "paper light-only",
+                Settings {
+                    light_samples: 4,
+                    brdf_samples: 0,
+                    ..Default::default()
+                },
+            ),
+        ] {
+            assert_unbiased(
+                &format!("{label} {name}"),
+                &shade_seeds(&map, &px, s, 64),
+                reference,
+                3.5,
+            );
         }
     }
 }
@@ -65,16 +119,49 @@ fn hard_dynamic_range_1e_minus6_to_1e6() {
     let n = 8;
     let mut r = Rng::new(9, 9);
     let map = CubeMap::from_fn(n, |_| Vec3::ZERO);
-    let map = CubeMap { data: map.data.iter().map(|_| Vec3::splat(10f32.powf(-6.0 + 12.0 * r.next_f32()))).collect(), ..map };
+    let map = CubeMap {
+        data: map
+            .data
+            .iter()
+            .map(|_| Vec3::splat(10f32.powf(-6.0 + 12.0 * r.next_f32())))
+            .collect(),
+        ..map
+    };
     let dist = CubeDistribution::build(&map);
     for f in 0..6 {
-        let s: f64 = (0..n * n).map(|i| dist.faces[f].texel_pmf(i % n, i / n) as f64).sum();
+        let s: f64 = (0..n * n)
+            .map(|i| dist.faces[f].texel_pmf(i % n, i / n) as f64)
+            .sum();
         assert!((s - 1.0).abs() < 1e-5, "face {f}: pmf sums to {s}");
-        assert!(dist.faces[f].pdf_area.iter().all(|&p| p > 0.0 && p.is_finite()), "face {f}: a texel of 1e-6 must keep a positive pdf");
+        assert!(
+            dist.faces[f]
+                .pdf_area
+                .iter()
+                .all(|&p| p > 0.0 && p.is_finite()),
+            "face {f}: a texel of 1e-6 must keep a positive pdf"
+        );
     }
-    let px = GPixel { n: Vec3::new(0.3, 0.5, 0.8).normalize(), o: Vec3::new(0.0, 0.2, 1.0).normalize(), material: Material::ggx(0.8, 0.3) };
+    let px = GPixel {
+        n: Vec3::new(0.3, 0.5, 0.8).normalize(),
+        o: Vec3::new(0.0, 0.2, 1.0).normalize(),
+        material: Material::ggx(0.8, 0.3),
+    };
     let reference = luminance_f64(reference_pixel(&map, &px, 1.0));
-    assert_unbiased("dynamic range", &shade_seeds(&map, &px, Settings { light_samples: 8, brdf_samples: 8, ..Default::default() }, 128), reference, 3.5);
+    assert_unbiased(
+        "dynamic range",
+        &shade_seeds(
+            &map,
+            &px,
+            Settings {
+                light_samples: 8,
+                brdf_samples: 8,
+                ..Default::default()
+            },
+            128,
+        ),
+        reference,
+        3.5,
+    );
 }
 
 #[test]
@@ -84,7 +171,13 @@ fn hard_bad_texels_are_clamped_counted_and_never_sampled() {
     for (i, t) in img.data.iter_mut().enumerate() {
         *t = Vec3::splat(1.0 + (i % 7) as f32);
     }
-    let bad = [(0usize, f32::NAN), (100, f32::INFINITY), (200, f32::NEG_INFINITY), (300, -5.0), (400, -0.0)];
+    let bad = [
+        (0usize, f32::NAN),
+        (100, f32::INFINITY),
+        (200, f32::NEG_INFINITY),
+        (300, -5.0),
+        (400, -0.0),
+    ];
     for &(i, v) in &bad {
         img.data[i] = Vec3::new(v, 1.0, 1.0);
     }
@@ -92,10 +185,24 @@ fn hard_bad_texels_are_clamped_counted_and_never_sampled() {
     let p = dir.join("bad.exr");
     envis::render::output::write_exr(&p, &img).unwrap();
     let env = load_env(&EnvSource::File(p), 8).unwrap();
-    assert_eq!((env.report.nan, env.report.inf, env.report.negative), (1, 2, 1), "{}", env.report);
-    assert!(env.cube.data.iter().all(|c| c.is_finite() && c.min_element() >= 0.0));
+    assert_eq!(
+        (env.report.nan, env.report.inf, env.report.negative),
+        (1, 2, 1),
+        "{}",
+        env.report
+    );
+    assert!(
+        env.cube
+            .data
+            .iter()
+            .all(|c| c.is_finite() && c.min_element() >= 0.0)
+    );
     let dist = CubeDistribution::build(&env.cube);
-    assert!(dist.faces.iter().all(|f| f.energy.is_finite() && f.pdf_area.iter().all(|p| p.is_finite())));
+    assert!(
+        dist.faces
+            .iter()
+            .all(|f| f.energy.is_finite() && f.pdf_area.iter().all(|p| p.is_finite()))
+    );
     // In-memory sanitizer counts the same classes.
     let mut m = CubeMap::from_fn(2, |_| Vec3::ONE);
     m.data[0] = Vec3::new(f32::NAN, f32::INFINITY, -1.0);
@@ -128,7 +235,10 @@ fn hard_2048_faces_single_bright_texel_keeps_its_pdf() {
     // The marginal CDF gives that column exactly its share.
     let col_share = (fd.marginal.cdf[col + 1] - fd.marginal.cdf[col]) as f64;
     let col_want = fd.conditional[col].total / fd.marginal.total;
-    assert!((col_share - col_want).abs() < 1e-5, "column share {col_share} vs {col_want}");
+    assert!(
+        (col_share - col_want).abs() < 1e-5,
+        "column share {col_share} vs {col_want}"
+    );
     let mut r = Rng::new(4, 4);
     let (mut hits, ns) = (0u32, 4000u32);
     for _ in 0..ns {
@@ -138,11 +248,19 @@ fn hard_2048_faces_single_bright_texel_keeps_its_pdf() {
             hits += 1;
             let q = texel_solid_angle(col, row, n) as f32;
             // pdf x texel solid angle ~= pmf (the Jacobian varies by < 1e-3 across one texel).
-            assert!(((s.pdf * q) as f64 - p).abs() < 2e-3 * p, "pdf {} x omega {q} vs pmf {p}", s.pdf);
+            assert!(
+                ((s.pdf * q) as f64 - p).abs() < 2e-3 * p,
+                "pdf {} x omega {q} vs pmf {p}",
+                s.pdf
+            );
         }
     }
     let sd = (ns as f64 * p * (1.0 - p)).sqrt();
-    assert!((hits as f64 - ns as f64 * p).abs() < 5.0 * sd + 1.0, "{hits} of {ns}, expected {}", ns as f64 * p);
+    assert!(
+        (hits as f64 - ns as f64 * p).abs() < 5.0 * sd + 1.0,
+        "{hits} of {ns}, expected {}",
+        ns as f64 * p
+    );
 }
 
 #[test]
@@ -150,25 +268,57 @@ fn hard_normals_axes_diagonals_corners_grazing_backfacing_nonunit() {
     let map = load_env(&EnvSource::Sky { hours: 10.0 }, 8).unwrap().cube;
     let s3 = 1.0 / 3f32.sqrt();
     let normals = [
-        Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z, // axes
-        Vec3::new(1.0, 1.0, 0.0).normalize(), Vec3::new(0.0, -1.0, 1.0).normalize(), // face diagonals (edges)
-        Vec3::new(s3, s3, s3), Vec3::new(-s3, s3, -s3), // through cube corners: some corner cosines are exactly 0
+        Vec3::X,
+        -Vec3::X,
+        Vec3::Y,
+        -Vec3::Y,
+        Vec3::Z,
+        -Vec3::Z, // axes
+        Vec3::new(1.0, 1.0, 0.0).normalize(),
+        Vec3::new(0.0, -1.0, 1.0).normalize(), // face diagonals (edges)
+        Vec3::new(s3, s3, s3),
+        Vec3::new(-s3, s3, -s3), // through cube corners: some corner cosines are exactly 0
     ];
     for (k, &n) in normals.iter().enumerate() {
         // A view 30 degrees off the normal.
         let o = (n + 0.6 * Frame::new(n).t).normalize();
         for mat in [Material::diffuse(0.8), Material::ggx(0.8, 0.3)] {
-            let px = GPixel { n, o, material: mat };
+            let px = GPixel {
+                n,
+                o,
+                material: mat,
+            };
             let reference = luminance_f64(reference_pixel(&map, &px, 1.0));
-            let xs = shade_seeds(&map, &px, Settings { light_samples: 8, brdf_samples: 8, ..Default::default() }, 96);
+            let xs = shade_seeds(
+                &map,
+                &px,
+                Settings {
+                    light_samples: 8,
+                    brdf_samples: 8,
+                    ..Default::default()
+                },
+                96,
+            );
             assert_unbiased(&format!("normal {k} {n} {mat:?}"), &xs, reference, 3.5);
             // Non-unit normals and views give the same estimate as unit ones.
-            let scaled = GPixel { n: n * 7.0, o: o * 0.001, material: mat };
-            let s = Settings { light_samples: 8, brdf_samples: 8, seed: 5, ..Default::default() };
+            let scaled = GPixel {
+                n: n * 7.0,
+                o: o * 0.001,
+                material: mat,
+            };
+            let s = Settings {
+                light_samples: 8,
+                brdf_samples: 8,
+                seed: 5,
+                ..Default::default()
+            };
             let fd = envis::render::FrameData::prepare(&map, &s);
             let (a, _) = envis::render::shade_pixel(&fd, &s, &px, 3);
             let (b, _) = envis::render::shade_pixel(&fd, &s, &scaled, 3);
-            assert!((a - b).length() <= 1e-4 * a.length().max(1e-6), "non-unit normal {n}: {a} vs {b}");
+            assert!(
+                (a - b).length() <= 1e-4 * a.length().max(1e-6),
+                "non-unit normal {n}: {a} vs {b}"
+            );
         }
     }
     // Grazing views: finite and bounded; back-facing views and a zero normal: exactly 0.
@@ -176,13 +326,48 @@ fn hard_normals_axes_diagonals_corners_grazing_backfacing_nonunit() {
     let t = Frame::new(n).t;
     for eps in [1e-2f32, 1e-4, 1e-6, 1e-7] {
         let o = (t + eps * n).normalize();
-        for mat in [Material::diffuse(1.0), Material::phong(1.0, 150.0), Material::ggx(1.0, 0.05)] {
-            let xs = shade_seeds(&map, &GPixel { n, o, material: mat }, Settings { light_samples: 4, brdf_samples: 4, ..Default::default() }, 8);
-            assert!(xs.iter().all(|x| x.is_finite() && *x >= 0.0), "grazing {eps} {mat:?}: {xs:?}");
+        for mat in [
+            Material::diffuse(1.0),
+            Material::phong(1.0, 150.0),
+            Material::ggx(1.0, 0.05),
+        ] {
+            let xs = shade_seeds(
+                &map,
+                &GPixel {
+                    n,
+                    o,
+                    material: mat,
+                },
+                Settings {
+                    light_samples: 4,
+                    brdf_samples: 4,
+                    ..Default::default()
+                },
+                8,
+            );
+            assert!(
+                xs.iter().all(|x| x.is_finite() && *x >= 0.0),
+                "grazing {eps} {mat:?}: {xs:?}"
+            );
         }
     }
-    for px in [GPixel { n, o: -n, material: Material::diffuse(1.0) }, GPixel { n: Vec3::ZERO, o: Vec3::Z, material: Material::diffuse(1.0) }] {
-        assert!(shade_seeds(&map, &px, Settings::default(), 2).iter().all(|&x| x == 0.0));
+    for px in [
+        GPixel {
+            n,
+            o: -n,
+            material: Material::diffuse(1.0),
+        },
+        GPixel {
+            n: Vec3::ZERO,
+            o: Vec3::Z,
+            material: Material::diffuse(1.0),
+        },
+    ] {
+        assert!(
+            shade_seeds(&map, &px, Settings::default(), 2)
+                .iter()
+                .all(|&x| x == 0.0)
+        );
     }
 }
 
@@ -195,21 +380,43 @@ fn hard_brdf_parameter_extremes() {
     let n = Vec3::new(0.1, 0.2, 0.97).normalize();
     let fr = Frame::new(n);
     let o = Vec3::new(0.3, 0.0, 0.95).normalize();
-    let mut mats: Vec<Material> = [0.0f32, 1.0, 150.0, 1e4, 1e5].iter().map(|&e| Material::phong(1.0, e)).collect();
-    mats.extend([1e-4f32, 1e-3, 0.05, 0.5, 1.0].iter().map(|&a| Material::ggx(1.0, a)));
+    let mut mats: Vec<Material> = [0.0f32, 1.0, 150.0, 1e4, 1e5]
+        .iter()
+        .map(|&e| Material::phong(1.0, e))
+        .collect();
+    mats.extend(
+        [1e-4f32, 1e-3, 0.05, 0.5, 1.0]
+            .iter()
+            .map(|&a| Material::ggx(1.0, a)),
+    );
     mats.push(Material::diffuse(0.0));
     mats.push(Material::ggx(0.0, 0.3));
     for m in &mats {
         let mut r = Rng::new(2, 2);
         for _ in 0..20_000 {
             if let Some((d, p)) = m.sample(&fr, o, rng_vec2(&mut r)) {
-                assert!(p > 0.0 && p.is_finite() && d.is_finite(), "{m:?}: sample {d} pdf {p}");
+                assert!(
+                    p > 0.0 && p.is_finite() && d.is_finite(),
+                    "{m:?}: sample {d} pdf {p}"
+                );
                 assert!(m.eval(&fr, o, d).is_finite());
             }
         }
-        let xs = shade_seeds(&furnace, &GPixel { n, o, material: *m }, Settings { light_samples: 8, brdf_samples: 8, ..Default::default() }, 64);
+        let xs = shade_seeds(
+            &furnace,
+            &GPixel { n, o, material: *m },
+            Settings {
+                light_samples: 8,
+                brdf_samples: 8,
+                ..Default::default()
+            },
+            64,
+        );
         let (mean, se) = mean_se(&xs);
-        assert!(mean <= 1.0 + 3.0 * se + 1e-3, "{m:?}: furnace {mean} > 1 (se {se})");
+        assert!(
+            mean <= 1.0 + 3.0 * se + 1e-3,
+            "{m:?}: furnace {mean} > 1 (se {se})"
+        );
         if m.is_black() {
             assert!(xs.iter().all(|&x| x == 0.0));
         }
@@ -225,14 +432,38 @@ fn hard_tiny_mu_and_pool_requests() {
         map.data[2 * n * n + i] = Vec3::ONE; // +Y
         map.data[4 * n * n + i] = Vec3::splat(1e-12); // +Z
     }
-    let px = GPixel { n: Vec3::new(0.0, 1.0, 1.0).normalize(), o: Vec3::new(0.0, 1.0, 1.0).normalize(), material: Material::diffuse(1.0) };
+    let px = GPixel {
+        n: Vec3::new(0.0, 1.0, 1.0).normalize(),
+        o: Vec3::new(0.0, 1.0, 1.0).normalize(),
+        material: Material::diffuse(1.0),
+    };
     let reference = luminance_f64(reference_pixel(&map, &px, 1.0));
     for s in [
-        Settings { light_samples: 3, brdf_samples: 0, ..Default::default() },
-        Settings { light_samples: 64, brdf_samples: 0, pool_size: 8, ..Default::default() }, // N_f > M: clamped
-        Settings { light_samples: 64, brdf_samples: 4, pool_size: 8, pixel_offset: true, ..Default::default() },
+        Settings {
+            light_samples: 3,
+            brdf_samples: 0,
+            ..Default::default()
+        },
+        Settings {
+            light_samples: 64,
+            brdf_samples: 0,
+            pool_size: 8,
+            ..Default::default()
+        }, // N_f > M: clamped
+        Settings {
+            light_samples: 64,
+            brdf_samples: 4,
+            pool_size: 8,
+            pixel_offset: true,
+            ..Default::default()
+        },
     ] {
-        assert_unbiased(&format!("{s:?}"), &shade_seeds(&map, &px, s, 64), reference, 3.5);
+        assert_unbiased(
+            &format!("{s:?}"),
+            &shade_seeds(&map, &px, s, 64),
+            reference,
+            3.5,
+        );
     }
 }
 
@@ -240,7 +471,12 @@ fn hard_tiny_mu_and_pool_requests() {
 // Loaders: bounded fuzzing of the parsers, seeded from the corpus in tests/corpus/.
 
 fn corpus(name: &str) -> Vec<u8> {
-    std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/corpus").join(name)).unwrap()
+    std::fs::read(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/corpus")
+            .join(name),
+    )
+    .unwrap()
 }
 
 /// Mutations: bit flips, byte overwrites, truncation and duplication, from a deterministic RNG.
@@ -273,13 +509,18 @@ fn mutate(base: &[u8], r: &mut Rng) -> Vec<u8> {
 fn hard_fuzz_loaders_never_panic() {
     let dir = tempdir();
     let mut r = Rng::new(2024, 1);
-    for (name, iters) in [("latlong_8x4.exr", 600u32), ("latlong_8x4.hdr", 3000), ("cross_8x6_rle.hdr", 3000)] {
+    for (name, iters) in [
+        ("latlong_8x4.exr", 600u32),
+        ("latlong_8x4.hdr", 3000),
+        ("cross_8x6_rle.hdr", 3000),
+    ] {
         let base = corpus(name);
         let ext = name.rsplit('.').next().unwrap();
         // The corpus files themselves load.
         let p0 = dir.join(format!("base.{ext}"));
         std::fs::write(&p0, &base).unwrap();
-        load_env(&EnvSource::File(p0), 4).unwrap_or_else(|e| panic!("corpus {name} must load: {e}"));
+        load_env(&EnvSource::File(p0), 4)
+            .unwrap_or_else(|e| panic!("corpus {name} must load: {e}"));
         for k in 0..iters {
             let bytes = mutate(&base, &mut r);
             let p = dir.join(format!("m.{ext}"));
@@ -287,10 +528,19 @@ fn hard_fuzz_loaders_never_panic() {
             let res = std::panic::catch_unwind(|| load_env(&EnvSource::File(p.clone()), 4));
             match res {
                 Err(_) => panic!("{name}: mutation {k} panicked the loader"),
-                Ok(Ok(env)) => assert!(env.cube.data.iter().all(|c| c.is_finite() && c.min_element() >= 0.0), "{name}: mutation {k} loaded bad texels"),
+                Ok(Ok(env)) => assert!(
+                    env.cube
+                        .data
+                        .iter()
+                        .all(|c| c.is_finite() && c.min_element() >= 0.0),
+                    "{name}: mutation {k} loaded bad texels"
+                ),
                 Ok(Err(e)) => {
                     let msg = e.to_string();
-                    assert!(msg.contains("m.") && !msg.contains('\n'), "{name}: mutation {k}: unclear error '{msg}'");
+                    assert!(
+                        msg.contains("m.") && !msg.contains('\n'),
+                        "{name}: mutation {k}: unclear error '{msg}'"
+                    );
                 }
             }
         }

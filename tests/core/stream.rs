@@ -17,7 +17,11 @@ fn frame_image(w: usize, level: f32) -> Image {
 /// Frames f000..f{n-1} of distinct brightness (frame k has red = k + 1).
 fn write_sequence(dir: &Path, n: usize, w: usize) {
     for k in 0..n {
-        write_exr(&dir.join(format!("f{k:03}.exr")), &frame_image(w, (k + 1) as f32)).unwrap();
+        write_exr(
+            &dir.join(format!("f{k:03}.exr")),
+            &frame_image(w, (k + 1) as f32),
+        )
+        .unwrap();
     }
 }
 
@@ -40,14 +44,25 @@ fn next_frame(s: &mut EnvStream, fps: f64) -> bool {
 fn stream_sequence_plays_in_order_and_loops() {
     let dir = tempdir();
     write_sequence(&dir, 4, 16);
-    let mut s = EnvStream::open(StreamSource::Sequence { dir: dir.clone(), fps: 30.0 }, 8).unwrap();
+    let mut s = EnvStream::open(
+        StreamSource::Sequence {
+            dir: dir.clone(),
+            fps: 30.0,
+        },
+        8,
+    )
+    .unwrap();
     let mut seen = vec![red(&s)];
     let g0 = s.generation();
     for _ in 0..7 {
         assert!(next_frame(&mut s, 30.0));
         seen.push(red(&s));
     }
-    assert_eq!(seen, vec![1.0, 2.0, 3.0, 4.0, 1.0, 2.0, 3.0, 4.0], "frames out of order");
+    assert_eq!(
+        seen,
+        vec![1.0, 2.0, 3.0, 4.0, 1.0, 2.0, 3.0, 4.0],
+        "frames out of order"
+    );
     assert_eq!(s.generation(), g0 + 7);
     // Paused: no new frames, no new generations.
     s.playing = false;
@@ -65,7 +80,14 @@ fn stream_bad_frames_keep_the_last_good_one_reported_once() {
     // Frame 1 is corrupt (truncated); frame 3 is removed after the listing (missing file).
     let bytes = std::fs::read(dir.join("f001.exr")).unwrap();
     std::fs::write(dir.join("f001.exr"), &bytes[..bytes.len() / 3]).unwrap();
-    let mut s = EnvStream::open(StreamSource::Sequence { dir: dir.clone(), fps: 30.0 }, 8).unwrap();
+    let mut s = EnvStream::open(
+        StreamSource::Sequence {
+            dir: dir.clone(),
+            fps: 30.0,
+        },
+        8,
+    )
+    .unwrap();
     std::fs::remove_file(dir.join("f003.exr")).unwrap();
     assert_eq!(red(&s), 1.0);
     let mut seen = Vec::new();
@@ -76,15 +98,27 @@ fn stream_bad_frames_keep_the_last_good_one_reported_once() {
     }
     // Good frames are 0 and 2 (red 1 and 3); the decoder may already have read f003 before it was
     // removed (it works one frame ahead), so red 4 may appear once, in its place.
-    assert!(seen.iter().all(|&r| r == 1.0 || r == 3.0 || r == 4.0), "a bad frame reached the stream: {seen:?}");
+    assert!(
+        seen.iter().all(|&r| r == 1.0 || r == 3.0 || r == 4.0),
+        "a bad frame reached the stream: {seen:?}"
+    );
     assert!(seen.contains(&1.0) && seen.contains(&3.0));
     let st = s.stats();
     assert!(st.bad_frames >= 3, "bad frames counted: {st:?}");
     let msgs = s.take_messages();
     let corrupt = msgs.iter().filter(|m| m.contains("f001.exr")).count();
-    assert_eq!(corrupt, 1, "the corrupt frame must be reported exactly once: {msgs:?}");
-    assert!(msgs.iter().all(|m| m.contains("kept the last good frame")), "{msgs:?}");
-    assert!(msgs.iter().any(|m| m.contains("f003.exr")), "the missing frame is named: {msgs:?}");
+    assert_eq!(
+        corrupt, 1,
+        "the corrupt frame must be reported exactly once: {msgs:?}"
+    );
+    assert!(
+        msgs.iter().all(|m| m.contains("kept the last good frame")),
+        "{msgs:?}"
+    );
+    assert!(
+        msgs.iter().any(|m| m.contains("f003.exr")),
+        "the missing frame is named: {msgs:?}"
+    );
 }
 
 #[test]
@@ -93,7 +127,14 @@ fn stream_resolution_change_mid_stream_is_resampled() {
     write_exr(&dir.join("a.exr"), &frame_image(16, 1.0)).unwrap();
     write_exr(&dir.join("b.exr"), &frame_image(64, 2.0)).unwrap();
     write_exr(&dir.join("c.exr"), &frame_image(32, 3.0)).unwrap();
-    let mut s = EnvStream::open(StreamSource::Sequence { dir: dir.clone(), fps: 10.0 }, 8).unwrap();
+    let mut s = EnvStream::open(
+        StreamSource::Sequence {
+            dir: dir.clone(),
+            fps: 10.0,
+        },
+        8,
+    )
+    .unwrap();
     for name in ["b.exr", "c.exr", "a.exr"] {
         assert!(next_frame(&mut s, 10.0));
         let want = load_env(&EnvSource::File(dir.join(name)), 8).unwrap().cube;
@@ -113,19 +154,35 @@ fn rss_bytes() -> Option<u64> {
 #[test]
 fn stream_soak_10k_frames_memory_is_flat() {
     let out = std::process::Command::new(std::env::current_exe().unwrap())
-        .args(["--exact", "stream::stream_soak_child", "--include-ignored", "--nocapture", "--test-threads=1"])
+        .args([
+            "--exact",
+            "stream::stream_soak_child",
+            "--include-ignored",
+            "--nocapture",
+            "--test-threads=1",
+        ])
         .env("ENVIS_SOAK_CHILD", "1")
         .output()
         .unwrap();
-    let text = String::from_utf8_lossy(&out.stdout).to_string() + &String::from_utf8_lossy(&out.stderr);
+    let text =
+        String::from_utf8_lossy(&out.stdout).to_string() + &String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "soak child failed:\n{text}");
-    let line = text.lines().find_map(|l| l.find("stream soak:").map(|i| &l[i..])).unwrap_or_else(|| panic!("no soak report in:\n{text}"));
+    let line = text
+        .lines()
+        .find_map(|l| l.find("stream soak:").map(|i| &l[i..]))
+        .unwrap_or_else(|| panic!("no soak report in:\n{text}"));
     eprintln!("{line}");
-    let nums: Vec<f64> = line.split_whitespace().filter_map(|w| w.parse().ok()).collect();
+    let nums: Vec<f64> = line
+        .split_whitespace()
+        .filter_map(|w| w.parse().ok())
+        .collect();
     // "stream soak: FRAMES frames in SECS s, RSS A MiB after 2k frames -> B MiB after 10k"
     let (a, b) = (nums[2], nums[3]);
     assert!(nums[0] >= 10_000.0);
-    assert!(b <= a + 4.0, "RSS grew from {a} MiB to {b} MiB over 8,000 frames");
+    assert!(
+        b <= a + 4.0,
+        "RSS grew from {a} MiB to {b} MiB over 8,000 frames"
+    );
 }
 
 /// The soak itself (run by [`stream_soak_10k_frames_memory_is_flat`] in its own process).
@@ -147,15 +204,32 @@ fn stream_soak_child() {
         if s.stats().frames.is_multiple_of(1000) && rss.len() < (s.stats().frames / 1000) as usize {
             rss.push(rss_bytes().expect("/proc/self/statm"));
         }
-        assert!(t0.elapsed().as_secs() < 120, "soak too slow: {:?}", s.stats());
+        assert!(
+            t0.elapsed().as_secs() < 120,
+            "soak too slow: {:?}",
+            s.stats()
+        );
     }
     let mib = |b: u64| b as f64 / 1048576.0;
-    println!("stream soak: {} frames in {:.1} s, RSS {:.2} MiB after 2k frames -> {:.2} MiB after 10k", s.stats().frames, t0.elapsed().as_secs_f64(), mib(rss[1]), mib(*rss.last().unwrap()));
+    println!(
+        "stream soak: {} frames in {:.1} s, RSS {:.2} MiB after 2k frames -> {:.2} MiB after 10k",
+        s.stats().frames,
+        t0.elapsed().as_secs_f64(),
+        mib(rss[1]),
+        mib(*rss.last().unwrap())
+    );
 }
 
 #[test]
 fn stream_sky_changes_only_when_time_moves() {
-    let mut s = EnvStream::open(StreamSource::Sky { hours: 9.0, speed: 1.0 }, 8).unwrap();
+    let mut s = EnvStream::open(
+        StreamSource::Sky {
+            hours: 9.0,
+            speed: 1.0,
+        },
+        8,
+    )
+    .unwrap();
     let g = s.generation();
     assert!(s.advance(1.0));
     assert!((s.sky_hours().unwrap() - 10.0).abs() < 1e-4);
@@ -178,7 +252,16 @@ fn stream_carousel_rotates_and_cross_fades() {
     write_exr(&dir.join("a.exr"), &frame_image(32, 1.0)).unwrap();
     write_exr(&dir.join("b.exr"), &frame_image(32, 5.0)).unwrap();
     let paths = vec![dir.join("a.exr"), dir.join("b.exr")];
-    let mut s = EnvStream::open(StreamSource::Carousel { paths, period: 2.0, fade: 1.0, spin: 0.0 }, 8).unwrap();
+    let mut s = EnvStream::open(
+        StreamSource::Carousel {
+            paths,
+            period: 2.0,
+            fade: 1.0,
+            spin: 0.0,
+        },
+        8,
+    )
+    .unwrap();
     assert!((red(&s) - 1.0).abs() < 1e-5);
     s.advance(1.5); // half-way through the fade: smoothstep(0.5) = 0.5
     assert!((red(&s) - 3.0).abs() < 1e-4, "mid-fade red {}", red(&s));
@@ -186,6 +269,16 @@ fn stream_carousel_rotates_and_cross_fades() {
     assert!((red(&s) - 5.0).abs() < 1e-4);
     assert_eq!(s.stats().bad_frames, 0);
     // Errors name the file.
-    let e = EnvStream::open(StreamSource::Carousel { paths: vec![dir.join("missing.exr")], period: 1.0, fade: 0.0, spin: 0.0 }, 8).err().unwrap();
+    let e = EnvStream::open(
+        StreamSource::Carousel {
+            paths: vec![dir.join("missing.exr")],
+            period: 1.0,
+            fade: 0.0,
+            spin: 0.0,
+        },
+        8,
+    )
+    .err()
+    .unwrap();
     assert!(e.to_string().contains("missing.exr"), "{e}");
 }

@@ -12,7 +12,10 @@ use envis::stream::StreamSource;
 fn on_sphere(size: u32) -> impl Fn(usize) -> bool {
     move |i| {
         let (x, y) = ((i as u32 % size) as f32, (i as u32 / size) as f32);
-        let (u, v) = (-1.0 + 2.0 * (x + 0.5) / size as f32, 1.0 - 2.0 * (y + 0.5) / size as f32);
+        let (u, v) = (
+            -1.0 + 2.0 * (x + 0.5) / size as f32,
+            1.0 - 2.0 * (y + 0.5) / size as f32,
+        );
         u * u + v * v < 0.9 // away from the silhouette, where mesh and analytic sphere differ most
     }
 }
@@ -29,34 +32,101 @@ fn bevy_frame_matches_cpu_renderer() {
     let hours = 15.0;
     let map = load_env(&EnvSource::Sky { hours }, face).unwrap().cube;
     let mats = [
-        ("diffuse", EnvisMaterial::Lambert { albedo: Vec3::splat(0.8) }),
-        ("phong 150", EnvisMaterial::Phong { albedo: Vec3::splat(0.8), exponent: 150.0 }),
-        ("ggx 0.2", EnvisMaterial::Ggx { albedo: Vec3::splat(0.8), alpha: 0.2 }),
+        (
+            "diffuse",
+            EnvisMaterial::Lambert {
+                albedo: Vec3::splat(0.8),
+            },
+        ),
+        (
+            "phong 150",
+            EnvisMaterial::Phong {
+                albedo: Vec3::splat(0.8),
+                exponent: 150.0,
+            },
+        ),
+        (
+            "ggx 0.2",
+            EnvisMaterial::Ggx {
+                albedo: Vec3::splat(0.8),
+                alpha: 0.2,
+            },
+        ),
     ];
     for (name, mat) in mats {
-        let sampling = Settings { light_samples: 32, brdf_samples: 32, seed: 7, ..Default::default() };
-        let mut h = HeadlessSphere::new(StreamSource::Sky { hours, speed: 0.0 }, face, mat, EnvisSettings { sampling, ..Default::default() }, size);
+        let sampling = Settings {
+            light_samples: 32,
+            brdf_samples: 32,
+            seed: 7,
+            ..Default::default()
+        };
+        let mut h = HeadlessSphere::new(
+            StreamSource::Sky { hours, speed: 0.0 },
+            face,
+            mat,
+            EnvisSettings {
+                sampling,
+                ..Default::default()
+            },
+            size,
+        );
         let img = h.capture();
         if let Ok(dir) = std::env::var("ENVIS_TEST_DUMP") {
-            let im = envis::envmap::Image { width: size as usize, height: size as usize, data: img.clone() };
-            envis::render::output::write_png(&Path::new(&dir).join(format!("bevy-{}.png", name.replace(' ', "-"))), &im, 1.0).unwrap();
+            let im = envis::envmap::Image {
+                width: size as usize,
+                height: size as usize,
+                data: img.clone(),
+            };
+            envis::render::output::write_png(
+                &Path::new(&dir).join(format!("bevy-{}.png", name.replace(' ', "-"))),
+                &im,
+                1.0,
+            )
+            .unwrap();
         }
         let gbuf = sphere_gbuffer(size as usize, size as usize, mat.decoded());
-        let cpu = render(&map, &gbuf, size as usize, size as usize, &sampling).unwrap().image.data;
+        let cpu = render(&map, &gbuf, size as usize, size as usize, &sampling)
+            .unwrap()
+            .image
+            .data;
         let inside = on_sphere(size);
         let idx: Vec<usize> = (0..img.len()).filter(|&i| inside(i)).collect();
-        let mean = |v: &[Vec3]| idx.iter().map(|&i| luminance(v[i]) as f64).sum::<f64>() / idx.len() as f64;
+        let mean = |v: &[Vec3]| {
+            idx.iter().map(|&i| luminance(v[i]) as f64).sum::<f64>() / idx.len() as f64
+        };
         let (mb, mc) = (mean(&img), mean(&cpu));
-        assert!(img.iter().all(|c| c.is_finite() && c.min_element() >= 0.0), "{name}: non-finite or negative pixel");
-        assert!(rel(mb, mc) < 0.02, "{name}: mean over the sphere bevy {mb} cpu {mc}");
-        let close = idx.iter().filter(|&&i| (luminance(img[i]) - luminance(cpu[i])).abs() <= 0.1 * luminance(cpu[i]).max(1e-3)).count();
-        assert!(close * 10 >= idx.len() * 9, "{name}: only {close} of {} pixels within 10% of the CPU render", idx.len());
+        assert!(
+            img.iter().all(|c| c.is_finite() && c.min_element() >= 0.0),
+            "{name}: non-finite or negative pixel"
+        );
+        assert!(
+            rel(mb, mc) < 0.02,
+            "{name}: mean over the sphere bevy {mb} cpu {mc}"
+        );
+        let close = idx
+            .iter()
+            .filter(|&&i| {
+                (luminance(img[i]) - luminance(cpu[i])).abs() <= 0.1 * luminance(cpu[i]).max(1e-3)
+            })
+            .count();
+        assert!(
+            close * 10 >= idx.len() * 9,
+            "{name}: only {close} of {} pixels within 10% of the CPU render",
+            idx.len()
+        );
         // The sky: an orthographic camera looking down -Z sees the map in direction -Z everywhere.
         let sky = map.lookup(-Vec3::Z);
         let corner = img[0];
-        assert!((corner - sky).abs().max_element() <= 1e-3 * sky.max_element().max(1.0), "{name}: sky {corner} want {sky}");
+        assert!(
+            (corner - sky).abs().max_element() <= 1e-3 * sky.max_element().max(1.0),
+            "{name}: sky {corner} want {sky}"
+        );
         let c = h.counters();
-        assert!(c.get(|c| &c.builds) >= 1 && c.get(|c| &c.lighting_passes) >= 1, "{name}: counters {:?}", c.0);
+        assert!(
+            c.get(|c| &c.builds) >= 1 && c.get(|c| &c.lighting_passes) >= 1,
+            "{name}: counters {:?}",
+            c.0
+        );
     }
 }
 
@@ -65,8 +135,19 @@ fn bevy_frame_matches_cpu_renderer() {
 #[test]
 fn bevy_builds_only_when_the_frame_changes() {
     let Some(ctx) = gpu() else { return };
-    let mat = EnvisMaterial::Lambert { albedo: Vec3::splat(0.8) };
-    let mut h = HeadlessSphere::new(StreamSource::Sky { hours: 10.0, speed: 0.0 }, 16, mat, EnvisSettings::default(), 32);
+    let mat = EnvisMaterial::Lambert {
+        albedo: Vec3::splat(0.8),
+    };
+    let mut h = HeadlessSphere::new(
+        StreamSource::Sky {
+            hours: 10.0,
+            speed: 0.0,
+        },
+        16,
+        mat,
+        EnvisSettings::default(),
+        32,
+    );
     for _ in 0..100 {
         h.update();
     }
@@ -76,9 +157,17 @@ fn bevy_builds_only_when_the_frame_changes() {
     assert!(c.get(|c| &c.lighting_passes) >= 95, "{:?}", c.0);
     // Per-pass times as a resource: CPU always, GPU from timestamp queries (lavapipe has them).
     let t = h.app.world().resource::<envis::app::EnvisTimings>().get();
-    assert!(t.build_cpu_ms.is_some() && t.lighting_cpu_ms.is_some(), "{t:?}");
+    assert!(
+        t.build_cpu_ms.is_some() && t.lighting_cpu_ms.is_some(),
+        "{t:?}"
+    );
     if ctx.timestamps {
-        assert!(t.build_gpu_ms.is_some_and(|x| x > 0.0) && t.pool_gpu_ms.is_some_and(|x| x > 0.0) && t.lighting_gpu_ms.is_some_and(|x| x > 0.0), "{t:?}");
+        assert!(
+            t.build_gpu_ms.is_some_and(|x| x > 0.0)
+                && t.pool_gpu_ms.is_some_and(|x| x > 0.0)
+                && t.lighting_gpu_ms.is_some_and(|x| x > 0.0),
+            "{t:?}"
+        );
     }
     let before = h.capture();
     // Move the sun: exactly one more upload + build, and the image changes.
@@ -88,20 +177,45 @@ fn bevy_builds_only_when_the_frame_changes() {
     assert_eq!(c.get(|c| &c.builds), 2, "{:?}", c.0);
     let generation = h.app.world().resource::<EnvFrame>().generation;
     assert!(generation >= 2);
-    let diff: f32 = before.iter().zip(&after).map(|(a, b)| (*a - *b).abs().max_element()).sum();
+    let diff: f32 = before
+        .iter()
+        .zip(&after)
+        .map(|(a, b)| (*a - *b).abs().max_element())
+        .sum();
     assert!(diff > 1.0, "the image did not follow the new frame");
     // A new face size mid-stream reallocates the GPU sampler (once) and the image follows.
     assert_eq!(c.get(|c| &c.allocations), 1);
-    assert!(h.stream_mut().switch(StreamSource::Sky { hours: 16.0, speed: 0.0 }, 32));
+    assert!(h.stream_mut().switch(
+        StreamSource::Sky {
+            hours: 16.0,
+            speed: 0.0
+        },
+        32
+    ));
     let resized = h.capture();
     let c = h.counters();
     assert_eq!(c.get(|c| &c.allocations), 2, "{:?}", c.0);
     assert_eq!(c.get(|c| &c.builds), 3, "{:?}", c.0);
-    let diff: f32 = after.iter().zip(&resized).map(|(a, b)| (*a - *b).abs().max_element()).sum();
-    assert!(diff > 0.0 && resized.iter().all(|c| c.is_finite()), "32^2 faces: image {diff}");
+    let diff: f32 = after
+        .iter()
+        .zip(&resized)
+        .map(|(a, b)| (*a - *b).abs().max_element())
+        .sum();
+    assert!(
+        diff > 0.0 && resized.iter().all(|c| c.is_finite()),
+        "32^2 faces: image {diff}"
+    );
     // A bad source is refused, keeps the current stream, and says why.
-    assert!(!h.stream_mut().switch(StreamSource::File("/nonexistent/map.exr".into()), 32));
-    assert!(h.stream_mut().log.last().is_some_and(|m| m.contains("/nonexistent/map.exr") && m.contains("kept")));
+    assert!(
+        !h.stream_mut()
+            .switch(StreamSource::File("/nonexistent/map.exr".into()), 32)
+    );
+    assert!(
+        h.stream_mut()
+            .log
+            .last()
+            .is_some_and(|m| m.contains("/nonexistent/map.exr") && m.contains("kept"))
+    );
 }
 
 /// Pixel noise: mean absolute difference between horizontal neighbours inside the sphere.
@@ -124,9 +238,29 @@ fn roughness(img: &[Vec3], size: u32) -> f64 {
 fn bevy_accumulation_converges() {
     let Some(_) = gpu() else { return };
     let (size, face) = (48u32, 16usize);
-    let mat = EnvisMaterial::Ggx { albedo: Vec3::splat(0.8), alpha: 0.3 };
-    let sampling = Settings { light_samples: 4, brdf_samples: 4, ..Default::default() };
-    let mut h = HeadlessSphere::new(StreamSource::Sky { hours: 15.0, speed: 0.0 }, face, mat, EnvisSettings { sampling, accumulate: false, ..Default::default() }, size);
+    let mat = EnvisMaterial::Ggx {
+        albedo: Vec3::splat(0.8),
+        alpha: 0.3,
+    };
+    let sampling = Settings {
+        light_samples: 4,
+        brdf_samples: 4,
+        ..Default::default()
+    };
+    let mut h = HeadlessSphere::new(
+        StreamSource::Sky {
+            hours: 15.0,
+            speed: 0.0,
+        },
+        face,
+        mat,
+        EnvisSettings {
+            sampling,
+            accumulate: false,
+            ..Default::default()
+        },
+        size,
+    );
     let one = h.capture();
     h.app.world_mut().resource_mut::<EnvisSettings>().accumulate = true;
     for _ in 0..30 {
@@ -137,26 +271,68 @@ fn bevy_accumulation_converges() {
     assert!(frames >= 30, "accumulated only {frames} frames");
     // Against a converged CPU render of the same (quantised) scene: the error shrinks, and the
     // running mean stays unbiased.
-    let map = load_env(&EnvSource::Sky { hours: 15.0 }, face).unwrap().cube;
+    let map = load_env(&EnvSource::Sky { hours: 15.0 }, face)
+        .unwrap()
+        .cube;
     let gbuf = sphere_gbuffer(size as usize, size as usize, mat.decoded());
-    let cpu = render(&map, &gbuf, size as usize, size as usize, &Settings { light_samples: 256, brdf_samples: 256, ..sampling }).unwrap().image.data;
+    let cpu = render(
+        &map,
+        &gbuf,
+        size as usize,
+        size as usize,
+        &Settings {
+            light_samples: 256,
+            brdf_samples: 256,
+            ..sampling
+        },
+    )
+    .unwrap()
+    .image
+    .data;
     let inside = on_sphere(size);
     let idx: Vec<usize> = (0..acc.len()).filter(|&i| inside(i)).collect();
-    let rmse = |v: &[Vec3]| (idx.iter().map(|&i| ((luminance(v[i]) - luminance(cpu[i])) as f64).powi(2)).sum::<f64>() / idx.len() as f64).sqrt();
+    let rmse = |v: &[Vec3]| {
+        (idx.iter()
+            .map(|&i| ((luminance(v[i]) - luminance(cpu[i])) as f64).powi(2))
+            .sum::<f64>()
+            / idx.len() as f64)
+            .sqrt()
+    };
     let (e1, ea) = (rmse(&one), rmse(&acc));
-    eprintln!("accumulation: RMSE {e1:.4} (1 frame) -> {ea:.4} ({frames} frames); neighbour roughness {:.4} -> {:.4} (converged CPU {:.4})", roughness(&one, size), roughness(&acc, size), roughness(&cpu, size));
-    assert!(ea * 2.5 < e1, "accumulation did not reduce the error: {e1} -> {ea}");
-    let mean = |v: &[Vec3]| idx.iter().map(|&i| luminance(v[i]) as f64).sum::<f64>() / idx.len() as f64;
-    assert!(rel(mean(&acc), mean(&cpu)) < 0.02, "accumulated mean {} vs CPU {}", mean(&acc), mean(&cpu));
+    eprintln!(
+        "accumulation: RMSE {e1:.4} (1 frame) -> {ea:.4} ({frames} frames); neighbour roughness {:.4} -> {:.4} (converged CPU {:.4})",
+        roughness(&one, size),
+        roughness(&acc, size),
+        roughness(&cpu, size)
+    );
+    assert!(
+        ea * 2.5 < e1,
+        "accumulation did not reduce the error: {e1} -> {ea}"
+    );
+    let mean =
+        |v: &[Vec3]| idx.iter().map(|&i| luminance(v[i]) as f64).sum::<f64>() / idx.len() as f64;
+    assert!(
+        rel(mean(&acc), mean(&cpu)) < 0.02,
+        "accumulated mean {} vs CPU {}",
+        mean(&acc),
+        mean(&cpu)
+    );
     // Moving the camera restarts the average.
-    h.app.world_mut().query::<&mut bevy::prelude::Transform>().iter_mut(h.app.world_mut()).for_each(|mut t| {
-        if t.translation.z > 1.0 {
-            t.translation.x += 0.01;
-        }
-    });
+    h.app
+        .world_mut()
+        .query::<&mut bevy::prelude::Transform>()
+        .iter_mut(h.app.world_mut())
+        .for_each(|mut t| {
+            if t.translation.z > 1.0 {
+                t.translation.x += 0.01;
+            }
+        });
     h.update();
     h.update();
-    assert!(h.app.world().resource::<EnvisSettings>().frame < 3, "the camera moved but the average went on");
+    assert!(
+        h.app.world().resource::<EnvisSettings>().frame < 3,
+        "the camera moved but the average went on"
+    );
 }
 
 /// Skipping work does not change the result: the frame drawn with a once-built distribution is
@@ -164,10 +340,25 @@ fn bevy_accumulation_converges() {
 #[test]
 fn bevy_skipping_is_bit_identical_to_the_always_on_path() {
     let Some(_) = gpu() else { return };
-    let mat = EnvisMaterial::Ggx { albedo: Vec3::splat(0.8), alpha: 0.3 };
+    let mat = EnvisMaterial::Ggx {
+        albedo: Vec3::splat(0.8),
+        alpha: 0.3,
+    };
     let mut images = Vec::new();
     for always in [false, true] {
-        let mut h = HeadlessSphere::new(StreamSource::Sky { hours: 12.0, speed: 0.0 }, 16, mat, EnvisSettings { always_rebuild: always, ..Default::default() }, 32);
+        let mut h = HeadlessSphere::new(
+            StreamSource::Sky {
+                hours: 12.0,
+                speed: 0.0,
+            },
+            16,
+            mat,
+            EnvisSettings {
+                always_rebuild: always,
+                ..Default::default()
+            },
+            32,
+        );
         for _ in 0..10 {
             h.update();
         }
@@ -178,8 +369,16 @@ fn bevy_skipping_is_bit_identical_to_the_always_on_path() {
         } else {
             assert_eq!(c.get(|c| &c.builds), 1, "{:?}", c.0);
         }
-        assert_eq!(c.get(|c| &c.overlay_passes), 0, "overlays off, yet overlay passes: {:?}", c.0);
+        assert_eq!(
+            c.get(|c| &c.overlay_passes),
+            0,
+            "overlays off, yet overlay passes: {:?}",
+            c.0
+        );
         images.push(img);
     }
-    assert!(images[0] == images[1], "skipping rebuilds changed the image");
+    assert!(
+        images[0] == images[1],
+        "skipping rebuilds changed the image"
+    );
 }

@@ -11,7 +11,9 @@ struct Png {
 }
 
 fn read_png(path: &Path) -> Png {
-    let dec = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))));
+    let dec = png::Decoder::new(std::io::BufReader::new(
+        std::fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display())),
+    ));
     let mut r = dec.read_info().unwrap();
     let mut buf = vec![0; r.output_buffer_size().unwrap()];
     let info = r.next_frame(&mut buf).unwrap();
@@ -20,8 +22,15 @@ fn read_png(path: &Path) -> Png {
         png::ColorType::Rgb => 3,
         c => panic!("{}: unexpected colour type {c:?}", path.display()),
     };
-    let rgba = buf[..info.buffer_size()].chunks_exact(ch).flat_map(|p| [p[0], p[1], p[2], 255]).collect();
-    Png { w: info.width as usize, h: info.height as usize, rgba }
+    let rgba = buf[..info.buffer_size()]
+        .chunks_exact(ch)
+        .flat_map(|p| [p[0], p[1], p[2], 255])
+        .collect();
+    Png {
+        w: info.width as usize,
+        h: info.height as usize,
+        rgba,
+    }
 }
 
 fn count_exact(p: &Png, rgb: [u8; 3]) -> usize {
@@ -31,7 +40,12 @@ fn count_exact(p: &Png, rgb: [u8; 3]) -> usize {
 /// Mean absolute difference (0..255) over the central region, where no panel is drawn.
 fn centre_diff(a: &Png, b: &Png) -> f64 {
     assert_eq!((a.w, a.h), (b.w, b.h));
-    let (x0, x1, y0, y1) = (a.w * 30 / 100, a.w * 62 / 100, a.h * 25 / 100, a.h * 95 / 100);
+    let (x0, x1, y0, y1) = (
+        a.w * 30 / 100,
+        a.w * 62 / 100,
+        a.h * 25 / 100,
+        a.h * 95 / 100,
+    );
     let mut sum = 0.0;
     let mut n = 0.0;
     for y in y0..y1 {
@@ -49,8 +63,15 @@ fn centre_diff(a: &Png, b: &Png) -> f64 {
 #[test]
 fn demo_scripted_under_xvfb() {
     let Some(_) = gpu() else { return };
-    if std::process::Command::new("xvfb-run").arg("--help").output().is_err() {
-        assert!(std::env::var("CI").is_err(), "CI must run the demo test, but xvfb-run is missing (apt-get install xvfb)");
+    if std::process::Command::new("xvfb-run")
+        .arg("--help")
+        .output()
+        .is_err()
+    {
+        assert!(
+            std::env::var("CI").is_err(),
+            "CI must run the demo test, but xvfb-run is missing (apt-get install xvfb)"
+        );
         eprintln!("SKIPPING demo test: xvfb-run not found");
         return;
     }
@@ -60,12 +81,26 @@ fn demo_scripted_under_xvfb() {
     let out = std::process::Command::new("timeout")
         .args(["600", "xvfb-run", "-a", "-s", "-screen 0 1280x800x24"])
         .arg(env!("CARGO_BIN_EXE_envis"))
-        .args(["--window", "1024x640", "--light-samples", "8", "--brdf-samples", "8", "--face-size", "32", "--script"])
+        .args([
+            "--window",
+            "1024x640",
+            "--light-samples",
+            "8",
+            "--brdf-samples",
+            "8",
+            "--face-size",
+            "32",
+            "--script",
+        ])
         .arg(&dir)
         .output()
         .unwrap();
     let log = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "demo failed ({:?}):\n{log}", out.status);
+    assert!(
+        out.status.success(),
+        "demo failed ({:?}):\n{log}",
+        out.status
+    );
     assert!(!log.contains("panicked"), "{log}");
     eprintln!("demo script ran in {:.1} s", t0.elapsed().as_secs_f64());
     let shot = |n: &str| read_png(&dir.join(n));
@@ -75,38 +110,81 @@ fn demo_scripted_under_xvfb() {
     let (red, green, yellow) = ([255, 0, 0], [0, 255, 0], [255, 255, 0]);
     // The three debug colours are present with the sample-debug view on, absent with it off.
     for (name, c) in [("red", red), ("green", green), ("yellow", yellow)] {
-        assert!(count_exact(&on, c) > 0, "debug view on: no {name} samples drawn");
-        assert_eq!(count_exact(&off, c), 0, "debug view off: {name} samples still drawn");
+        assert!(
+            count_exact(&on, c) > 0,
+            "debug view on: no {name} samples drawn"
+        );
+        assert_eq!(
+            count_exact(&off, c),
+            0,
+            "debug view off: {name} samples still drawn"
+        );
     }
     // Toggling the counts changes the image (the scene, not just the panel).
     let d = centre_diff(&start, &integer);
-    assert!(d > 0.2, "integer counts did not change the image (mean diff {d})");
+    assert!(
+        d > 0.2,
+        "integer counts did not change the image (mean diff {d})"
+    );
     // Each overlay replaces the shading.
-    for o in ["overlay-samples.png", "overlay-wasted.png", "overlay-diff.png"] {
+    for o in [
+        "overlay-samples.png",
+        "overlay-wasted.png",
+        "overlay-diff.png",
+    ] {
         let d = centre_diff(&start, &shot(o));
         assert!(d > 10.0, "{o}: overlay not visible (mean diff {d})");
     }
     // Changing the sphere's BRDF changes the image.
-    assert!(centre_diff(&off, &shot("brdf.png")) > 0.05, "BRDF change not visible");
+    assert!(
+        centre_diff(&off, &shot("brdf.png")) > 0.05,
+        "BRDF change not visible"
+    );
     // The report: per-pass timings, counters, and the probed pixel (GPU estimate = CPU twin).
-    let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).unwrap()).unwrap();
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).unwrap()).unwrap();
     let t = &r["timings_ms"];
-    assert!(t["lighting_cpu_ms"].as_f64().is_some_and(|x| x > 0.0) && t["build_cpu_ms"].as_f64().is_some(), "{r}");
+    assert!(
+        t["lighting_cpu_ms"].as_f64().is_some_and(|x| x > 0.0)
+            && t["build_cpu_ms"].as_f64().is_some(),
+        "{r}"
+    );
     assert!(r["lighting_passes"].as_u64().unwrap() >= 50, "{r}");
     // Overlays were on for three steps (and only then).
     let ov = r["overlay_passes"].as_u64().unwrap();
-    assert!(ov >= 3 && ov < r["lighting_passes"].as_u64().unwrap(), "{r}");
-    assert!(r["builds"].as_u64().unwrap() <= 3, "a paused sky must not be rebuilt every frame: {r}");
+    assert!(
+        ov >= 3 && ov < r["lighting_passes"].as_u64().unwrap(),
+        "{r}"
+    );
+    assert!(
+        r["builds"].as_u64().unwrap() <= 3,
+        "a paused sky must not be rebuilt every frame: {r}"
+    );
     let p = &r["probe"];
-    let total: u64 = ["red", "green", "yellow"].iter().map(|k| p[k].as_u64().unwrap()).sum();
+    let total: u64 = ["red", "green", "yellow"]
+        .iter()
+        .map(|k| p[k].as_u64().unwrap())
+        .sum();
     assert_eq!(total, 6 * 8, "every pool sample is classified: {p}");
     for c in 0..3 {
-        let (g, cpu) = (p["gpu_estimate"][c].as_f64().unwrap(), p["cpu_estimate"][c].as_f64().unwrap());
-        assert!((g - cpu).abs() <= 1e-3 * cpu.abs().max(1e-3), "probe: GPU {g} vs CPU twin {cpu}");
+        let (g, cpu) = (
+            p["gpu_estimate"][c].as_f64().unwrap(),
+            p["cpu_estimate"][c].as_f64().unwrap(),
+        );
+        assert!(
+            (g - cpu).abs() <= 1e-3 * cpu.abs().max(1e-3),
+            "probe: GPU {g} vs CPU twin {cpu}"
+        );
     }
     // Keep a copy for the docs when asked.
     if let Ok(d) = std::env::var("ENVIS_TEST_DUMP") {
-        for n in ["start.png", "debug-on.png", "overlay-samples.png", "overlay-wasted.png", "overlay-diff.png"] {
+        for n in [
+            "start.png",
+            "debug-on.png",
+            "overlay-samples.png",
+            "overlay-wasted.png",
+            "overlay-diff.png",
+        ] {
             let _ = std::fs::copy(dir.join(n), Path::new(&d).join(format!("demo-{n}")));
         }
     }

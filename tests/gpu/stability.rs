@@ -8,11 +8,20 @@ use envis::render::GPixel;
 
 /// GPU and CPU renders of an arbitrary G-buffer with the same settings; asserts the GPU output is
 /// finite and non-negative, and returns both images.
-fn both(ctx: &GpuContext, map: &CubeMap, gbuf: &[Option<GPixel>], s: &Settings) -> (Vec<Vec3>, Vec<Vec3>) {
+fn both(
+    ctx: &GpuContext,
+    map: &CubeMap,
+    gbuf: &[Option<GPixel>],
+    s: &Settings,
+) -> (Vec<Vec3>, Vec<Vec3>) {
     let (g, _) = render_gpu(ctx, map, gbuf, gbuf.len(), 1, s).unwrap();
     let c = render(map, gbuf, gbuf.len(), 1, s).unwrap();
     for (i, p) in g.image.data.iter().enumerate() {
-        assert!(p.is_finite() && p.min_element() >= 0.0, "GPU pixel {i} = {p} for {:?}", gbuf[i]);
+        assert!(
+            p.is_finite() && p.min_element() >= 0.0,
+            "GPU pixel {i} = {p} for {:?}",
+            gbuf[i]
+        );
     }
     (g.image.data, c.image.data)
 }
@@ -33,14 +42,37 @@ fn px(n: Vec3, o: Vec3, material: Material) -> Option<GPixel> {
 fn gpu_hard_maps_all_zero_one_face_single_texel_constant() {
     let Some(ctx) = gpu() else { return };
     let n = 16;
-    let normals = [Vec3::X, -Vec3::Y, Vec3::new(1.0, 1.0, 1.0), Vec3::new(0.3, -0.2, 0.9), -Vec3::Z];
-    let gbuf: Vec<Option<GPixel>> = normals.iter().map(|&nn| px(nn, (nn + Vec3::new(0.2, 0.1, 0.0)).normalize(), Material::ggx(0.8, 0.3))).collect();
-    let s = Settings { light_samples: 16, brdf_samples: 8, seed: 2, ..Default::default() };
+    let normals = [
+        Vec3::X,
+        -Vec3::Y,
+        Vec3::new(1.0, 1.0, 1.0),
+        Vec3::new(0.3, -0.2, 0.9),
+        -Vec3::Z,
+    ];
+    let gbuf: Vec<Option<GPixel>> = normals
+        .iter()
+        .map(|&nn| {
+            px(
+                nn,
+                (nn + Vec3::new(0.2, 0.1, 0.0)).normalize(),
+                Material::ggx(0.8, 0.3),
+            )
+        })
+        .collect();
+    let s = Settings {
+        light_samples: 16,
+        brdf_samples: 8,
+        seed: 2,
+        ..Default::default()
+    };
 
     // All zero: a defined, all-black result; every pool slot empty.
     let zero = CubeMap::new(n);
     let (g, _) = both(ctx, &zero, &gbuf, &s);
-    assert!(g.iter().all(|c| *c == Vec3::ZERO), "all-zero map must render black");
+    assert!(
+        g.iter().all(|c| *c == Vec3::ZERO),
+        "all-zero map must render black"
+    );
     let t = gpu_build(ctx, &zero, 8, 1);
     assert!(t.pool.iter().all(|p| p.pdf == 0.0) && t.energies.iter().all(|&e| e == 0.0));
 
@@ -50,7 +82,11 @@ fn gpu_hard_maps_all_zero_one_face_single_texel_constant() {
         one_face.data[2 * n * n + i] = Vec3::splat(2.0);
     }
     let mut cases = vec![("one face lit".to_string(), one_face)];
-    for (label, col, row) in [("centre", 8usize, 8usize), ("edge", 0, 7), ("corner", 15, 15)] {
+    for (label, col, row) in [
+        ("centre", 8usize, 8usize),
+        ("edge", 0, 7),
+        ("corner", 15, 15),
+    ] {
         let mut m = CubeMap::new(n);
         let i = m.index(4, col, row);
         m.data[i] = Vec3::splat(1e6);
@@ -60,9 +96,16 @@ fn gpu_hard_maps_all_zero_one_face_single_texel_constant() {
         let t = gpu_build(ctx, map, 64, 9);
         for (k, p) in t.pool.iter().enumerate() {
             let lit = t.energies[k / 64] > 0.0;
-            assert!(p.pdf.is_finite() && p.pdf >= 0.0 && (p.pdf > 0.0) == lit, "{label}: pool sample {k} pdf {}", p.pdf);
+            assert!(
+                p.pdf.is_finite() && p.pdf >= 0.0 && (p.pdf > 0.0) == lit,
+                "{label}: pool sample {k} pdf {}",
+                p.pdf
+            );
             if lit {
-                assert!(p.radiance.max_element() > 0.0, "{label}: a lit face sampled a black texel");
+                assert!(
+                    p.radiance.max_element() > 0.0,
+                    "{label}: a lit face sampled a black texel"
+                );
             }
         }
         let (g, c) = both(ctx, map, &gbuf, &s);
@@ -74,23 +117,56 @@ fn gpu_hard_maps_all_zero_one_face_single_texel_constant() {
     let furnace: Vec<Option<GPixel>> = (0..256)
         .map(|i| {
             let nn = Vec3::new((i as f32 * 0.37).sin(), (i as f32 * 0.71).cos(), 0.5).normalize();
-            px(nn, nn, if i % 2 == 0 { Material::diffuse(1.0) } else { Material::ggx(1.0, 0.05 + (i % 7) as f32 * 0.1) })
+            px(
+                nn,
+                nn,
+                if i % 2 == 0 {
+                    Material::diffuse(1.0)
+                } else {
+                    Material::ggx(1.0, 0.05 + (i % 7) as f32 * 0.1)
+                },
+            )
         })
         .collect();
     let (g, c) = both(ctx, &white, &furnace, &s);
     assert_twins("furnace", &g, &c, 2e-3, 1e-3);
     for (i, c) in g.iter().enumerate().skip(1).step_by(2) {
-        assert!(c.max_element() <= 1.0 + 0.35, "furnace: GGX pixel {i} = {c} (energy bound 1 + noise)");
+        assert!(
+            c.max_element() <= 1.0 + 0.35,
+            "furnace: GGX pixel {i} = {c} (energy bound 1 + noise)"
+        );
     }
     // The pool is shared by all pixels, so average over seeds for the diffuse mean.
     let means: Vec<f64> = (0..8)
         .map(|seed| {
-            let (g, _) = render_gpu(ctx, &white, &furnace, furnace.len(), 1, &Settings { seed, pixel_offset: true, pool_size: 64, ..s }).unwrap();
-            g.image.data.iter().step_by(2).map(|c| c.x as f64).sum::<f64>() / 128.0
+            let (g, _) = render_gpu(
+                ctx,
+                &white,
+                &furnace,
+                furnace.len(),
+                1,
+                &Settings {
+                    seed,
+                    pixel_offset: true,
+                    pool_size: 64,
+                    ..s
+                },
+            )
+            .unwrap();
+            g.image
+                .data
+                .iter()
+                .step_by(2)
+                .map(|c| c.x as f64)
+                .sum::<f64>()
+                / 128.0
         })
         .collect();
     let (m, se) = mean_se(&means);
-    assert!((m - 1.0).abs() < 4.0 * se + 2e-3, "furnace: diffuse mean {m} (se {se})");
+    assert!(
+        (m - 1.0).abs() < 4.0 * se + 2e-3,
+        "furnace: diffuse mean {m} (se {se})"
+    );
 }
 
 /// NaN, +Inf, -Inf and negative texels uploaded raw: the GPU's own sanitise pass clamps and counts
@@ -119,14 +195,24 @@ fn gpu_hard_bad_texels_are_clamped_counted_and_never_sampled() {
     let gpu_report = s.read_problems(ctx).unwrap();
     assert_eq!(gpu_report, cpu_report, "GPU sanitise counts");
     let t = s.read_tables(ctx).unwrap();
-    assert_eq!(t.radiance, clean.data, "GPU-sanitised radiance equals the CPU's");
+    assert_eq!(
+        t.radiance, clean.data,
+        "GPU-sanitised radiance equals the CPU's"
+    );
     for p in &t.pool {
-        assert!(p.radiance.is_finite() && p.radiance.min_element() >= 0.0 && p.radiance.max_element() <= MAX_RADIANCE);
+        assert!(
+            p.radiance.is_finite()
+                && p.radiance.min_element() >= 0.0
+                && p.radiance.max_element() <= MAX_RADIANCE
+        );
         assert!(p.pdf.is_finite() && p.pdf > 0.0);
     }
     let cpu = CubeDistribution::build(&clean);
     for f in 0..6 {
-        assert!(rel(t.energies[f] as f64, cpu.faces[f].energy) < 2e-5, "face {f} energy");
+        assert!(
+            rel(t.energies[f] as f64, cpu.faces[f].energy) < 2e-5,
+            "face {f} energy"
+        );
     }
 }
 
@@ -141,11 +227,17 @@ fn gpu_hard_2048_faces_single_bright_texel_keeps_its_pdf() {
     let mut n = 2048;
     if let Err(e) = EnvSampler::new(ctx, n, 16) {
         let msg = e.to_string();
-        assert!(msg.contains("storage-binding limit") && msg.contains("texel table"), "unclear refusal: {msg}");
+        assert!(
+            msg.contains("storage-binding limit") && msg.contains("texel table"),
+            "unclear refusal: {msg}"
+        );
         while EnvSampler::new(ctx, n, 16).is_err() {
             n /= 2;
         }
-        eprintln!("note: {} binds at most {n}^2 faces ({msg}); the 2048^2 case runs at {n}^2 here", ctx.info.name);
+        eprintln!(
+            "note: {} binds at most {n}^2 faces ({msg}); the 2048^2 case runs at {n}^2 here",
+            ctx.info.name
+        );
     }
     assert!(n >= 1024);
     let (col, row) = (n * 3 / 5, 77usize);
@@ -161,15 +253,33 @@ fn gpu_hard_2048_faces_single_bright_texel_keeps_its_pdf() {
         let base = (3 * n + col) * (n + 1);
         (t.cond_cdf[base + row + 1] - t.cond_cdf[base + row]) as f64
     };
-    assert!(rel(p_gpu, p_cpu) < 1e-3, "texel probability gpu {p_gpu} cpu {p_cpu}");
-    assert!(rel(t.energies[3] as f64, fd.energy) < 1e-4, "I_f gpu {} cpu {}", t.energies[3], fd.energy);
+    assert!(
+        rel(p_gpu, p_cpu) < 1e-3,
+        "texel probability gpu {p_gpu} cpu {p_cpu}"
+    );
+    assert!(
+        rel(t.energies[3] as f64, fd.energy) < 1e-4,
+        "I_f gpu {} cpu {}",
+        t.energies[3],
+        fd.energy
+    );
     // The pool finds it: the fraction of face-3 samples in the bright texel matches its probability.
-    let hits = t.pool[3 * m..4 * m].iter().filter(|p| p.radiance.x > 1e5).count() as f64;
+    let hits = t.pool[3 * m..4 * m]
+        .iter()
+        .filter(|p| p.radiance.x > 1e5)
+        .count() as f64;
     let expect = p_cpu * m as f64;
-    assert!((hits - expect).abs() <= 4.0 * expect.sqrt().max(1.0) + 1.0, "{hits} hits, expected {expect}");
+    assert!(
+        (hits - expect).abs() <= 4.0 * expect.sqrt().max(1.0) + 1.0,
+        "{hits} hits, expected {expect}"
+    );
     for p in t.pool[3 * m..4 * m].iter().filter(|p| p.radiance.x > 1e5) {
         let want = cpu.face_pdf(p.dir).1 as f64;
-        assert!(rel(p.pdf as f64, want) < 1e-3, "bright-texel sample pdf gpu {} cpu {want}", p.pdf);
+        assert!(
+            rel(p.pdf as f64, want) < 1e-3,
+            "bright-texel sample pdf gpu {} cpu {want}",
+            p.pdf
+        );
     }
 }
 
@@ -182,29 +292,86 @@ fn gpu_hard_geometry_brdf_and_count_extremes() {
     let mut gbuf = Vec::new();
     // Normals along axes, face diagonals and exactly through cube corners; grazing, back-facing
     // and non-unit vectors.
-    for nn in [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z, Vec3::new(1.0, 1.0, 0.0), Vec3::new(0.0, -1.0, 1.0), Vec3::new(d, d, d), Vec3::new(-d, d, -d)] {
-        for o in [nn, (nn + Vec3::new(0.3, 0.2, 0.1)).normalize(), (nn.cross(Vec3::new(0.3, 0.5, 0.7)).normalize() + 1e-4 * nn).normalize(), -nn] {
+    for nn in [
+        Vec3::X,
+        -Vec3::X,
+        Vec3::Y,
+        -Vec3::Y,
+        Vec3::Z,
+        -Vec3::Z,
+        Vec3::new(1.0, 1.0, 0.0),
+        Vec3::new(0.0, -1.0, 1.0),
+        Vec3::new(d, d, d),
+        Vec3::new(-d, d, -d),
+    ] {
+        for o in [
+            nn,
+            (nn + Vec3::new(0.3, 0.2, 0.1)).normalize(),
+            (nn.cross(Vec3::new(0.3, 0.5, 0.7)).normalize() + 1e-4 * nn).normalize(),
+            -nn,
+        ] {
             gbuf.push(px(nn, o, Material::phong(0.7, 150.0)));
         }
         gbuf.push(px(nn * 1e3, nn * 1e-3, Material::diffuse(0.5)));
     }
     // BRDF extremes: Phong 0 .. 1e5, GGX 1e-4 .. 1, albedo 0, mixes.
     for e in [0.0f32, 1.0, 150.0, 1e4, 1e5] {
-        gbuf.push(px(Vec3::Y, Vec3::new(0.2, 0.9, 0.1).normalize(), Material::phong(0.8, e)));
+        gbuf.push(px(
+            Vec3::Y,
+            Vec3::new(0.2, 0.9, 0.1).normalize(),
+            Material::phong(0.8, e),
+        ));
     }
     for a in [1e-4f32, 1e-3, 0.05, 0.5, 1.0] {
-        gbuf.push(px(Vec3::Y, Vec3::new(0.2, 0.9, 0.1).normalize(), Material::ggx(0.8, a)));
+        gbuf.push(px(
+            Vec3::Y,
+            Vec3::new(0.2, 0.9, 0.1).normalize(),
+            Material::ggx(0.8, a),
+        ));
     }
     gbuf.push(px(Vec3::Y, Vec3::Y, Material::diffuse(0.0)));
-    gbuf.push(px(Vec3::Y, Vec3::Y, Material { kd: Vec3::splat(0.3), ks: Vec3::splat(0.5), lobe: Lobe::Phong { exponent: 1e4 } }));
+    gbuf.push(px(
+        Vec3::Y,
+        Vec3::Y,
+        Material {
+            kd: Vec3::splat(0.3),
+            ks: Vec3::splat(0.5),
+            lobe: Lobe::Phong { exponent: 1e4 },
+        },
+    ));
     gbuf.push(None);
     let settings = [
-        Settings { light_samples: 8, brdf_samples: 8, ..Default::default() },
-        Settings { light_samples: 0, brdf_samples: 8, ..Default::default() },
-        Settings { light_samples: 8, brdf_samples: 0, ..Default::default() },
+        Settings {
+            light_samples: 8,
+            brdf_samples: 8,
+            ..Default::default()
+        },
+        Settings {
+            light_samples: 0,
+            brdf_samples: 8,
+            ..Default::default()
+        },
+        Settings {
+            light_samples: 8,
+            brdf_samples: 0,
+            ..Default::default()
+        },
         // Requests larger than the pool (N_f clamped to M), and integer counts.
-        Settings { light_samples: 64, brdf_samples: 4, pool_size: 5, counts: Counts::Integer, ..Default::default() },
-        Settings { light_samples: 7, brdf_samples: 3, mis: Heuristic::Power, pixel_offset: true, seed: 99, ..Default::default() },
+        Settings {
+            light_samples: 64,
+            brdf_samples: 4,
+            pool_size: 5,
+            counts: Counts::Integer,
+            ..Default::default()
+        },
+        Settings {
+            light_samples: 7,
+            brdf_samples: 3,
+            mis: Heuristic::Power,
+            pixel_offset: true,
+            seed: 99,
+            ..Default::default()
+        },
     ];
     for s in settings {
         let (g, c) = both(ctx, &map, &gbuf, &s);
@@ -214,6 +381,17 @@ fn gpu_hard_geometry_brdf_and_count_extremes() {
         assert_twins(&format!("{s:?}"), &g, &c, 5e-3, floor.max(1e-3));
     }
     // Both counts zero: a clear error, on the GPU backend too.
-    let e = render_gpu(ctx, &map, &gbuf, gbuf.len(), 1, &Settings { light_samples: 0, brdf_samples: 0, ..Default::default() });
+    let e = render_gpu(
+        ctx,
+        &map,
+        &gbuf,
+        gbuf.len(),
+        1,
+        &Settings {
+            light_samples: 0,
+            brdf_samples: 0,
+            ..Default::default()
+        },
+    );
     assert!(e.is_err());
 }
