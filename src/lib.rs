@@ -19,5 +19,6 @@ pub mod sampling;
 pub mod scene;
 pub mod stats;
 pub mod stream;
+mod vocab;
 
 pub use error::{Error, Result};

@@ -104,26 +104,6 @@ enum BrdfArg {
 }
 
 #[derive(Clone, Copy, ValueEnum)]
-enum StrategyArg {
-    Paper,
-    Global,
-    Light,
-    Brdf,
-}
-
-#[derive(Clone, Copy, ValueEnum)]
-enum CountsArg {
-    Fractional,
-    Integer,
-}
-
-#[derive(Clone, Copy, ValueEnum)]
-enum MisArg {
-    Balance,
-    Power,
-}
-
-#[derive(Clone, Copy, ValueEnum)]
 enum BackendArg {
     /// The CPU renderer (the oracle).
     Cpu,
@@ -145,12 +125,12 @@ struct RenderArgs {
     /// N_B, BRDF samples per pixel.
     #[arg(long, default_value_t = 32)]
     brdf_samples: usize,
-    #[arg(long, value_enum, default_value_t = StrategyArg::Paper)]
-    strategy: StrategyArg,
-    #[arg(long, value_enum, default_value_t = CountsArg::Fractional)]
-    counts: CountsArg,
-    #[arg(long, value_enum, default_value_t = MisArg::Balance)]
-    mis: MisArg,
+    #[arg(long, value_enum, default_value_t = Strategy::Paper)]
+    strategy: Strategy,
+    #[arg(long, value_enum, default_value_t = Counts::Fractional)]
+    counts: Counts,
+    #[arg(long, value_enum, default_value_t = Heuristic::Balance)]
+    mis: Heuristic,
     #[arg(long, default_value_t = 0)]
     seed: u32,
     /// M, pool samples per face (default: N_L).
@@ -499,20 +479,9 @@ fn run(cli: Cli) -> Result<()> {
                 light_samples: r.light_samples,
                 brdf_samples: r.brdf_samples,
                 pool_size: r.pool,
-                strategy: match r.strategy {
-                    StrategyArg::Paper => Strategy::Paper,
-                    StrategyArg::Global => Strategy::Global,
-                    StrategyArg::Light => Strategy::Light,
-                    StrategyArg::Brdf => Strategy::Brdf,
-                },
-                counts: match r.counts {
-                    CountsArg::Fractional => Counts::Fractional,
-                    CountsArg::Integer => Counts::Integer,
-                },
-                mis: match r.mis {
-                    MisArg::Balance => Heuristic::Balance,
-                    MisArg::Power => Heuristic::Power,
-                },
+                strategy: r.strategy,
+                counts: r.counts,
+                mis: r.mis,
                 seed: r.seed,
                 pixel_offset: r.pixel_offset,
                 material_budget: r.material_budget,

@@ -86,9 +86,9 @@ impl Default for CameraSpec {
 pub struct SamplingSpec {
     pub light_samples: Option<usize>,
     pub brdf_samples: Option<usize>,
-    pub strategy: Option<String>,
-    pub counts: Option<String>,
-    pub mis: Option<String>,
+    pub strategy: Option<Strategy>,
+    pub counts: Option<Counts>,
+    pub mis: Option<Heuristic>,
     pub seed: Option<u32>,
     pub pool: Option<usize>,
     pub pixel_offset: Option<bool>,
@@ -368,41 +368,15 @@ impl Scene {
 
 fn sampling_settings(path: &Path, s: &SamplingSpec) -> Result<Settings> {
     let mut out = Settings::default();
-    let bad = |field: &str, v: &str, ok: &str| {
-        err(
-            path,
-            format!("[sampling] field `{field}`: '{v}' (expected {ok})"),
-        )
-    };
     if let Some(v) = s.light_samples {
         out.light_samples = v;
     }
     if let Some(v) = s.brdf_samples {
         out.brdf_samples = v;
     }
-    if let Some(v) = &s.strategy {
-        out.strategy = match v.as_str() {
-            "paper" => Strategy::Paper,
-            "global" => Strategy::Global,
-            "light" => Strategy::Light,
-            "brdf" => Strategy::Brdf,
-            _ => return Err(bad("strategy", v, "paper, global, light or brdf")),
-        };
-    }
-    if let Some(v) = &s.counts {
-        out.counts = match v.as_str() {
-            "fractional" => Counts::Fractional,
-            "integer" => Counts::Integer,
-            _ => return Err(bad("counts", v, "fractional or integer")),
-        };
-    }
-    if let Some(v) = &s.mis {
-        out.mis = match v.as_str() {
-            "balance" => Heuristic::Balance,
-            "power" => Heuristic::Power,
-            _ => return Err(bad("mis", v, "balance or power")),
-        };
-    }
+    out.strategy = s.strategy.unwrap_or(out.strategy);
+    out.counts = s.counts.unwrap_or(out.counts);
+    out.mis = s.mis.unwrap_or(out.mis);
     out.seed = s.seed.unwrap_or(0);
     out.pool_size = s.pool.unwrap_or(0);
     out.pixel_offset = s.pixel_offset.unwrap_or(false);

@@ -14,6 +14,8 @@ use envis::stats::{chi_square, mean_se};
 use glam::{DVec3, Vec2, Vec3};
 use std::path::{Path, PathBuf};
 
+mod support;
+
 // ---------------------------------------------------------------------------------------------
 // Helpers
 
@@ -28,31 +30,6 @@ fn random_dir(r: &mut Rng) -> Vec3 {
     Vec3::new(s * p.cos(), s * p.sin(), z)
 }
 
-/// The shared real maps, or `None` when `../shared` is absent (a user's machine). In CI they
-/// must be there: a missing folder fails instead of silently testing less.
-fn real_maps() -> Option<Vec<PathBuf>> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/hdri");
-    let mut v: Vec<PathBuf> = match std::fs::read_dir(&dir) {
-        Ok(rd) => rd
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.extension().is_some_and(|e| e == "exr"))
-            .collect(),
-        Err(_) => {
-            assert!(
-                std::env::var("CI").is_err(),
-                "CI must have ../shared/data/hdri ({})",
-                dir.display()
-            );
-            eprintln!(
-                "note: {} absent, using generated maps instead",
-                dir.display()
-            );
-            return None;
-        }
-    };
-    v.sort();
-    Some(v)
-}
 
 /// A generated lat-long map with a gradient, a small very bright spot and some bad texels.
 fn generated_latlong(w: usize, seed: u32) -> Image {
@@ -91,7 +68,7 @@ fn test_envs(face: usize, n_real: usize) -> Vec<(String, CubeMap)> {
                 .cube,
         ),
     ];
-    match real_maps() {
+    match support::real_maps() {
         Some(maps) => {
             // Spread the picks over the sorted list (deterministic).
             for i in 0..n_real.min(maps.len()) {
@@ -257,7 +234,7 @@ fn resampling_preserves_energy() {
         let rel = ((got - want).length() / want.length()).abs();
         assert!(rel < 0.01, "face {face}: {got} vs {want} ({rel})");
     }
-    if let Some(maps) = real_maps() {
+    if let Some(maps) = support::real_maps() {
         for p in maps.iter().take(4) {
             let mut img = envis::envmap::load::read_image(p).unwrap();
             img.sanitize();
@@ -1054,7 +1031,7 @@ fn tempdir() -> PathBuf {
 
 #[test]
 fn real_maps_load_and_report_clamped_texels() {
-    let Some(maps) = real_maps() else { return };
+    let Some(maps) = support::real_maps() else { return };
     assert!(
         maps.len() >= 18,
         "expected the 18 shared maps, found {}",
@@ -1160,7 +1137,7 @@ fn bench_accuracy_quick_smoke() {
     let lines: Vec<&str> = csv.lines().collect();
     assert_eq!(lines.len(), n + 1, "one header + one row per point");
     // With the GPU backend compiled in, CI (which has lavapipe) must time every point on it too.
-    let gpu_required = cfg!(feature = "gpu") && std::env::var_os("CI").is_some();
+    let gpu_required = cfg!(feature = "gpu") && support::ci();
     for l in &lines[1..] {
         let cols: Vec<&str> = l.split(',').collect();
         assert_eq!(cols.len(), 14, "{l}");

@@ -1,7 +1,7 @@
 //! GPU stages against their CPU twins, on a real Vulkan device (Mesa lavapipe in CI:
 //! `WGPU_ADAPTER_NAME=llvmpipe`). Each stage is compared in isolation — the CPU twin of a stage
 //! runs on exactly the GPU's input — and then the whole frame against the CPU renderer and the
-//! f64 reference. Under `CI=true` a missing device fails the tests instead of skipping them.
+//! f64 reference. A missing device fails the tests, unless `ENVIS_SKIP_GPU=1` (outside CI).
 
 use envis::envmap::load::{EnvSource, load_env};
 use envis::envmap::*;
@@ -12,10 +12,12 @@ use envis::sampling::*;
 use envis::stats::mean_se;
 use glam::Vec3;
 use std::path::{Path, PathBuf};
+
+mod support;
 use std::sync::OnceLock;
 
 /// One device for the whole binary (device creation on lavapipe costs ~100 ms; tests run in
-/// parallel on it). `None` (with the reason printed) only outside CI.
+/// parallel on it). `None` only when `ENVIS_SKIP_GPU=1` asked to skip (see `support`).
 fn gpu() -> Option<&'static GpuContext> {
     static CTX: OnceLock<Option<GpuContext>> = OnceLock::new();
     CTX.get_or_init(|| match GpuContext::new() {
@@ -27,11 +29,11 @@ fn gpu() -> Option<&'static GpuContext> {
             Some(c)
         }
         Err(e) => {
-            assert!(
-                std::env::var("CI").is_err(),
-                "CI must run the GPU tests, but no device: {e}"
+            support::skip_gpu_or_fail(
+                "the GPU tests",
+                &format!("no Vulkan device ({e})"),
+                support::INSTALL_LAVAPIPE,
             );
-            eprintln!("SKIPPING GPU test: {e}");
             None
         }
     })
@@ -39,23 +41,7 @@ fn gpu() -> Option<&'static GpuContext> {
 }
 
 fn real_map_paths() -> Vec<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/hdri");
-    let mut v: Vec<PathBuf> = match std::fs::read_dir(&dir) {
-        Ok(rd) => rd
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.extension().is_some_and(|e| e == "exr"))
-            .collect(),
-        Err(_) => {
-            assert!(
-                std::env::var("CI").is_err(),
-                "CI must have ../shared/data/hdri ({})",
-                dir.display()
-            );
-            Vec::new()
-        }
-    };
-    v.sort();
-    v
+    support::real_maps().unwrap_or_default()
 }
 
 /// A map that is zero but for one texel of 1e6 (plus a dim floor so other faces are not empty).

@@ -12,6 +12,7 @@ use crate::envmap::{CROSS_BLOCKS, CubeMap, dir_to_face_ab};
 use crate::render::{FrameData, PixelDebug, SampleKind, Settings, Strategy, debug_pixel};
 use crate::sampling::{Counts, Heuristic};
 use crate::stream::StreamSource;
+use clap::ValueEnum;
 use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::input::mouse::{AccumulatedMouseMotion, AccumulatedMouseScroll};
 use bevy::prelude::*;
@@ -561,24 +562,21 @@ fn sampling_ui(ui: &mut egui::Ui, settings: &mut EnvisSettings) {
     }
     ui.horizontal(|ui| {
         ui.label("strategy");
-        for st in [
-            Strategy::Paper,
-            Strategy::Global,
-            Strategy::Light,
-            Strategy::Brdf,
-        ] {
-            ui.selectable_value(&mut s.strategy, st, st.name());
+        for &st in Strategy::value_variants() {
+            ui.selectable_value(&mut s.strategy, st, st.to_string());
         }
     });
     ui.horizontal(|ui| {
         ui.label("counts [I]");
-        ui.selectable_value(&mut s.counts, Counts::Fractional, "fractional");
-        ui.selectable_value(&mut s.counts, Counts::Integer, "integer");
+        for &c in Counts::value_variants() {
+            ui.selectable_value(&mut s.counts, c, c.to_string());
+        }
     });
     ui.horizontal(|ui| {
         ui.label("MIS");
-        ui.selectable_value(&mut s.mis, Heuristic::Balance, "balance");
-        ui.selectable_value(&mut s.mis, Heuristic::Power, "power");
+        for &h in Heuristic::value_variants() {
+            ui.selectable_value(&mut s.mis, h, h.to_string());
+        }
     });
     ui.horizontal(|ui| {
         ui.add(egui::DragValue::new(&mut s.seed).prefix("seed "));

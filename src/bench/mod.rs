@@ -29,11 +29,32 @@ use crate::sampling::{CubeDistribution, LightPool, Material};
 use std::path::PathBuf;
 use std::time::Instant;
 
+/// The benchmark suites of `envis bench --suite`.
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum Suite {
+    /// CPU build and shading throughput per strategy, build scaling against face size.
+    Speed,
+    /// Pool offsets: how much shared error a per-pixel pool offset removes.
+    Offset,
+    /// The accuracy-vs-time sweep (strategies x budgets x materials x maps).
+    Accuracy,
+    /// Temporal stability of integer vs fractional counts.
+    Popping,
+    /// GPU pass times of the WGSL stages and the Bevy pipeline (feature `gpu`).
+    Gpu,
+    /// Static diffuse vs dynamic glossy frame cost on the scene files (feature `gpu`).
+    Scene,
+}
+crate::vocab::display_as_value_enum!(Suite);
+
 #[derive(clap::Args, Clone, Debug)]
 pub struct BenchArgs {
     /// Which benchmark suite to run.
-    #[arg(long, default_value = "speed")]
-    pub suite: String,
+    #[arg(long, value_enum, default_value_t = Suite::Speed)]
+    pub suite: Suite,
     /// Environment for the shading benchmark.
     #[arg(long, default_value = "builtin:sky")]
     pub env: String,
@@ -83,21 +104,18 @@ pub fn streaming_pass(map: &CubeMap) -> f64 {
 pub fn run(a: BenchArgs) -> Result<()> {
     let dir = a.out.clone().unwrap_or_else(|| PathBuf::from("."));
     std::fs::create_dir_all(&dir).map_err(|e| Error::file(&dir, format!("cannot create: {e}")))?;
-    match a.suite.as_str() {
-        "speed" => speed(a, dir),
-        "offset" => offset(a, dir),
-        "accuracy" => accuracy_suite(a, dir),
-        "popping" => popping(a, dir),
+    match a.suite {
+        Suite::Speed => speed(a, dir),
+        Suite::Offset => offset(a, dir),
+        Suite::Accuracy => accuracy_suite(a, dir),
+        Suite::Popping => popping(a, dir),
         #[cfg(feature = "gpu")]
-        "gpu" => gpu::run(a, dir),
+        Suite::Gpu => gpu::run(a, dir),
         #[cfg(feature = "gpu")]
-        "scene" => gpu::scenes(a, dir),
+        Suite::Scene => gpu::scenes(a, dir),
         #[cfg(not(feature = "gpu"))]
-        "gpu" => Err(Error::invalid(
-            "bench suite 'gpu': this envis was built without the `gpu` feature",
-        )),
-        other => Err(Error::invalid(format!(
-            "unknown bench suite '{other}' (available: speed, offset, accuracy, popping, gpu, scene)"
+        s @ (Suite::Gpu | Suite::Scene) => Err(Error::invalid(format!(
+            "bench suite '{s}': this envis was built without the `gpu` feature"
         ))),
     }
 }
@@ -543,12 +561,12 @@ fn speed(a: BenchArgs, dir: PathBuf) -> Result<()> {
             base_sps = m;
         }
         let row = serde_json::json!({
-            "strategy": strategy.name(), "samples_per_second": m, "ratio_to_brdf": m / base_sps,
+            "strategy": strategy.to_string(), "samples_per_second": m, "ratio_to_brdf": m / base_sps,
             "build_ms": median(build), "shade_ms": median(shade), "samples_evaluated": samples,
         });
         eprintln!(
             "  shade {:>6}: {:>12.0} samples/s  ({:.2}x brdf)  build {:.2} ms  shade {:.1} ms",
-            strategy.name(),
+            strategy.to_string(),
             m,
             m / base_sps,
             row["build_ms"].as_f64().unwrap(),

@@ -18,8 +18,12 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 pub use scene::{GPixel, sphere_gbuffer};
 
-/// Which estimator shades the pixels.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+/// Which estimator shades the pixels. The same lowercase names serve the command line
+/// (`--strategy`), scene files (`strategy = "paper"`), JSON output and the demo panel.
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum,
+)]
+#[serde(rename_all = "lowercase")]
 pub enum Strategy {
     /// The seed's method: per-pixel face weighting (light energy x pseudo form factor) of the
     /// shared pool, N_L light + N_B BRDF samples combined by MIS.
@@ -33,16 +37,7 @@ pub enum Strategy {
     Brdf,
 }
 
-impl Strategy {
-    pub fn name(self) -> &'static str {
-        match self {
-            Strategy::Paper => "paper",
-            Strategy::Global => "global",
-            Strategy::Light => "light",
-            Strategy::Brdf => "brdf",
-        }
-    }
-}
+crate::vocab::display_as_value_enum!(Strategy);
 
 /// Sampling settings of a render.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -493,7 +488,7 @@ impl RenderStats {
         RenderStats {
             width,
             height,
-            strategy: s.strategy.name().into(),
+            strategy: s.strategy.to_string(),
             counts: format!("{:?}", s.counts).to_lowercase(),
             mis: format!("{:?}", s.mis).to_lowercase(),
             light_samples: s.light_samples,

@@ -26,7 +26,10 @@ pub const FACE_CORNERS: [[usize; 4]; 6] = [
 ];
 
 /// How the per-face counts `N_f` become samples.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum,
+)]
+#[serde(rename_all = "lowercase")]
 pub enum Counts {
     /// floor(N_f) samples of weight 1 plus one of weight frac(N_f), divided by N_f: unbiased, no popping.
     Fractional,
@@ -34,6 +37,8 @@ pub enum Counts {
     /// factor round(N_f) / N_f per face, and pops when round(N_f) changes. Exists to show that.
     Integer,
 }
+
+crate::vocab::display_as_value_enum!(Counts);
 
 /// Face weights of one pixel.
 #[derive(Clone, Copy, Debug, Default)]

@@ -3,13 +3,18 @@
 //! pool and `n_B(w) = N_B p_B(w)` for the BRDF.
 
 /// MIS heuristic.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum,
+)]
+#[serde(rename_all = "lowercase")]
 pub enum Heuristic {
     /// `w_a = n_a / (n_a + n_b)`.
     Balance,
     /// `w_a = n_a^2 / (n_a^2 + n_b^2)`.
     Power,
 }
+
+crate::vocab::display_as_value_enum!(Heuristic);
 
 /// Weight of technique `a` with effective density `na` against `nb`. Returns 1 when `nb == 0`
 /// and 0 when `na == 0` (so a technique that cannot produce `w` never takes weight for it).

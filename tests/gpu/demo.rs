@@ -68,11 +68,11 @@ fn demo_scripted_under_xvfb() {
         .output()
         .is_err()
     {
-        assert!(
-            std::env::var("CI").is_err(),
-            "CI must run the demo test, but xvfb-run is missing (apt-get install xvfb)"
+        crate::support::skip_gpu_or_fail(
+            "the demo test",
+            "xvfb-run not found",
+            "Install Xvfb (apt-get install xvfb xauth).",
         );
-        eprintln!("SKIPPING demo test: xvfb-run not found");
         return;
     }
     let dir = std::env::temp_dir().join(format!("envis-demo-{}", std::process::id()));
