@@ -24,6 +24,6 @@ fn sample_cdf(base: u32, n: u32, u: f32) -> BinSample {
     let i = max(lo, 1u) - 1u;
     let c0 = cdfs[base + i];
     let w = cdfs[base + i + 1u] - c0;
-    let du = select(0.0, clamp((u - c0) / w, 0.0, ONE_MINUS_EPS), w > 0.0);
+    let du = select(0.0, clamp((u - c0) / w, 0.0, ONE_MINUS_EPSILON), w > 0.0);
     return BinSample(i, du);
 }

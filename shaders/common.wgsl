@@ -4,8 +4,8 @@
 
 const PI: f32 = 3.14159265358979;
 const INV_PI: f32 = 0.318309886183791;
-// Largest f32 below 1 (Rust: 1.0 - f32::EPSILON / 2.0).
-const ONE_MINUS_EPS: f32 = 0.99999994;
+// Largest f32 below 1 (sampling::rng::ONE_MINUS_EPSILON).
+const ONE_MINUS_EPSILON: f32 = 0.99999994;
 // envmap::MAX_RADIANCE
 const MAX_RADIANCE: f32 = 1e30;
 

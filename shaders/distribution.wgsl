@@ -135,8 +135,8 @@ fn pool_point(seed: u32, face: u32, i: u32, m: u32) -> vec2<f32> {
     let pv = permute(i, m, hash3(seed, face, 0x5eed0002u));
     let ju = to_unit(hash4(seed, face, i, 1u));
     let jv = to_unit(hash4(seed, face, i, 2u));
-    let u = min((f32(pu) + ju) / f32(m), ONE_MINUS_EPS);
-    let v = min((f32(pv) + jv) / f32(m), ONE_MINUS_EPS);
+    let u = min((f32(pu) + ju) / f32(m), ONE_MINUS_EPSILON);
+    let v = min((f32(pv) + jv) / f32(m), ONE_MINUS_EPSILON);
     return vec2(u, v);
 }
 

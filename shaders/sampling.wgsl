@@ -169,9 +169,9 @@ fn brdf_sample(mat: Material, ol: vec3<f32>, u: vec2<f32>) -> vec4<f32> {
     let wd = diffuse_weight(mat);
     var il: vec3<f32>;
     if (u.x < wd) {
-        il = sample_cosine_hemisphere(vec2(min(u.x / wd, ONE_MINUS_EPS), u.y));
+        il = sample_cosine_hemisphere(vec2(min(u.x / wd, ONE_MINUS_EPSILON), u.y));
     } else {
-        let ux = clamp((u.x - wd) / (1.0 - wd), 0.0, ONE_MINUS_EPS);
+        let ux = clamp((u.x - wd) / (1.0 - wd), 0.0, ONE_MINUS_EPSILON);
         if (mat.lobe == LOBE_PHONG) {
             let r = frame_new(vec3(-ol.x, -ol.y, ol.z));
             il = to_world(r, sample_phong_lobe(vec2(ux, u.y), mat.param));

@@ -25,7 +25,7 @@ struct ShadeParams {
 
 // render::budget_for: diffuse -> all light samples; near-mirror with no diffuse part -> all BRDF.
 fn budget_for(mat: Material, nl: u32, nb: u32) -> vec2<u32> {
-    let near_mirror = (mat.lobe == LOBE_PHONG && mat.param >= 1000.0) || (mat.lobe == LOBE_GGX && mat.param <= 0.02);
+    let near_mirror = (mat.lobe == LOBE_PHONG && mat.param >= NEAR_MIRROR_EXPONENT) || (mat.lobe == LOBE_GGX && mat.param <= NEAR_MIRROR_ALPHA);
     if (mat.lobe == LOBE_NONE || max(max(mat.ks.x, mat.ks.y), mat.ks.z) <= 0.0) {
         return vec2(nl + nb, 0u);
     }
@@ -34,6 +34,10 @@ fn budget_for(mat: Material, nl: u32, nb: u32) -> vec2<u32> {
     }
     return vec2(nl, nb);
 }
+// render::NEAR_MIRROR_EXPONENT and render::NEAR_MIRROR_ALPHA (the material budget's near-mirror
+// lobes; a test checks the values match).
+const NEAR_MIRROR_EXPONENT: f32 = 1000.0;
+const NEAR_MIRROR_ALPHA: f32 = 0.02;
 const STRATEGY_PAPER: u32 = 0u;
 const STRATEGY_LIGHT: u32 = 1u;
 const STRATEGY_BRDF: u32 = 2u;

@@ -10,7 +10,7 @@ use envis::render::{GPixel, Settings, Strategy, render, sphere_gbuffer};
 use envis::sampling::rng::Rng;
 use envis::sampling::warp::Frame;
 use envis::sampling::*;
-use envis::stats::{chi_square, mean_se};
+use envis::stats::{Chi2Test, Discrete, FacePlane, MeanCheck, Sphere, UnbiasedTest, mean_se};
 use glam::{DVec3, Vec2, Vec3};
 use std::path::{Path, PathBuf};
 
@@ -29,7 +29,6 @@ fn random_dir(r: &mut Rng) -> Vec3 {
     let s = (1.0 - z * z).max(0.0).sqrt();
     Vec3::new(s * p.cos(), s * p.sin(), z)
 }
-
 
 /// A generated lat-long map with a gradient, a small very bright spot and some bad texels.
 fn generated_latlong(w: usize, seed: u32) -> Image {
@@ -90,71 +89,22 @@ fn test_envs(face: usize, n_real: usize) -> Vec<(String, CubeMap)> {
     v
 }
 
-/// Chi-square test over the sphere in a frame around `axis`: bins uniform in `t` and `phi` with
-/// `theta = pi t^2` (finer near the axis), expected counts by `q x q` midpoint quadrature of `pdf`
-/// in each bin. Samples that return `None` are counted in an extra "lost" bin whose expectation is
-/// what the pdf leaves out of 1.
+/// A chi-square check of a direction sampler on the sphere around `axis`, drawing `n` samples
+/// from `sample` with the stream `seed`; one of `checks` in its test.
 fn chi2_sphere(
+    name: String,
+    checks: usize,
     axis: Vec3,
     n: usize,
     mut sample: impl FnMut(&mut Rng) -> Option<Vec3>,
-    pdf: impl Fn(Vec3) -> f32,
+    pdf: impl Fn(Vec3) -> f32 + Sync,
     seed: u32,
-) -> envis::stats::ChiSquare {
-    let (nt, np, q) = (24usize, 48usize, 16usize);
-    let fr = Frame::new(axis.normalize());
-    let bin_of = |d: Vec3| {
-        let l = fr.to_local(d);
-        let theta = l.z.clamp(-1.0, 1.0).acos();
-        let t = (theta / std::f32::consts::PI).sqrt();
-        let mut phi = l.y.atan2(l.x);
-        if phi < 0.0 {
-            phi += 2.0 * std::f32::consts::PI;
-        }
-        let it = ((t * nt as f32) as usize).min(nt - 1);
-        let ip = ((phi / (2.0 * std::f32::consts::PI) * np as f32) as usize).min(np - 1);
-        it * np + ip
-    };
-    let mut obs = vec![0.0f64; nt * np + 1];
+) {
     let mut rng = Rng::new(seed, 7);
-    for _ in 0..n {
-        match sample(&mut rng) {
-            Some(d) => obs[bin_of(d)] += 1.0,
-            None => obs[nt * np] += 1.0,
-        }
-    }
-    let mut exp = vec![0.0f64; nt * np + 1];
-    let mut total = 0.0;
-    for it in 0..nt {
-        for ip in 0..np {
-            let mut m = 0.0f64;
-            for a in 0..q {
-                for b in 0..q {
-                    let t = (it as f64 + (a as f64 + 0.5) / q as f64) / nt as f64;
-                    let theta = std::f64::consts::PI * t * t;
-                    let dtheta = 2.0 * std::f64::consts::PI * t / (nt * q) as f64;
-                    let phi =
-                        2.0 * std::f64::consts::PI * (ip as f64 + (b as f64 + 0.5) / q as f64)
-                            / np as f64;
-                    let dphi = 2.0 * std::f64::consts::PI / (np * q) as f64;
-                    let l = DVec3::new(
-                        theta.sin() * phi.cos(),
-                        theta.sin() * phi.sin(),
-                        theta.cos(),
-                    );
-                    let d = fr.to_world(l.as_vec3()).normalize();
-                    m += pdf(d) as f64 * theta.sin() * dtheta * dphi;
-                }
-            }
-            exp[it * np + ip] = m * n as f64;
-            total += m;
-        }
-    }
-    exp[nt * np] = ((1.0 - total) * n as f64).max(0.0);
-    chi_square(&obs, &exp, 5.0, false)
+    Chi2Test::new(name, Sphere::new(axis), n, checks)
+        .run(|| sample(&mut rng), |d| pdf(d) as f64)
+        .assert();
 }
-
-const P_MIN: f64 = 1e-4;
 
 #[path = "core/stability.rs"]
 mod stability;
@@ -174,6 +124,92 @@ fn direction_face_uv_round_trip() {
         let (lu, lv) = dir_to_latlong(d);
         assert!((latlong_to_dir(lu, lv) - d).length() < 1e-4);
     }
+}
+
+/// An 8x4 lat-long EXR of one colour `c` declaring `chromaticities` (rx ry gx gy bx by wx wy).
+fn exr_with_chromaticities(path: &Path, c: Vec3, chroma: [f32; 8]) {
+    use exr::prelude::*;
+    let channels = SpecificChannels::rgb(|_: Vec2<usize>| (c.x, c.y, c.z));
+    let mut img = Image::from_channels((8, 4), channels);
+    let v = |i: usize| Vec2(chroma[i], chroma[i + 1]);
+    img.attributes.chromaticities = Some(exr::meta::attribute::Chromaticities {
+        red: v(0),
+        green: v(2),
+        blue: v(4),
+        white: v(6),
+    });
+    img.write().to_file(path).unwrap();
+}
+
+#[test]
+fn exr_chromaticities_convert_to_rec709() {
+    let dir = tempdir();
+    let load = |name: &str| {
+        let img = envis::envmap::load::read_image(&dir.join(name)).unwrap();
+        img.data[0]
+    };
+    // ACES2065-1 (AP0, ACES white): red and white against the published AP0 -> Rec.709 (Bradford)
+    // matrix: first column (2.52169, -0.27648, -0.01538); white stays white.
+    let ap0 = [0.7347, 0.2653, 0.0, 1.0, 0.0001, -0.077, 0.32168, 0.33767];
+    exr_with_chromaticities(&dir.join("ap0-red.exr"), Vec3::X, ap0);
+    exr_with_chromaticities(&dir.join("ap0-white.exr"), Vec3::ONE, ap0);
+    let red = load("ap0-red.exr");
+    assert!(
+        (red - Vec3::new(2.52169, -0.27648, -0.01538))
+            .abs()
+            .max_element()
+            < 2e-3,
+        "AP0 red -> {red}"
+    );
+    assert!((load("ap0-white.exr") - Vec3::ONE).abs().max_element() < 1e-4);
+    // Rec.709 primaries Bradford-adapted to D50, as ICC-style tools write them (the sRGB
+    // profile's colorants): adapted back to D65 they are Rec.709 again, within 0.5%.
+    let icc = [
+        0.6484, 0.3309, 0.3212, 0.5978, 0.1559, 0.0660, 0.3457, 0.3585,
+    ];
+    for (k, c) in [Vec3::X, Vec3::Y, Vec3::Z, Vec3::new(0.2, 0.5, 0.9)]
+        .iter()
+        .enumerate()
+    {
+        let name = format!("icc-{k}.exr");
+        exr_with_chromaticities(&dir.join(&name), *c, icc);
+        let got = load(&name);
+        assert!((got - *c).abs().max_element() < 5e-3, "{c} -> {got}");
+    }
+    // Plain Rec.709 chromaticities: untouched, bit for bit.
+    let rec709 = [0.64, 0.33, 0.30, 0.60, 0.15, 0.06, 0.3127, 0.3290];
+    exr_with_chromaticities(&dir.join("709.exr"), Vec3::new(0.3, 0.6, 0.9), rec709);
+    assert_eq!(load("709.exr"), Vec3::new(0.3, 0.6, 0.9));
+}
+
+#[test]
+fn hdr_exposure_and_primaries_headers() {
+    // One flat RGBE pixel: mantissas 128, 64, 32 (read at their centres, + 0.5), exponent 129.
+    let pixel = [128u8, 64, 32, 129];
+    let file = |header: &[&str]| {
+        let mut f = String::from("#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n");
+        header.iter().for_each(|l| f += &format!("{l}\n"));
+        let mut f = (f + "\n-Y 1 +X 1\n").into_bytes();
+        f.extend_from_slice(&pixel);
+        read_hdr_bytes(&f).unwrap().data[0]
+    };
+    let plain = file(&[]);
+    assert_eq!(plain, Vec3::new(128.5, 64.5, 32.5) / 128.0);
+    // EXPOSURE lines multiply; the pixels are divided by their product.
+    assert_eq!(file(&["EXPOSURE=2", "EXPOSURE=0.25"]), plain * 2.0);
+    // PRIMARIES in AP0: converted as for EXR files.
+    let ap0 = file(&["PRIMARIES=0.7347 0.2653 0 1 0.0001 -0.077 0.32168 0.33767"]);
+    let m = envis::envmap::color::to_rec709(&envis::envmap::color::Primaries::ACES_AP0)
+        .unwrap()
+        .unwrap();
+    assert!(((m * plain.as_dvec3()).as_vec3() - ap0).abs().max_element() < 1e-6);
+    let bad = |h: &str| {
+        let mut f = format!("#?RADIANCE\n{h}\n\n-Y 1 +X 1\n").into_bytes();
+        f.extend_from_slice(&pixel);
+        read_hdr_bytes(&f).unwrap_err()
+    };
+    assert!(bad("EXPOSURE=-1").contains("EXPOSURE"));
+    assert!(bad("PRIMARIES=1 2 3").contains("PRIMARIES"));
 }
 
 #[test]
@@ -306,20 +342,19 @@ fn face_distribution_chi2_texel_domain() {
     let dist = CubeDistribution::build(&map);
     for f in 0..6 {
         let fd = &dist.faces[f];
-        let mut obs = vec![0.0; n * n];
         let mut r = Rng::new(5, f as u32);
-        let ns = 100_000;
-        for _ in 0..ns {
-            let s = fd.sample(f, rng_vec2(&mut r)).unwrap();
-            assert!(s.pdf > 0.0 && s.pdf.is_finite());
-            assert!(s.row != 1 && s.col != 2, "sampled a zero texel");
-            obs[s.row * n + s.col] += 1.0;
-        }
-        let exp: Vec<f64> = (0..n * n)
-            .map(|i| fd.texel_pmf(i % n, i / n) as f64 * ns as f64)
-            .collect();
-        let c = chi_square(&obs, &exp, 5.0, true);
-        assert!(c.p_value > P_MIN, "face {f}: {c:?}");
+        let name = format!("face_distribution_chi2_texel_domain face {f}");
+        Chi2Test::new(name, Discrete(n * n), 100_000, 6)
+            .run(
+                || {
+                    let s = fd.sample(f, rng_vec2(&mut r)).unwrap();
+                    assert!(s.pdf > 0.0 && s.pdf.is_finite());
+                    assert!(s.row != 1 && s.col != 2, "sampled a zero texel");
+                    Some(s.row * n + s.col)
+                },
+                |i| fd.texel_pmf(i % n, i / n) as f64,
+            )
+            .assert();
     }
 }
 
@@ -350,32 +385,24 @@ fn face_distribution_solid_angle_pdf_chi2() {
     // if the cube-face Jacobian in the pdf is right.
     let map = smooth_cube(8);
     let dist = CubeDistribution::build(&map);
-    let (nb, q, ns) = (24usize, 8usize, 200_000usize);
     for f in 0..6 {
-        let mut obs = vec![0.0; nb * nb];
         let mut r = Rng::new(17, f as u32);
-        for _ in 0..ns {
-            let s = dist.faces[f].sample(f, rng_vec2(&mut r)).unwrap();
-            let (g, a, b) = dir_to_face_ab(s.dir);
-            assert_eq!(g, f);
-            let x = (((a + 1.0) * 0.5 * nb as f32) as usize).min(nb - 1);
-            let y = (((b + 1.0) * 0.5 * nb as f32) as usize).min(nb - 1);
-            obs[y * nb + x] += 1.0;
-        }
-        let h = 2.0 / (nb * q) as f64;
-        let mut exp = vec![0.0; nb * nb];
-        for y in 0..nb * q {
-            for x in 0..nb * q {
-                let (a0, b0) = (-1.0 + x as f64 * h, -1.0 + y as f64 * h);
-                let d = face_ab_to_vec(f, (a0 + h / 2.0) as f32, (b0 + h / 2.0) as f32);
-                let (g, p) = dist.face_pdf(d);
-                assert_eq!(g, f);
-                exp[(y / q) * nb + x / q] +=
-                    p as f64 * face_rect_solid_angle(a0, b0, a0 + h, b0 + h) * ns as f64;
-            }
-        }
-        let c = chi_square(&obs, &exp, 5.0, true);
-        assert!(c.p_value > P_MIN, "face {f}: {c:?}");
+        let name = format!("face_distribution_solid_angle_pdf_chi2 face {f}");
+        let domain = FacePlane {
+            face: f,
+            n: 24,
+            q: 8,
+        };
+        Chi2Test::new(name, domain, 200_000, 6)
+            .run(
+                || dist.faces[f].sample(f, rng_vec2(&mut r)).map(|s| s.dir),
+                |d| {
+                    let (g, p) = dist.face_pdf(d);
+                    assert_eq!(g, f);
+                    p as f64
+                },
+            )
+            .assert();
     }
 }
 
@@ -396,24 +423,28 @@ fn face_weighted_mixture_chi2_for_several_normals() {
     for (k, &nrm) in normals.iter().enumerate() {
         let fw = face_weights(nrm.normalize(), &e, true);
         let mix = Distribution1D::new(fw.mu.to_vec());
-        // Exact test in the (face, texel) domain.
-        let ns = 100_000;
-        let mut obs = vec![0.0; 6 * n * n];
+        // Exact test in the (face, texel) domain; with the sphere test below, two checks per
+        // normal.
+        let checks = 2 * normals.len();
         let mut r = Rng::new(11, k as u32);
-        for _ in 0..ns {
-            let (f, _) = mix.sample(r.next_f32());
-            let s = dist.faces[f].sample(f, rng_vec2(&mut r)).unwrap();
-            obs[(f * n + s.row) * n + s.col] += 1.0;
-        }
-        let exp: Vec<f64> = (0..6 * n * n)
-            .map(|i| {
+        Chi2Test::new(
+            format!("mixture texels normal {nrm}"),
+            Discrete(6 * n * n),
+            100_000,
+            checks,
+        )
+        .run(
+            || {
+                let (f, _) = mix.sample(r.next_f32());
+                let s = dist.faces[f].sample(f, rng_vec2(&mut r)).unwrap();
+                Some((f * n + s.row) * n + s.col)
+            },
+            |i| {
                 fw.mu[i / (n * n)] as f64
                     * dist.faces[i / (n * n)].texel_pmf(i % n, (i / n) % n) as f64
-                    * ns as f64
-            })
-            .collect();
-        let c = chi_square(&obs, &exp, 5.0, true);
-        assert!(c.p_value > P_MIN, "normal {nrm}: {c:?}");
+            },
+        )
+        .assert();
         // Faces entirely below the horizon are never used (exact skip), others are.
         for (f, corners) in envis::sampling::faceweights::FACE_CORNERS
             .iter()
@@ -432,7 +463,9 @@ fn face_weighted_mixture_chi2_for_several_normals() {
         let dist = &smooth;
         let fw = face_weights(nrm.normalize(), &smooth.energies(), true);
         let mix = Distribution1D::new(fw.mu.to_vec());
-        let c = chi2_sphere(
+        chi2_sphere(
+            format!("mixture sphere normal {nrm}"),
+            checks,
             nrm,
             200_000,
             |r| {
@@ -445,7 +478,67 @@ fn face_weighted_mixture_chi2_for_several_normals() {
             },
             100 + k as u32,
         );
-        assert!(c.p_value > P_MIN, "normal {nrm} (sphere): {c:?}");
+    }
+}
+
+#[test]
+fn global_sampler_chi2() {
+    // The pbrt-style lat-long baseline: directions against its solid-angle pdf, on a smooth map
+    // and on one with zero rows and columns and lone bright texels.
+    let maps = [
+        ("smooth", smooth_cube(8)),
+        ("structured", structured_cube(8)),
+    ];
+    for (k, (name, map)) in maps.iter().enumerate() {
+        let g = GlobalDistribution::build(map);
+        let mut r = Rng::new(31, k as u32);
+        Chi2Test::new(
+            format!("global sampler {name}"),
+            Sphere::new(Vec3::Y),
+            200_000,
+            2,
+        )
+        .run(
+            || g.sample(rng_vec2(&mut r)).map(|(d, _)| d),
+            |d| g.pdf(d) as f64,
+        )
+        .assert();
+    }
+}
+
+#[test]
+fn light_pool_chi2_per_slot() {
+    // Each slot of the pool, taken alone over seeds, is distributed as its face's pdf (the
+    // stratification only correlates slots within one pool): the property that lets a pixel use
+    // any k slots, or start at a random offset, and stay unbiased.
+    let map = smooth_cube(8);
+    let dist = CubeDistribution::build(&map);
+    let (m, seeds, faces) = (4usize, 40_000u32, [2usize, 4]);
+    let mut slots = vec![Vec::with_capacity(seeds as usize); faces.len() * m];
+    for seed in 0..seeds {
+        let pool = LightPool::build(&map, &dist, m, seed);
+        for (j, &f) in faces.iter().enumerate() {
+            for i in 0..m {
+                let s = pool.get(f, i);
+                let (g, p) = dist.face_pdf(s.dir);
+                assert!(g == f && (s.pdf - p).abs() <= 1e-4 * p, "{s:?} vs pdf {p}");
+                slots[j * m + i].push(s.dir);
+            }
+        }
+    }
+    for (j, &f) in faces.iter().enumerate() {
+        for i in 0..m {
+            let mut dirs = slots[j * m + i].iter();
+            let domain = FacePlane {
+                face: f,
+                n: 16,
+                q: 8,
+            };
+            let name = format!("light pool face {f} slot {i}");
+            Chi2Test::new(name, domain, seeds as usize, faces.len() * m)
+                .run(|| dirs.next().copied(), |d| dist.face_pdf(d).1 as f64)
+                .assert();
+        }
     }
 }
 
@@ -544,7 +637,9 @@ fn brdf_samplers_chi2() {
             };
             // Samples below the surface are `None` in `Material::sample`; count them via raw warps
             // by asking the pdf only where the sampler can land (the lost bin takes the rest).
-            let c = chi2_sphere(
+            chi2_sphere(
+                format!("brdf {name} view {j}"),
+                mats.len() * views.len(),
                 axis,
                 200_000,
                 |r| m.sample(&fr, o, rng_vec2(r)).map(|(d, _)| d),
@@ -557,7 +652,6 @@ fn brdf_samplers_chi2() {
                 },
                 (k * 10 + j) as u32,
             );
-            assert!(c.p_value > P_MIN, "{name}, view {j}: {c:?}");
         }
     }
 }
@@ -669,31 +763,46 @@ fn sample_counts_edge_cases() {
     .err()
     .expect("both counts 0 must be refused");
     assert!(err.to_string().contains("both 0"), "{err}");
-    // Counts within 1e-7 of an integer, exact integers, tiny mu, larger than the pool.
-    for nf in [2.0f32, 2.000_000_2, 1.999_999_9, 1e-12, 100.0] {
-        let c = face_count(nf, 8, Counts::Fractional);
-        assert!(
-            c.taken <= 8 && c.density > 0.0 && c.last_weight > 0.0 && c.last_weight <= 1.0,
-            "{nf}: {c:?}"
+    // Counts within 1e-7 of an integer, exact integers, tiny mu, larger than the pool (M = 8):
+    // the exact (taken, last weight, density), and fractional weights that add up to N_f.
+    let frac = |nf| face_count(nf, 8, Counts::Fractional);
+    let cases = [
+        (2.0f32, 2usize, 1.0f32, 2.0f32),
+        (2.000_000_2, 3, 2.000_000_2 - 2.0, 2.000_000_2),
+        (1.999_999_9, 2, 1.999_999_9 - 1.0, 1.999_999_9),
+        (1e-12, 1, 1e-12, 1e-12),
+        (100.0, 8, 1.0, 8.0),
+        (8.0, 8, 1.0, 8.0),
+    ];
+    for (nf, taken, last, density) in cases {
+        let c = frac(nf);
+        assert_eq!(
+            (c.taken, c.last_weight, c.density),
+            (taken, last, density),
+            "{nf}"
         );
+        assert_eq!(
+            (c.taken - 1) as f32 + c.last_weight,
+            c.density,
+            "{nf}: weights"
+        );
+    }
+    // Nothing to take: zero, negative, NaN, infinite N_f.
+    for nf in [0.0f32, -1.0, f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+        for counts in [Counts::Fractional, Counts::Integer] {
+            let c = face_count(nf, 8, counts);
+            assert_eq!((c.taken, c.density), (0, 0.0), "{nf} {counts}");
+        }
+    }
+    // Integer counts round (half away from zero) and keep the true density for the weights.
+    for (nf, taken) in [(0.4f32, 0usize), (0.5, 1), (2.5, 3), (7.6, 8), (100.0, 8)] {
+        let c = face_count(nf, 8, Counts::Integer);
+        assert_eq!((c.taken, c.density), (taken, nf.min(8.0)), "{nf}");
     }
 }
 
 // ---------------------------------------------------------------------------------------------
 // Unbiasedness: mean over independent seeds vs the exact reference
-
-struct Check {
-    label: String,
-    mean: f64,
-    se: f64,
-    reference: f64,
-}
-
-impl Check {
-    fn z(&self) -> f64 {
-        (self.mean - self.reference).abs() / self.se.max(1e-12 * self.reference.abs())
-    }
-}
 
 /// Image mean and quadrant means (luminance) of `k` renders with different seeds vs the reference.
 fn unbiased_checks(
@@ -703,7 +812,7 @@ fn unbiased_checks(
     k: u32,
     size: usize,
     reference: &[DVec3],
-) -> Vec<Check> {
+) -> Vec<MeanCheck> {
     let gbuf = sphere_gbuffer(size, size, mat);
     type Region = (String, Box<dyn Fn(usize, usize) -> bool>);
     let regions: Vec<Region> = vec![
@@ -769,13 +878,11 @@ fn unbiased_checks(
         .iter()
         .enumerate()
         .map(|(r, (name, sel))| {
-            let (mean, se) = mean_se(&per_seed[r]);
-            Check {
-                label: name.clone(),
-                mean,
-                se,
-                reference: region_mean(&|i| lum(reference[i]), sel.as_ref()),
-            }
+            MeanCheck::from_values(
+                name.clone(),
+                &per_seed[r],
+                region_mean(&|i| lum(reference[i]), sel.as_ref()),
+            )
         })
         .collect()
 }
@@ -842,8 +949,7 @@ fn estimators_are_unbiased() {
             },
         ),
     ];
-    let mut failures = Vec::new();
-    let mut worst = 0.0f64;
+    let mut test = UnbiasedTest::new("estimators_are_unbiased");
     for (ename, map) in &envs {
         for (mname, mat) in &mats {
             let gbuf = sphere_gbuffer(size, size, *mat);
@@ -867,18 +973,15 @@ fn estimators_are_unbiased() {
                     k
                 };
                 for c in unbiased_checks(map, *mat, *s, seeds, size, &reference) {
-                    // 3 standard errors on the image mean; 3.5 on the four quadrants (5 checks per case).
-                    let limit = if c.label == "image" { 3.0 } else { 3.5 };
-                    worst = worst.max(c.z());
-                    if c.z() > limit {
-                        failures.push(format!("{ename} / {mname} / {cname} / {}: mean {:.6} ref {:.6} se {:.2e} z {:.2}", c.label, c.mean, c.reference, c.se, c.z()));
-                    }
+                    test.push(MeanCheck {
+                        label: format!("{ename} / {mname} / {cname} / {}", c.label),
+                        ..c
+                    });
                 }
             }
         }
     }
-    eprintln!("worst |z| = {worst:.2}");
-    assert!(failures.is_empty(), "biased:\n{}", failures.join("\n"));
+    test.assert();
 }
 
 #[test]
@@ -914,13 +1017,11 @@ fn integer_counts_bias_is_detected() {
         size,
         &reference,
     );
+    let mut test = UnbiasedTest::new("integer_counts_bias_is_detected (fractional)");
+    frac.into_iter().for_each(|c| test.push(c));
+    test.assert();
     assert!(
-        frac[0].z() < 3.0,
-        "fractional should be unbiased: z = {}",
-        frac[0].z()
-    );
-    assert!(
-        int[0].z() > 6.0,
+        int[0].z() > 6.0 && int[0].p_value() < 1e-6,
         "integer bias not detected: z = {} (mean {} ref {})",
         int[0].z(),
         int[0].mean,
@@ -1031,7 +1132,9 @@ fn tempdir() -> PathBuf {
 
 #[test]
 fn real_maps_load_and_report_clamped_texels() {
-    let Some(maps) = support::real_maps() else { return };
+    let Some(maps) = support::real_maps() else {
+        return;
+    };
     assert!(
         maps.len() >= 18,
         "expected the 18 shared maps, found {}",
@@ -1153,7 +1256,7 @@ fn bench_accuracy_quick_smoke() {
                 let ms: f64 = c
                     .parse()
                     .unwrap_or_else(|_| panic!("GPU timing missing: {l}"));
-                assert!(ms.is_finite() && ms > 0.0, "{l}");
+                assert!(ms.is_finite() && ms >= 0.0, "{l}");
             }
         }
     }
@@ -1327,6 +1430,30 @@ fn bench_popping_quick_smoke() {
         let c = row["change_over_reference"].as_f64().unwrap();
         assert!(c.is_finite() && c > 0.0, "{row}");
     }
+    // What the suite is for: integer counts change more from frame to frame than fractional
+    // counts (they pop where round(N_f) changes), and jump where the reference does not.
+    let get = |m: &str, k: &str| {
+        rows.iter()
+            .find(|r| r["counts"] == m)
+            .and_then(|r| r[k].as_f64())
+            .unwrap_or_else(|| panic!("no {k} for {m}"))
+    };
+    let (frac, int) = (
+        get("fractional", "change_over_reference"),
+        get("integer", "change_over_reference"),
+    );
+    assert!(
+        int > frac,
+        "integer change {int} not above fractional {frac}"
+    );
+    let (frac_j, int_j) = (
+        get("fractional", "discontinuity_fraction"),
+        get("integer", "discontinuity_fraction"),
+    );
+    assert!(
+        int_j > frac_j,
+        "integer jumps {int_j} not above fractional {frac_j}"
+    );
     for m in ["fractional", "integer"] {
         assert!(dir.join(format!("popping-strip-{m}.png")).exists());
     }
@@ -1564,7 +1691,7 @@ fn material_budget_skips_work_and_stays_unbiased() {
         .sum();
     assert_eq!(brdf, 0);
     // Unbiased for each kind of material (sky + a real map).
-    let mut failures = Vec::new();
+    let mut test = UnbiasedTest::new("material_budget_skips_work_and_stays_unbiased");
     for (ename, map) in test_envs(16, 1).iter().skip(1) {
         for (mname, mat) in [
             ("diffuse", Material::diffuse(0.8)),
@@ -1591,19 +1718,14 @@ fn material_budget_skips_work_and_stays_unbiased() {
                 16,
                 &reference,
             ) {
-                if c.z() > if c.label == "image" { 3.0 } else { 3.5 } {
-                    failures.push(format!(
-                        "{ename} / {mname} / {}: mean {:.6} ref {:.6} z {:.2}",
-                        c.label,
-                        c.mean,
-                        c.reference,
-                        c.z()
-                    ));
-                }
+                test.push(MeanCheck {
+                    label: format!("{ename} / {mname} / {}", c.label),
+                    ..c
+                });
             }
         }
     }
-    assert!(failures.is_empty(), "biased:\n{}", failures.join("\n"));
+    test.assert();
 }
 
 /// Scene files: the shipped examples load and render; errors name the file, the line and the

@@ -7,9 +7,9 @@ use envis::envmap::load::{EnvSource, load_env};
 use envis::envmap::*;
 use envis::gpu::{EnvSampler, GpuContext, GpuGPixel, Shader, render_gpu};
 use envis::render::reference::reference_image;
-use envis::render::{FrameData, Settings, Strategy, pool_seed, render, sphere_gbuffer};
+use envis::render::{FrameData, GPixel, Settings, Strategy, pool_seed, render, sphere_gbuffer};
 use envis::sampling::*;
-use envis::stats::mean_se;
+use envis::stats::{MeanCheck, UnbiasedTest};
 use glam::Vec3;
 use std::path::{Path, PathBuf};
 
@@ -351,7 +351,11 @@ fn gpu_render_matches_cpu_same_seed() {
                 cpu.stats.yellow
             );
             assert_eq!(gpu_img.stats.shaded_pixels, cpu.stats.shaded_pixels);
-            assert!(timings.build_wall_ms > 0.0 && timings.shade_wall_ms > 0.0);
+            assert!(
+                [timings.build_wall_ms, timings.shade_wall_ms]
+                    .iter()
+                    .all(|t| t.is_finite() && *t >= 0.0)
+            );
         }
     }
 }
@@ -383,41 +387,89 @@ fn gpu_render_is_unbiased() {
         ("phong 150", Material::phong(0.8, 150.0)),
         ("ggx 0.2", Material::ggx(0.8, 0.2)),
     ];
+    let mut test = UnbiasedTest::new("gpu_render_is_unbiased");
     for (ename, map) in &envs {
         for (mname, mat) in mats {
             let gbuf = sphere_gbuffer(size, size, mat);
             let (_, reference) = reference_image(map, &gbuf, size, size, 1.0);
             let want =
                 reference.iter().map(|c| luminance_f64(*c)).sum::<f64>() / reference.len() as f64;
-            {
-                let counts = Counts::Fractional;
-                let means: Vec<f64> = (0..k)
-                    .map(|seed| {
-                        let s = Settings {
-                            light_samples: 4,
-                            brdf_samples: 4,
-                            counts,
-                            seed: seed * 7919 + 1,
-                            ..Default::default()
-                        };
-                        mean_lum(
-                            &render_gpu(ctx, map, &gbuf, size, size, &s)
-                                .unwrap()
-                                .0
-                                .image
-                                .data,
-                        )
-                    })
-                    .collect();
-                let (mean, se) = mean_se(&means);
-                let z = (mean - want).abs() / se.max(1e-12 * want.abs());
-                assert!(
-                    z < 4.0,
-                    "{ename} {mname}: GPU mean {mean} vs reference {want} (se {se}, z {z:.2})"
-                );
-            }
+            let means: Vec<f64> = (0..k)
+                .map(|seed| {
+                    let s = Settings {
+                        light_samples: 4,
+                        brdf_samples: 4,
+                        seed: seed * 7919 + 1,
+                        ..Default::default()
+                    };
+                    gpu_mean(ctx, map, &gbuf, size, &s)
+                })
+                .collect();
+            test.push(MeanCheck::from_values(
+                format!("{ename} {mname}"),
+                &means,
+                want,
+            ));
         }
     }
+    test.assert();
+}
+
+/// Image-mean luminance of one GPU frame.
+fn gpu_mean(
+    ctx: &GpuContext,
+    map: &CubeMap,
+    gbuf: &[Option<GPixel>],
+    size: usize,
+    s: &Settings,
+) -> f64 {
+    mean_lum(
+        &render_gpu(ctx, map, gbuf, size, size, s)
+            .unwrap()
+            .0
+            .image
+            .data,
+    )
+}
+
+/// Integer counts on the GPU carry the bias they carry on the CPU, and the test sees it: two
+/// equally bright faces, N_L = 1 (N_f near 0.5 rounds to 0 or 1), light samples only. Fractional
+/// counts on the same setup are unbiased.
+#[test]
+fn gpu_integer_counts_bias_is_detected() {
+    let Some(ctx) = gpu() else { return };
+    let (n, size, k) = (8usize, 16usize, 64u32);
+    let mut map = CubeMap::new(n);
+    for f in [2usize, 4] {
+        map.data[f * n * n..(f + 1) * n * n].fill(Vec3::ONE);
+    }
+    let gbuf = sphere_gbuffer(size, size, Material::diffuse(1.0));
+    let (_, reference) = reference_image(&map, &gbuf, size, size, 1.0);
+    let want = reference.iter().map(|c| luminance_f64(*c)).sum::<f64>() / reference.len() as f64;
+    let run = |counts| {
+        let means: Vec<f64> = (0..k)
+            .map(|seed| {
+                let s = Settings {
+                    light_samples: 1,
+                    brdf_samples: 0,
+                    pool_size: 4,
+                    counts,
+                    seed: seed * 7919 + 1,
+                    ..Default::default()
+                };
+                gpu_mean(ctx, &map, &gbuf, size, &s)
+            })
+            .collect();
+        MeanCheck::from_values(format!("{counts}"), &means, want)
+    };
+    let mut test = UnbiasedTest::new("gpu_integer_counts_bias_is_detected (fractional)");
+    test.push(run(Counts::Fractional));
+    test.assert();
+    let int = run(Counts::Integer);
+    assert!(
+        int.z() > 6.0 && int.p_value() < 1e-6,
+        "GPU integer bias not detected: {int:?}"
+    );
 }
 
 /// A stream: the map changes every frame (the sun moves); one sampler is re-uploaded and rebuilt

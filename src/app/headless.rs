@@ -20,6 +20,9 @@ use bevy::window::ExitCondition;
 use bevy::winit::WinitPlugin;
 use std::sync::{Arc, Mutex};
 
+/// Frames to wait for a screenshot of the render target before giving up.
+const CAPTURE_FRAMES: usize = 20;
+
 /// The app, its float render target and the target's size.
 pub struct HeadlessSphere {
     pub app: App,
@@ -170,8 +173,10 @@ impl HeadlessSphere {
     }
 
     /// Draw frames until a capture of the target arrives (after a few frames of set-up: meshes,
-    /// materials and pipelines are prepared over the first frames). Linear RGB, row-major.
-    pub fn capture(&mut self) -> Vec<Vec3> {
+    /// materials and pipelines are prepared over the first frames). Linear RGB, row-major. An
+    /// error (never a panic) when no capture comes or it has the wrong size.
+    pub fn capture(&mut self) -> crate::error::Result<Vec<Vec3>> {
+        use crate::error::Error;
         for _ in 0..3 {
             self.update();
         }
@@ -181,25 +186,38 @@ impl HeadlessSphere {
             .world_mut()
             .spawn(Screenshot::image(self.target.clone()))
             .observe(move |ev: On<ScreenshotCaptured>| {
-                *sink.lock().expect("capture") = Some(ev.image.clone());
+                if let Ok(mut slot) = sink.lock() {
+                    *slot = Some(ev.image.clone());
+                }
             });
-        for _ in 0..20 {
+        for _ in 0..CAPTURE_FRAMES {
             self.update();
-            if let Some(img) = got.lock().expect("capture").take() {
-                let data = img.data.expect("screenshot data");
-                let px: &[f32] = bytemuck::cast_slice(&data);
-                assert_eq!(
+            let img = got.lock().ok().and_then(|mut slot| slot.take());
+            let Some(img) = img else { continue };
+            let data = img.data.unwrap_or_default();
+            let want = (self.size * self.size * 4) as usize;
+            // Decoded byte by byte: the capture's bytes need not be aligned for f32.
+            let px: Vec<f32> = data
+                .chunks_exact(4)
+                .map(|b| f32::from_ne_bytes([b[0], b[1], b[2], b[3]]))
+                .collect();
+            if px.len() != want {
+                return Err(Error::invalid(format!(
+                    "the GPU capture has {} floats, expected {want} ({}x{} RGBA32F)",
                     px.len(),
-                    (self.size * self.size * 4) as usize,
-                    "capture size"
-                );
-                return px
-                    .chunks_exact(4)
-                    .map(|c| Vec3::new(c[0], c[1], c[2]))
-                    .collect();
+                    self.size,
+                    self.size
+                )));
             }
+            return Ok(px
+                .chunks_exact(4)
+                .map(|c| Vec3::new(c[0], c[1], c[2]))
+                .collect());
         }
-        panic!("no capture of the render target after 20 frames");
+        Err(Error::invalid(format!(
+            "the GPU render produced no image after {CAPTURE_FRAMES} frames (the render \
+             target was never captured)"
+        )))
     }
 
     pub fn counters(&self) -> EnvisCounters {

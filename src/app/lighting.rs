@@ -32,7 +32,7 @@ use wgpu::util::DeviceExt;
 pub struct EnvisCamera;
 
 /// An envis material, written into Bevy's deferred G-buffer as a `StandardMaterial`
-/// (the encoding is documented in `shaders/lighting.wgsl` and `docs/bevy.md`).
+/// (the encoding is documented in `shaders/lighting.wgsl` and `docs/gpu.md`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum EnvisMaterial {
     Lambert {

@@ -9,7 +9,7 @@
 
 use super::{BenchArgs, median};
 use crate::envmap::load::{EnvSource, load_env};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::gpu::{EnvSampler, GpuContext, GpuGPixel, Shader};
 use crate::render::{self, Settings, pool_seed};
 use crate::sampling::{CubeDistribution, LightPool, Material};
@@ -183,11 +183,7 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
         "frame": frames,
     });
     let path = dir.join("bench-gpu.json");
-    std::fs::write(
-        &path,
-        serde_json::to_string_pretty(&out).expect("json") + "\n",
-    )
-    .map_err(|e| Error::file(&path, format!("cannot write: {e}")))?;
+    crate::render::output::write_json(&path, &out)?;
     eprintln!("wrote {}", path.display());
     Ok(())
 }
@@ -289,11 +285,7 @@ pub fn scenes(a: BenchArgs, dir: PathBuf) -> Result<()> {
     eprintln!("  glossy-dynamic / diffuse-static frame time: {ratio:.2}x");
     let out = serde_json::json!({ "device": ctx.info.name, "width": w, "height": h, "scenes": rows, "dynamic_glossy_over_static_diffuse": ratio });
     let path = dir.join("bench-scene.json");
-    std::fs::write(
-        &path,
-        serde_json::to_string_pretty(&out).expect("json") + "\n",
-    )
-    .map_err(|e| Error::file(&path, format!("cannot write: {e}")))?;
+    crate::render::output::write_json(&path, &out)?;
     eprintln!("wrote {}", path.display());
     Ok(())
 }

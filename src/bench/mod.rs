@@ -233,8 +233,7 @@ fn popping(a: BenchArgs, dir: PathBuf) -> Result<()> {
     }
     let report = serde_json::json!({ "suite": "popping", "frames": frames, "hours": [9.0, 11.0], "size": size, "face_size": face, "light_samples": a.light_samples, "brdf_samples": a.brdf_samples, "seed": "1 for every frame", "rows": rows });
     let path = dir.join("popping.json");
-    std::fs::write(&path, serde_json::to_string_pretty(&report).unwrap() + "\n")
-        .map_err(|e| Error::file(&path, format!("cannot write: {e}")))?;
+    crate::render::output::write_json(&path, &report)?;
     let chart = accuracy::Chart {
         title: "Frame-to-frame change, sun moving 9h -> 11h (same seed every frame)".into(),
         xlabel: "frame",
@@ -251,36 +250,50 @@ fn popping(a: BenchArgs, dir: PathBuf) -> Result<()> {
     Ok(())
 }
 
-/// One progress line on stderr: a bar, the count, the time so far and an estimate of the time
-/// left. On a terminal it redraws in place; otherwise (logs, CI) it prints a line every 5%.
-fn progress_bar(done: usize, total: usize, start: Instant, what: &str) {
-    use std::io::IsTerminal;
-    let tty = std::io::stderr().is_terminal();
-    if !tty && !done.is_multiple_of((total / 20).max(1)) && done != total {
-        return;
+/// The sweep's progress on stderr (indicatif): on a terminal a bar redrawn in place, with the
+/// count, the time so far, the time left and the rate; elsewhere (logs, CI) the same figures as a
+/// plain line every 5%.
+struct Progress {
+    bar: indicatif::ProgressBar,
+    tty: bool,
+}
+
+impl Progress {
+    fn new(total: usize) -> Self {
+        use std::io::IsTerminal;
+        let tty = std::io::stderr().is_terminal();
+        let bar = if tty {
+            indicatif::ProgressBar::new(total as u64)
+        } else {
+            indicatif::ProgressBar::hidden()
+        };
+        bar.set_length(total as u64);
+        let style = indicatif::ProgressStyle::with_template(
+            "[{bar:30}] {pos}/{len} {percent:>3}%  {elapsed}, ~{eta} left, {per_sec}  {msg}",
+        )
+        .map(|s| s.progress_chars("#>."))
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar());
+        bar.set_style(style);
+        Progress { bar, tty }
     }
-    const WIDTH: usize = 30;
-    let frac = done as f64 / total.max(1) as f64;
-    let filled = ((frac * WIDTH as f64).round() as usize).min(WIDTH);
-    let elapsed = start.elapsed().as_secs_f64();
-    let left = if done > 0 {
-        elapsed / done as f64 * (total - done) as f64
-    } else {
-        0.0
-    };
-    let line = format!(
-        "[{}{}] {done}/{total} {:3.0}%  {elapsed:.0} s, ~{left:.0} s left  {what}",
-        "#".repeat(filled),
-        ".".repeat(WIDTH - filled),
-        100.0 * frac
-    );
-    if tty {
-        eprint!("\r{line:<110.110}");
-        if done == total {
-            eprintln!();
+
+    /// `done` points of the total finished, the last one described by `what`.
+    fn update(&self, done: usize, what: &str) {
+        self.bar.set_position(done as u64);
+        self.bar.set_message(what.to_string());
+        let total = self.bar.length().unwrap_or(0) as usize;
+        if !self.tty && (done.is_multiple_of((total / 20).max(1)) || done == total) {
+            eprintln!(
+                "{done}/{total} {:3.0}%  {:.0} s, ~{:.0} s left, {:.1} points/s  {what}",
+                100.0 * done as f64 / total.max(1) as f64,
+                self.bar.elapsed().as_secs_f64(),
+                self.bar.eta().as_secs_f64(),
+                self.bar.per_sec()
+            );
         }
-    } else {
-        eprintln!("{line}");
+        if done == total {
+            self.bar.finish();
+        }
     }
 }
 
@@ -352,15 +365,16 @@ fn accuracy_suite(a: BenchArgs, dir: PathBuf) -> Result<()> {
     };
     let resumed = resume.len();
     let mut journal_error = None;
+    let mut progress: Option<Progress> = None;
     let report_progress = |done: usize, total: usize, p: &accuracy::Point, was_resumed: bool| {
         use std::io::Write as _;
         if !was_resumed && let Err(e) = writeln!(journal, "{}", serde_json::to_string(p).unwrap()) {
             journal_error.get_or_insert(e);
         }
-        progress_bar(
+        // Made on the first point: the sweep knows the total only then.
+        let bar = progress.get_or_insert_with(|| Progress::new(total));
+        bar.update(
             done,
-            total,
-            start,
             &format!("{} / {} / {} N={}", p.env, p.material, p.strategy, p.budget),
         );
     };
@@ -403,11 +417,9 @@ fn accuracy_suite(a: BenchArgs, dir: PathBuf) -> Result<()> {
         std::fs::write(&p, text).map_err(|e| Error::file(&p, format!("cannot write: {e}")))
     };
     write("accuracy.csv", accuracy::csv(&points))?;
-    write(
-        "accuracy.json",
-        serde_json::to_string_pretty(&serde_json::json!({ "command": command, "points": points }))
-            .unwrap()
-            + "\n",
+    crate::render::output::write_json(
+        &dir.join("accuracy.json"),
+        &serde_json::json!({ "command": command, "points": points }),
     )?;
     let mut md = accuracy::report(&cfg, &points, &command, gpu_device.as_deref());
     md.push_str("## Plots\n\n");
@@ -506,8 +518,7 @@ fn offset(a: BenchArgs, dir: PathBuf) -> Result<()> {
     }
     let report = serde_json::json!({ "suite": "offset", "env": a.env, "face_size": a.face_size, "size": size, "light_samples": a.light_samples, "brdf_samples": a.brdf_samples, "seeds": k, "rows": rows });
     let path = dir.join("bench-offset.json");
-    std::fs::write(&path, serde_json::to_string_pretty(&report).unwrap() + "\n")
-        .map_err(|e| Error::file(&path, format!("cannot write: {e}")))?;
+    crate::render::output::write_json(&path, &report)?;
     eprintln!("wrote {}", path.display());
     Ok(())
 }
@@ -633,8 +644,7 @@ fn speed(a: BenchArgs, dir: PathBuf) -> Result<()> {
         "shading": shading, "build_scaling": scaling, "pool_scaling": pool_scaling,
     });
     let path = dir.join("bench-speed.json");
-    std::fs::write(&path, serde_json::to_string_pretty(&report).unwrap() + "\n")
-        .map_err(|e| Error::file(&path, format!("cannot write: {e}")))?;
+    crate::render::output::write_json(&path, &report)?;
     let (svg, png) = scaling_plot(&scaling).write(&dir, "build-scaling")?;
     let pool_points = pool_scaling
         .iter()

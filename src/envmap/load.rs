@@ -4,6 +4,7 @@
 //! Every failure names the file and the problem; dimensions are checked before any pixel buffer
 //! is allocated; NaN/Inf/negative texels are clamped and counted (see [`SanitizeReport`]).
 
+use super::color;
 use super::{CubeMap, Image, SanitizeReport};
 use crate::error::{Error, Result};
 use glam::Vec3;
@@ -90,6 +91,21 @@ pub fn read_exr(path: &Path) -> Result<Image> {
         .ok_or_else(|| Error::file(path, "OpenEXR file has no layer"))?;
     let size = header.layer_size;
     check_dims(path, size.0, size.1)?;
+    // Declared primaries other than Rec.709 (ACES AP0, wide-gamut captures): converted below.
+    let to_709 = match &header.shared_attributes.chromaticities {
+        Some(c) => {
+            let xy = |p: exr::math::Vec2<f32>| glam::DVec2::new(p.x() as f64, p.y() as f64);
+            let p = color::Primaries {
+                red: xy(c.red),
+                green: xy(c.green),
+                blue: xy(c.blue),
+                white: xy(c.white),
+            };
+            color::to_rec709(&p)
+                .map_err(|e| Error::file(path, format!("OpenEXR chromaticities: {e}")))?
+        }
+        None => None,
+    };
     let names: Vec<String> = header
         .channels
         .list
@@ -119,7 +135,11 @@ pub fn read_exr(path: &Path) -> Result<Image> {
         },
     )
     .map_err(|e| Error::file(path, format!("cannot decode OpenEXR: {e}")))?;
-    Ok(img.layer_data.channel_data.pixels)
+    let mut pixels = img.layer_data.channel_data.pixels;
+    if let Some(m) = to_709 {
+        color::convert(&mut pixels.data, &m);
+    }
+    Ok(pixels)
 }
 
 /// Parse a Radiance RGBE (`.hdr`) file: `#?RADIANCE`/`#?RGBE` header, `FORMAT=32-bit_rle_rgbe`,
@@ -145,10 +165,36 @@ pub fn read_hdr_bytes(bytes: &[u8]) -> std::result::Result<Image, String> {
     if !magic.starts_with("#?") {
         return Err("not a Radiance HDR file (missing #? signature)".into());
     }
+    // EXPOSURE= lines multiply: the pixels were scaled by their product when written.
+    let mut exposure = 1.0f64;
+    let mut primaries = None;
     loop {
         let l = line(&mut pos)?;
         if l.is_empty() {
             break;
+        }
+        if let Some(v) = l.strip_prefix("EXPOSURE=") {
+            let e: f64 = v
+                .trim()
+                .parse()
+                .map_err(|_| format!("bad header line '{l}'"))?;
+            if !(e.is_finite() && e > 0.0) {
+                return Err(format!(
+                    "EXPOSURE must be a positive number, got '{}'",
+                    v.trim()
+                ));
+            }
+            exposure *= e;
+        }
+        if let Some(v) = l.strip_prefix("PRIMARIES=") {
+            let nums: Vec<f64> = v
+                .split_whitespace()
+                .filter_map(|x| x.parse().ok())
+                .collect();
+            let arr: [f64; 8] = nums
+                .try_into()
+                .map_err(|_| format!("PRIMARIES needs 8 numbers: '{}'", v.trim()))?;
+            primaries = Some(color::Primaries::from_array(arr));
         }
         if let Some(fmt) = l.strip_prefix("FORMAT=")
             && fmt.trim() != "32-bit_rle_rgbe"
@@ -192,6 +238,19 @@ pub fn read_hdr_bytes(bytes: &[u8]) -> std::result::Result<Image, String> {
         for (out, &px) in img.data[y * w..(y + 1) * w].iter_mut().zip(&scan) {
             *out = rgbe_to_rgb(px);
         }
+    }
+    // Back to the scene's radiance (the file's values are radiance x exposure), then to
+    // Rec.709 when the file declares other primaries.
+    if exposure != 1.0 {
+        let k = (1.0 / exposure) as f32;
+        img.data.iter_mut().for_each(|c| *c *= k);
+    }
+    if let Some(m) = primaries
+        .map(|p| color::to_rec709(&p))
+        .transpose()?
+        .flatten()
+    {
+        color::convert(&mut img.data, &m);
     }
     Ok(img)
 }

@@ -7,6 +7,7 @@
 //! - Cube faces are stored in the order +X, -X, +Y, -Y, +Z, -Z with the Vulkan/wgpu/OpenGL cube
 //!   texture orientation, so a GPU `textureSample(cube, dir)` and [`dir_to_face_uv`] agree.
 
+pub mod color;
 pub mod load;
 pub mod resample;
 pub mod sky;

@@ -26,24 +26,51 @@ pub fn block_on<F: std::future::Future>(fut: F) -> F::Output {
     }
 }
 
+/// The adapter `WGPU_ADAPTER_NAME` names (a case-insensitive substring), or wgpu's default.
+/// The error says how to get a Vulkan device on a machine without a GPU.
+fn pick_adapter(instance: &wgpu::Instance) -> Result<wgpu::Adapter> {
+    let wanted = std::env::var("WGPU_ADAPTER_NAME")
+        .ok()
+        .filter(|s| !s.is_empty())
+        .map(|s| s.to_lowercase());
+    match &wanted {
+        Some(name) => {
+            let all = block_on(instance.enumerate_adapters(wgpu::Backends::all()));
+            let names: Vec<String> = all.iter().map(|a| a.get_info().name).collect();
+            let found = all
+                .into_iter()
+                .find(|a| a.get_info().name.to_lowercase().contains(name.as_str()));
+            found.ok_or_else(|| {
+                let names = if names.is_empty() {
+                    "none".into()
+                } else {
+                    names.join(", ")
+                };
+                Error::invalid(format!(
+                    "WGPU_ADAPTER_NAME={name}: no such GPU adapter (found: {names}){NO_GPU_HINT}"
+                ))
+            })
+        }
+        None => block_on(instance.request_adapter(&wgpu::RequestAdapterOptions::default()))
+            .map_err(|e| Error::invalid(format!("no GPU adapter ({e}){NO_GPU_HINT}"))),
+    }
+}
+
+/// What to do without a GPU, appended to adapter errors.
+const NO_GPU_HINT: &str = "; without a GPU, `apt-get install mesa-vulkan-drivers` gives a CPU \
+    Vulkan device (run with WGPU_ADAPTER_NAME=llvmpipe), or use `envis render` (CPU)";
+
+/// Whether a GPU adapter is there, without creating a device: a one-line error before a Bevy app
+/// starts (Bevy would panic instead).
+pub fn check_adapter() -> Result<wgpu::AdapterInfo> {
+    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle());
+    pick_adapter(&instance).map(|a| a.get_info())
+}
+
 impl GpuContext {
     pub fn new() -> Result<Self> {
         let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle());
-        let wanted = std::env::var("WGPU_ADAPTER_NAME")
-            .ok()
-            .filter(|s| !s.is_empty())
-            .map(|s| s.to_lowercase());
-        let adapter = match &wanted {
-            Some(name) => {
-                let all = block_on(instance.enumerate_adapters(wgpu::Backends::all()));
-                let names: Vec<String> = all.iter().map(|a| a.get_info().name).collect();
-                all.into_iter().find(|a| a.get_info().name.to_lowercase().contains(name.as_str())).ok_or_else(|| {
-                    Error::invalid(format!("WGPU_ADAPTER_NAME={name}: no such GPU adapter (found: {})", if names.is_empty() { "none".into() } else { names.join(", ") }))
-                })?
-            }
-            None => block_on(instance.request_adapter(&wgpu::RequestAdapterOptions::default()))
-                .map_err(|e| Error::invalid(format!("no GPU adapter ({e}); on Debian/Ubuntu `apt-get install mesa-vulkan-drivers` gives a CPU Vulkan device (lavapipe)")))?,
-        };
+        let adapter = pick_adapter(&instance)?;
         let info = adapter.get_info();
         let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
         let features = if timestamps {

@@ -4,7 +4,7 @@
 //! Every stage has a CPU twin in [`crate::sampling`] / [`crate::render`] that is its oracle: the
 //! tests in `tests/gpu.rs` run each stage on a real Vulkan device (Mesa lavapipe in CI) and compare.
 //! The stages only *record* commands into an encoder, so the same code serves the headless
-//! backend ([`render_gpu`], `envis render --backend gpu`) and the Bevy render world, which hands
+//! backend ([`render_gpu`], `envis render --backend wgpu`) and the Bevy render world, which hands
 //! over its own device and encoder.
 
 pub mod context;

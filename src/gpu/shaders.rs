@@ -1,5 +1,6 @@
 //! The WGSL sources, embedded in the binary. Each module is `common.wgsl` plus its own files
-//! (WGSL has no includes; Bevy's naga_oil imports are not needed for three small modules).
+//! (WGSL has no includes; Bevy's naga_oil imports are not needed for four small modules:
+//! distribution + pool, the `global` build, headless shading, and the Bevy lighting pass).
 
 pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
 pub const SAMPLING: &str = include_str!("../../shaders/sampling.wgsl");
@@ -39,4 +40,40 @@ pub fn lighting_source() -> String {
 /// The `global` baseline's build (lat-long distribution over the sphere).
 pub fn global_source() -> String {
     [COMMON, SCAN, CDF, GLOBAL_LAYOUT, GLOBAL].concat()
+}
+
+#[cfg(test)]
+mod tests {
+    /// The value of `const NAME: f32 = VALUE;` in a WGSL source.
+    fn wgsl_const(src: &str, name: &str) -> f32 {
+        let line = src
+            .lines()
+            .find(|l| l.trim_start().starts_with(&format!("const {name}: f32 =")))
+            .unwrap_or_else(|| panic!("no const {name} in the WGSL"));
+        let v = line.split('=').nth(1).unwrap().trim().trim_end_matches(';');
+        v.parse().unwrap_or_else(|_| panic!("{name}: '{v}'"))
+    }
+
+    /// WGSL constants equal their Rust twins (WGSL cannot import them).
+    #[test]
+    fn wgsl_constants_match_their_rust_twins() {
+        use crate::render::{NEAR_MIRROR_ALPHA, NEAR_MIRROR_EXPONENT};
+        use crate::sampling::rng::ONE_MINUS_EPSILON;
+        assert_eq!(
+            wgsl_const(super::COMMON, "ONE_MINUS_EPSILON"),
+            ONE_MINUS_EPSILON
+        );
+        assert_eq!(
+            wgsl_const(super::SHADE, "NEAR_MIRROR_EXPONENT"),
+            NEAR_MIRROR_EXPONENT
+        );
+        assert_eq!(
+            wgsl_const(super::SHADE, "NEAR_MIRROR_ALPHA"),
+            NEAR_MIRROR_ALPHA
+        );
+        assert_eq!(
+            wgsl_const(super::COMMON, "MAX_RADIANCE"),
+            crate::envmap::MAX_RADIANCE
+        );
+    }
 }

@@ -4,6 +4,14 @@ use crate::envmap::Image;
 use crate::error::{Error, Result};
 use std::path::Path;
 
+/// Write `v` as pretty-printed JSON with a final newline: the one JSON writer of the command
+/// line, the benchmarks and the demo's report. Errors name the file.
+pub fn write_json(path: &Path, v: &impl serde::Serialize) -> Result<()> {
+    let text = serde_json::to_string_pretty(v)
+        .map_err(|e| Error::file(path, format!("cannot encode JSON: {e}")))?;
+    std::fs::write(path, text + "\n").map_err(|e| Error::file(path, format!("cannot write: {e}")))
+}
+
 /// Write a linear RGB float32 EXR.
 pub fn write_exr(path: &Path, img: &Image) -> Result<()> {
     exr::prelude::write_rgb_file(path, img.width, img.height, |x, y| {

@@ -5,7 +5,7 @@
 //! All directions are world-space unit vectors pointing away from the surface; `o` is the view
 //! direction. Back-facing views (`<n, o> <= 0`) reflect nothing.
 
-use super::rng::{Rng, to_unit};
+use super::rng::{ONE_MINUS_EPSILON, Rng, to_unit};
 use super::warp::*;
 use crate::envmap::luminance;
 use glam::{Vec2, Vec3};
@@ -117,7 +117,7 @@ impl LocalBsdf for Lambert {
         if ol.z <= 0.0 {
             return None;
         }
-        let il = sample_cosine_hemisphere(Vec2::new(u.x.min(1.0 - f32::EPSILON / 2.0), u.y));
+        let il = sample_cosine_hemisphere(Vec2::new(u.x.min(ONE_MINUS_EPSILON), u.y));
         if il.z <= 0.0 {
             return None;
         }
@@ -137,7 +137,7 @@ impl LocalBsdf for Lambert {
         let live = ol.z > 0.0;
         for k in 0..LANES {
             let u = Vec2::new(
-                to_unit(r[2 * k]).min(1.0 - f32::EPSILON / 2.0),
+                to_unit(r[2 * k]).min(ONE_MINUS_EPSILON),
                 to_unit(r[2 * k + 1]),
             );
             let il = sample_cosine_hemisphere(u);
@@ -288,9 +288,9 @@ impl Material {
         }
         let wd = self.diffuse_weight();
         let il = if u.x < wd {
-            sample_cosine_hemisphere(Vec2::new((u.x / wd).min(1.0 - f32::EPSILON / 2.0), u.y))
+            sample_cosine_hemisphere(Vec2::new((u.x / wd).min(ONE_MINUS_EPSILON), u.y))
         } else {
-            let ux = ((u.x - wd) / (1.0 - wd)).clamp(0.0, 1.0 - f32::EPSILON / 2.0);
+            let ux = ((u.x - wd) / (1.0 - wd)).clamp(0.0, ONE_MINUS_EPSILON);
             match self.lobe {
                 Lobe::None => return None,
                 Lobe::Phong { exponent: e } => {

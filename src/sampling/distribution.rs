@@ -11,6 +11,7 @@
 //! `energy() == 0` and is never asked to sample (its pdf is 0 everywhere), an all-zero map gives
 //! six empty faces.
 
+use super::rng::ONE_MINUS_EPSILON;
 use crate::envmap::{CubeMap, face_ab_to_vec, luminance, texel_solid_angle};
 use glam::{Vec2, Vec3};
 
@@ -77,7 +78,7 @@ impl Distribution1D {
         let i = self.cdf[..n].partition_point(|&c| c <= u).saturating_sub(1);
         let w = self.cdf[i + 1] - self.cdf[i];
         let du = if w > 0.0 {
-            ((u - self.cdf[i]) / w).clamp(0.0, 1.0 - f32::EPSILON / 2.0)
+            ((u - self.cdf[i]) / w).clamp(0.0, ONE_MINUS_EPSILON)
         } else {
             0.0
         };

@@ -7,7 +7,7 @@
 //! while the whole pool is stratified in both CDF dimensions.
 
 use super::distribution::CubeDistribution;
-use super::rng::{hash_combine, permute, to_unit};
+use super::rng::{ONE_MINUS_EPSILON, hash_combine, permute, to_unit};
 use crate::envmap::CubeMap;
 use glam::{Vec2, Vec3};
 
@@ -35,8 +35,8 @@ pub fn pool_point(seed: u32, face: u32, i: u32, m: u32) -> Vec2 {
     let ju = to_unit(hash_combine(&[seed, face, i, 1]));
     let jv = to_unit(hash_combine(&[seed, face, i, 2]));
     // (p + xi) / m, kept strictly below 1.
-    let u = ((pu as f32 + ju) / m as f32).min(1.0 - f32::EPSILON / 2.0);
-    let v = ((pv as f32 + jv) / m as f32).min(1.0 - f32::EPSILON / 2.0);
+    let u = ((pu as f32 + ju) / m as f32).min(ONE_MINUS_EPSILON);
+    let v = ((pv as f32 + jv) / m as f32).min(ONE_MINUS_EPSILON);
     Vec2::new(u, v)
 }
 

@@ -23,6 +23,11 @@ pub fn hash_combine(words: &[u32]) -> u32 {
     h
 }
 
+/// The largest f32 below 1 (pbrt's `OneMinusEpsilon`): where a sample coordinate computed in
+/// floating point could round up to 1, it is clamped to this, keeping it in `[0, 1)`. WGSL twin:
+/// `ONE_MINUS_EPSILON` in `shaders/common.wgsl`.
+pub const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
+
 /// Uniform float in `[0, 1)` from the top 24 bits of `x` (exactly representable, never 1).
 #[inline]
 pub fn to_unit(x: u32) -> f32 {

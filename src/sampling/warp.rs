@@ -1,6 +1,7 @@
 //! Warps from `[0,1)^2` to directions in a local frame (z = axis), each with its pdf beside it
 //! (per unit solid angle) and, where it exists in closed form, its inverse.
 
+use super::rng::ONE_MINUS_EPSILON;
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, PI};
 
@@ -71,7 +72,7 @@ pub fn invert_cosine_hemisphere(v: Vec3) -> Vec2 {
     let phi = v.y.atan2(v.x); // in [-pi, pi]
     Vec2::new(
         (v.x * v.x + v.y * v.y).min(1.0),
-        ((phi + PI) / (2.0 * PI)).min(1.0 - f32::EPSILON / 2.0),
+        ((phi + PI) / (2.0 * PI)).min(ONE_MINUS_EPSILON),
     )
 }
 #[inline]

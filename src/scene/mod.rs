@@ -27,10 +27,13 @@
 //! Errors name the file, the line and the field. The CPU G-buffer of a scene is ray cast:
 //! spheres and planes analytically, tori and glTF meshes as triangles.
 
+mod glb;
+
 use crate::error::{Error, Result};
 use crate::render::{GPixel, Settings, Strategy};
 use crate::sampling::{Counts, Heuristic, Lobe, Material};
 use glam::{EulerRot, Mat3, Quat, Vec3};
+pub use glb::{load_glb, parse_glb};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
@@ -226,9 +229,19 @@ impl Scene {
         let text =
             std::fs::read_to_string(path).map_err(|e| err(path, format!("cannot read: {e}")))?;
         let file: SceneFile = toml::from_str(&text).map_err(|e| {
+            // The line number and the field the error is in (the key on that line, if any).
             let line = e
                 .span()
-                .map(|s| format!("line {}: ", line_of(&text, s.start)))
+                .map(|s| {
+                    let n = line_of(&text, s.start);
+                    let key = text
+                        .lines()
+                        .nth(n - 1)
+                        .and_then(|l| l.split_once('='))
+                        .map(|(k, _)| format!(", field `{}`", k.trim()))
+                        .unwrap_or_default();
+                    format!("line {n}{key}: ")
+                })
                 .unwrap_or_default();
             err(path, format!("{line}{}", e.message().trim()))
         })?;
@@ -559,115 +572,4 @@ pub fn torus_mesh(major: f32, minor: f32, nu: u32, nv: u32) -> TriMesh {
         }
     }
     m
-}
-
-/// The first mesh primitive of a binary glTF (`.glb`): float32 POSITION and NORMAL, u8/u16/u32
-/// indices (or none). Enough for the meshes envis ships; errors name the file.
-pub fn load_glb(path: &Path) -> Result<TriMesh> {
-    let bytes = std::fs::read(path).map_err(|e| err(path, format!("cannot open: {e}")))?;
-    let bad = |m: &str| err(path, format!("not a usable binary glTF: {m}"));
-    if bytes.len() < 20 || &bytes[0..4] != b"glTF" {
-        return Err(bad("missing the glTF header"));
-    }
-    let u32_at = |o: usize| -> Result<u32> {
-        bytes
-            .get(o..o + 4)
-            .map(|b| u32::from_le_bytes(b.try_into().unwrap()))
-            .ok_or_else(|| bad("truncated"))
-    };
-    let json_len = u32_at(12)? as usize;
-    if u32_at(16)? != 0x4E4F534A {
-        return Err(bad("first chunk is not JSON"));
-    }
-    let json: serde_json::Value = serde_json::from_slice(
-        bytes
-            .get(20..20 + json_len)
-            .ok_or_else(|| bad("truncated JSON chunk"))?,
-    )
-    .map_err(|e| bad(&format!("JSON: {e}")))?;
-    let bin_at = 20 + json_len;
-    let bin_len = u32_at(bin_at)? as usize;
-    let bin = bytes
-        .get(bin_at + 8..bin_at + 8 + bin_len)
-        .ok_or_else(|| bad("truncated BIN chunk"))?;
-    let prim = &json["meshes"][0]["primitives"][0];
-    let accessor = |i: &serde_json::Value| -> Result<(Vec<u8>, usize, u64, String)> {
-        let a = &json["accessors"][i.as_u64().ok_or_else(|| bad("accessor index"))? as usize];
-        let view = &json["bufferViews"][a["bufferView"]
-            .as_u64()
-            .ok_or_else(|| bad("sparse or missing bufferView"))?
-            as usize];
-        let count = a["count"].as_u64().ok_or_else(|| bad("accessor count"))? as usize;
-        let ctype = a["componentType"].as_u64().unwrap_or(0);
-        let kind = a["type"].as_str().unwrap_or("").to_string();
-        let comps = match kind.as_str() {
-            "SCALAR" => 1,
-            "VEC3" => 3,
-            _ => return Err(bad(&format!("accessor type {kind}"))),
-        };
-        let csize = match ctype {
-            5121 => 1,
-            5123 => 2,
-            5125 | 5126 => 4,
-            _ => return Err(bad(&format!("component type {ctype}"))),
-        };
-        let stride = view["byteStride"]
-            .as_u64()
-            .map(|s| s as usize)
-            .unwrap_or(comps * csize);
-        let start = view["byteOffset"].as_u64().unwrap_or(0) as usize
-            + a["byteOffset"].as_u64().unwrap_or(0) as usize;
-        let mut out = Vec::with_capacity(count * comps * csize);
-        for k in 0..count {
-            let o = start + k * stride;
-            out.extend_from_slice(
-                bin.get(o..o + comps * csize)
-                    .ok_or_else(|| bad("accessor out of the buffer"))?,
-            );
-        }
-        Ok((out, count, ctype, kind))
-    };
-    let vec3s = |name: &str| -> Result<Vec<Vec3>> {
-        let (b, n, ctype, kind) = accessor(&prim["attributes"][name])?;
-        if ctype != 5126 || kind != "VEC3" {
-            return Err(bad(&format!("{name} must be float32 VEC3")));
-        }
-        Ok((0..n)
-            .map(|k| {
-                Vec3::from_array(std::array::from_fn(|c| {
-                    f32::from_le_bytes(b[12 * k + 4 * c..12 * k + 4 * c + 4].try_into().unwrap())
-                }))
-            })
-            .collect())
-    };
-    let positions = vec3s("POSITION")?;
-    let normals = vec3s("NORMAL")?;
-    let flat: Vec<u32> = if prim["indices"].is_null() {
-        (0..positions.len() as u32).collect()
-    } else {
-        let (b, n, ctype, _) = accessor(&prim["indices"])?;
-        match ctype {
-            5121 => b.iter().map(|&x| x as u32).collect(),
-            5123 => (0..n)
-                .map(|k| u16::from_le_bytes([b[2 * k], b[2 * k + 1]]) as u32)
-                .collect(),
-            _ => (0..n)
-                .map(|k| u32::from_le_bytes(b[4 * k..4 * k + 4].try_into().unwrap()))
-                .collect(),
-        }
-    };
-    if flat.iter().any(|&i| i as usize >= positions.len())
-        || normals.len() != positions.len()
-        || !flat.len().is_multiple_of(3)
-    {
-        return Err(bad("indices or normals do not match the positions"));
-    }
-    Ok(TriMesh {
-        positions,
-        normals: normals
-            .into_iter()
-            .map(|n| n.normalize_or(Vec3::Y))
-            .collect(),
-        indices: flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
-    })
 }

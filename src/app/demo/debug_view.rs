@@ -1,0 +1,62 @@
+//! The seed's sample-debug view: the CPU twin classifies the probed pixel's pool samples
+//! (red: discarded by face weighting, green: used, yellow: used below the horizon) and draws
+//! them on the sky.
+
+use super::*;
+
+/// Recompute the CPU twin's view of the probed pixel when the probe, the frame or the settings change.
+pub(super) fn update_debug_view(
+    frame: Res<EnvFrame>,
+    settings: Res<EnvisSettings>,
+    probe: Res<EnvisProbe>,
+    mut state: ResMut<DemoState>,
+) {
+    let Some(p) = *probe.lock().expect("probe") else {
+        return;
+    };
+    // The seed the GPU used for this frame (it changes per frame while accumulating).
+    let s = Settings {
+        seed: settings.frame_seed(),
+        ..settings.sampling
+    };
+    let key = (frame.generation, s, p.pixel_index, p.gpixel.n);
+    if state.key == Some(key) {
+        return;
+    }
+    let fd = FrameData::prepare(&frame.map, &s);
+    let d = debug_pixel(&fd, &s, &p.gpixel, p.pixel_index);
+    state.pixel = Some((d, p.gpixel, p.estimate));
+    state.key = Some(key);
+}
+
+/// The probed pixel's pool samples on the sky, far away in their directions.
+pub(super) fn draw_debug_samples(
+    state: Res<DemoState>,
+    cams: Query<&Transform, With<EnvisCamera>>,
+    mut gizmos: Gizmos,
+) {
+    let (Some((d, _, _)), true) = (&state.pixel, state.debug) else {
+        return;
+    };
+    let Ok(cam) = cams.single() else { return };
+    for s in &d.samples {
+        let p = cam.translation + s.dir * 30.0;
+        gizmos.sphere(Isometry3d::from_translation(p), 0.25, kind_color(s.kind));
+    }
+}
+
+pub(super) fn kind_color(k: SampleKind) -> Color {
+    match k {
+        SampleKind::Discarded => Color::srgb(1.0, 0.0, 0.0),
+        SampleKind::Used => Color::srgb(0.0, 1.0, 0.0),
+        SampleKind::Wasted => Color::srgb(1.0, 1.0, 0.0),
+    }
+}
+
+pub(super) fn egui_kind_color(k: SampleKind) -> egui::Color32 {
+    match k {
+        SampleKind::Discarded => egui::Color32::from_rgb(255, 0, 0),
+        SampleKind::Used => egui::Color32::from_rgb(0, 255, 0),
+        SampleKind::Wasted => egui::Color32::from_rgb(255, 255, 0),
+    }
+}

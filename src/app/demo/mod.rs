@@ -1,0 +1,246 @@
+//! The interactive demo (`envis` with no subcommand): real objects lit only by the environment,
+//! an orbit camera, the egui tweak panel, the seed's red / green / yellow sample-debug view and
+//! full-screen overlays. `--script DIR` runs a scripted sequence (for CI under Xvfb): it takes
+//! screenshots, writes `report.json` and exits.
+
+mod camera;
+mod debug_view;
+mod script;
+mod ui;
+
+use super::scene_objects::{SceneObject, spawn_scene_objects};
+use super::{
+    EnvFrame, EnvMapSamplingPlugin, EnvMapStream, EnvMapStreamPlugin, EnvisCamera, EnvisCounters,
+    EnvisMaterial, EnvisProbe, EnvisSettings, EnvisTimings, MisLightingPlugin, Overlay,
+};
+use crate::envmap::{CROSS_BLOCKS, CubeMap, dir_to_face_ab};
+use crate::render::{FrameData, PixelDebug, SampleKind, Settings, Strategy, debug_pixel};
+use crate::sampling::{Counts, Heuristic};
+use crate::stream::StreamSource;
+use bevy::core_pipeline::tonemapping::Tonemapping;
+use bevy::input::mouse::{AccumulatedMouseMotion, AccumulatedMouseScroll};
+use bevy::prelude::*;
+use bevy::render::view::screenshot::{Screenshot, save_to_disk};
+use bevy::window::{PrimaryWindow, WindowResolution};
+use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
+use camera::{Orbit, keys, orbit_camera, pick_pixel};
+use clap::ValueEnum;
+use debug_view::{draw_debug_samples, update_debug_view};
+use script::run_script;
+use std::path::PathBuf;
+use ui::panel;
+
+/// How the demo starts.
+#[derive(Clone, Debug)]
+pub struct DemoOptions {
+    pub source: StreamSource,
+    pub face_size: usize,
+    /// Scripted run: screenshots and `report.json` go here, then the app exits.
+    pub script: Option<PathBuf>,
+    pub window: (u32, u32),
+    pub sampling: Settings,
+    /// Objects and camera from a scene file (the built-in showcase otherwise).
+    pub scene: Option<crate::scene::Scene>,
+}
+
+/// The scene file the demo was started with.
+#[derive(Resource)]
+struct SceneResource(crate::scene::Scene);
+
+/// Run the demo until the window closes (or the script ends).
+pub fn run(opts: DemoOptions) -> AppExit {
+    let mut app = App::new();
+    let scripted = opts.script.is_some();
+    app.add_plugins(
+        DefaultPlugins
+            .set(WindowPlugin {
+                primary_window: Some(Window {
+                    title: "envis — real-time importance sampling of dynamic environment maps"
+                        .into(),
+                    resolution: WindowResolution::new(opts.window.0, opts.window.1),
+                    ..default()
+                }),
+                ..default()
+            })
+            .set(AssetPlugin {
+                file_path: asset_root(),
+                ..default()
+            }),
+    )
+    .insert_resource(EnvisSettings {
+        sampling: opts.sampling,
+        ..default()
+    })
+    .add_plugins((
+        EnvMapStreamPlugin {
+            source: opts.source.clone(),
+            face_size: opts.face_size,
+        },
+        EnvMapSamplingPlugin,
+        MisLightingPlugin,
+    ))
+    .add_plugins(EguiPlugin::default())
+    // Bevy's own per-pass GPU timings (its prepass writes the G-buffer) for the Timings panel.
+    .add_plugins(bevy::render::diagnostic::RenderDiagnosticsPlugin)
+    .insert_resource(DemoState {
+        debug: false,
+        script: opts.script.clone(),
+        face_size: opts.face_size,
+        ..default()
+    })
+    .add_systems(Startup, setup_scene)
+    .add_systems(
+        Update,
+        (
+            orbit_camera,
+            keys,
+            pick_pixel,
+            update_debug_view,
+            draw_debug_samples,
+        )
+            .chain(),
+    )
+    .add_systems(EguiPrimaryContextPass, panel);
+    if scripted {
+        app.add_systems(Update, run_script.after(update_debug_view));
+    }
+    if let Some(sc) = opts.scene {
+        app.insert_resource(SceneResource(sc));
+    }
+    app.run()
+}
+
+/// Where the demo's assets are: `$ENVIS_ASSETS`, else `./assets` when it has the demo's files,
+/// else the source tree's `assets/` (a binary run from its build directory).
+pub fn asset_root() -> String {
+    if let Ok(p) = std::env::var("ENVIS_ASSETS") {
+        return p;
+    }
+    if std::path::Path::new("assets/models/bunny_plain.glb").exists() {
+        return std::fs::canonicalize("assets")
+            .map(|p| p.display().to_string())
+            .unwrap_or_else(|_| "assets".into());
+    }
+    concat!(env!("CARGO_MANIFEST_DIR"), "/assets").into()
+}
+
+/// Demo-only state (panel selections, the debug view).
+#[derive(Resource, Default)]
+pub struct DemoState {
+    /// The sample-debug view is on.
+    pub debug: bool,
+    /// The CPU twin's view of the probed pixel, with the key it was computed for.
+    pub pixel: Option<(PixelDebug, crate::render::GPixel, Vec3)>,
+    /// What `pixel` was computed from: frame generation, settings (with the frame's seed), pixel.
+    key: Option<(u64, Settings, u32, Vec3)>,
+    cross: Option<(u64, egui::TextureHandle)>,
+    script: Option<PathBuf>,
+    script_frame: u32,
+    face_size: usize,
+    env_text: String,
+    fps: f32,
+}
+
+fn setup_scene(
+    mut commands: Commands,
+    mut meshes: ResMut<Assets<Mesh>>,
+    mut materials: ResMut<Assets<StandardMaterial>>,
+    assets: Res<AssetServer>,
+    scene: Option<Res<SceneResource>>,
+) {
+    let mut spawn =
+        |name: &str, mesh: Handle<Mesh>, material: EnvisMaterial, transform: Transform| {
+            let handle = materials.add(material.standard());
+            commands.spawn((
+                Mesh3d(mesh),
+                MeshMaterial3d(handle.clone()),
+                transform,
+                SceneObject {
+                    name: name.into(),
+                    material,
+                    handle,
+                },
+            ));
+        };
+    if let Some(sc) = scene {
+        let cam = spawn_scene_objects(&mut commands, &mut meshes, &mut materials, &sc.0);
+        let d = cam.eye - cam.target;
+        let distance = d.length().max(0.1);
+        commands.spawn((
+            Camera3d::default(),
+            Projection::Perspective(PerspectiveProjection {
+                fov: cam.fov,
+                ..default()
+            }),
+            bevy::camera::Hdr,
+            Msaa::Off,
+            Tonemapping::TonyMcMapface,
+            EnvisCamera,
+            Orbit {
+                yaw: d.x.atan2(d.z),
+                pitch: (d.y / distance).asin(),
+                distance,
+                target: cam.target,
+            },
+            Transform::default(),
+        ));
+        return;
+    }
+    spawn(
+        "sphere",
+        meshes.add(Sphere::new(1.0).mesh().ico(6).expect("icosphere")),
+        EnvisMaterial::Phong {
+            albedo: Vec3::splat(0.8),
+            exponent: 150.0,
+        },
+        Transform::from_xyz(-2.3, 1.0, 0.0),
+    );
+    let bunny = assets.load(
+        GltfAssetLabel::Primitive {
+            mesh: 0,
+            primitive: 0,
+        }
+        .from_asset("models/bunny_plain.glb"),
+    );
+    spawn(
+        "bunny",
+        bunny,
+        EnvisMaterial::Ggx {
+            albedo: Vec3::new(0.9, 0.75, 0.5),
+            alpha: 0.2,
+        },
+        Transform::from_xyz(0.0, 0.0, 0.3).with_scale(Vec3::splat(1.6)),
+    );
+    spawn(
+        "torus",
+        meshes.add(Torus::new(0.45, 0.9)),
+        EnvisMaterial::Mix {
+            albedo: Vec3::new(0.2, 0.5, 0.8),
+            specular: 0.4,
+            alpha: 0.3,
+        },
+        Transform::from_xyz(2.4, 0.45, 0.0),
+    );
+    spawn(
+        "ground",
+        meshes.add(Plane3d::default().mesh().size(12.0, 12.0)),
+        EnvisMaterial::Lambert {
+            albedo: Vec3::splat(0.5),
+        },
+        Transform::IDENTITY,
+    );
+    commands.spawn((
+        Camera3d::default(),
+        bevy::camera::Hdr,
+        Msaa::Off,
+        Tonemapping::TonyMcMapface,
+        EnvisCamera,
+        Orbit {
+            yaw: 0.0,
+            pitch: 0.35,
+            distance: 9.0,
+            target: Vec3::new(0.0, 0.8, 0.0),
+        },
+        Transform::default(),
+    ));
+}

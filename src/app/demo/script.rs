@@ -1,0 +1,144 @@
+//! The scripted run (`--script DIR`, what CI runs under Xvfb): a fixed list of steps, one every
+//! few frames after a warm-up, each changing one thing or taking a screenshot; then `report.json`
+//! and exit.
+
+use super::*;
+
+/// One step of the script.
+#[derive(Clone, Copy, Debug)]
+enum Step {
+    /// Save a screenshot of the window under this name.
+    Shot(&'static str),
+    Counts(Counts),
+    Overlay(Overlay),
+    /// Overlays off, fractional counts, probe a pixel on the sphere and show the debug view.
+    Probe,
+    /// Show or hide the debug view.
+    Debug(bool),
+    /// Make the sphere a near-mirror GGX.
+    GlossySphere,
+    /// Write `report.json` (timings, counters, the probed pixel's samples).
+    Report,
+    Exit,
+}
+
+/// The script, in order.
+const SCRIPT: &[Step] = &[
+    Step::Shot("start.png"),
+    Step::Counts(Counts::Integer),
+    Step::Shot("integer.png"),
+    Step::Overlay(Overlay::EffectiveSamples),
+    Step::Shot("overlay-samples.png"),
+    Step::Overlay(Overlay::Wasted),
+    Step::Shot("overlay-wasted.png"),
+    Step::Overlay(Overlay::CountsDifference),
+    Step::Shot("overlay-diff.png"),
+    Step::Probe,
+    Step::Shot("debug-on.png"),
+    Step::Debug(false),
+    Step::Shot("debug-off.png"),
+    Step::GlossySphere,
+    Step::Shot("brdf.png"),
+    Step::Report,
+    Step::Exit,
+];
+
+/// The scripted CI sequence: one step every few frames, a screenshot after each.
+pub(super) fn run_script(
+    mut stream: ResMut<EnvMapStream>,
+    mut state: ResMut<DemoState>,
+    mut settings: ResMut<EnvisSettings>,
+    mut objects: Query<&mut SceneObject>,
+    mut materials: ResMut<Assets<StandardMaterial>>,
+    windows: Query<&Window, With<PrimaryWindow>>,
+    cams: Query<(&Camera, &GlobalTransform), With<EnvisCamera>>,
+    timings: Res<EnvisTimings>,
+    counters: Res<EnvisCounters>,
+    mut commands: Commands,
+    mut exit: MessageWriter<AppExit>,
+) {
+    const WARMUP: u32 = 10;
+    const STEP: u32 = 6;
+    let Some(dir) = state.script.clone() else {
+        return;
+    };
+    state.script_frame += 1;
+    let f = state.script_frame;
+    if f == 1 {
+        // A still environment, so the screenshots differ only by what each step changed.
+        stream.stream.playing = false;
+    }
+    if f < WARMUP || (f - WARMUP) % STEP != 0 {
+        return;
+    }
+    let step = (f - WARMUP) / STEP;
+    let shot = |commands: &mut Commands, name: &str| {
+        commands
+            .spawn(Screenshot::primary_window())
+            .observe(save_to_disk(dir.join(name)));
+    };
+    let (w, h) = windows
+        .single()
+        .map(|w| (w.physical_width(), w.physical_height()))
+        .unwrap_or((0, 0));
+    match SCRIPT.get(step as usize) {
+        Some(Step::Shot(name)) => shot(&mut commands, name),
+        Some(Step::Counts(c)) => settings.sampling.counts = *c,
+        Some(Step::Overlay(o)) => settings.overlay = *o,
+        Some(Step::Probe) => {
+            settings.overlay = Overlay::None;
+            settings.sampling.counts = Counts::Fractional;
+            // Probe a pixel on the sphere: its centre, projected (physical pixels).
+            let scale = windows.single().map(|w| w.scale_factor()).unwrap_or(1.0);
+            let p = cams
+                .single()
+                .ok()
+                .and_then(|(c, t)| c.world_to_viewport(t, Vec3::new(-2.3, 1.0, 0.0)).ok())
+                .unwrap_or(Vec2::new(w as f32 * 0.3, h as f32 * 0.5));
+            settings.probe = Some((p * scale).as_uvec2());
+            state.debug = true;
+        }
+        Some(Step::Debug(on)) => state.debug = *on,
+        Some(Step::GlossySphere) => {
+            for mut o in &mut objects {
+                if o.name == "sphere" {
+                    o.material = EnvisMaterial::Ggx {
+                        albedo: Vec3::splat(0.8),
+                        alpha: 0.05,
+                    };
+                    if let Some(mut m) = materials.get_mut(&o.handle) {
+                        *m = o.material.standard();
+                    }
+                }
+            }
+        }
+        Some(Step::Report) => {
+            let report = serde_json::json!({
+                "window": [w, h],
+                "frames": f,
+                "fps": state.fps,
+                "timings_ms": timings.get(),
+                "builds": counters.get(|c| &c.builds),
+                "uploads": counters.get(|c| &c.uploads),
+                "lighting_passes": counters.get(|c| &c.lighting_passes),
+                "overlay_passes": counters.get(|c| &c.overlay_passes),
+                "probe": state.pixel.as_ref().map(|(d, g, gpu)| serde_json::json!({
+                    "normal": g.n, "gpu_estimate": gpu, "cpu_estimate": d.estimate,
+                    "red": d.samples.iter().filter(|s| s.kind == SampleKind::Discarded).count(),
+                    "green": d.samples.iter().filter(|s| s.kind == SampleKind::Used).count(),
+                    "yellow": d.samples.iter().filter(|s| s.kind == SampleKind::Wasted).count(),
+                })),
+            });
+            // A report that cannot be written fails the scripted run, saying why.
+            if let Err(e) = crate::render::output::write_json(&dir.join("report.json"), &report) {
+                error!("{e}");
+                eprintln!("envis: error: {e}");
+                exit.write(AppExit::error());
+            }
+        }
+        Some(Step::Exit) => {
+            exit.write(AppExit::Success);
+        }
+        None => {}
+    }
+}

@@ -1,0 +1,370 @@
+//! The demo's egui panel: environment, sampling, materials, timings and the debug inset.
+
+use super::debug_view::egui_kind_color;
+use super::*;
+
+/// The environment as a small 4:3 cross image (Reinhard-tonemapped) for the panel's inset.
+fn cross_texture(ctx: &egui::Context, map: &CubeMap) -> egui::TextureHandle {
+    let n = map.size.min(48);
+    let small = if map.size == n {
+        map.clone()
+    } else {
+        crate::envmap::resample::resize_cube(map, n)
+    };
+    let img = crate::envmap::cube_to_cross(&small);
+    let px: Vec<egui::Color32> = img
+        .data
+        .iter()
+        .map(|c| {
+            let t = |x: f32| ((x / (1.0 + x)).powf(1.0 / 2.2) * 255.0) as u8;
+            egui::Color32::from_rgb(t(c.x), t(c.y), t(c.z))
+        })
+        .collect();
+    let ci = egui::ColorImage {
+        size: [img.width, img.height],
+        source_size: egui::vec2(img.width as f32, img.height as f32),
+        pixels: px,
+    };
+    ctx.load_texture("envis-cross", ci, egui::TextureOptions::NEAREST)
+}
+
+#[allow(clippy::too_many_arguments)]
+pub(super) fn panel(
+    mut contexts: EguiContexts,
+    mut settings: ResMut<EnvisSettings>,
+    mut stream: ResMut<EnvMapStream>,
+    mut state: ResMut<DemoState>,
+    frame: Res<EnvFrame>,
+    timings: Res<EnvisTimings>,
+    counters: Res<EnvisCounters>,
+    mut objects: Query<&mut SceneObject>,
+    mut materials: ResMut<Assets<StandardMaterial>>,
+    windows: Query<&Window, With<PrimaryWindow>>,
+    diagnostics: Res<bevy::diagnostic::DiagnosticsStore>,
+) -> Result {
+    let ctx = contexts.ctx_mut()?.clone();
+    if state
+        .cross
+        .as_ref()
+        .is_none_or(|(g, _)| *g != frame.generation)
+    {
+        state.cross = Some((frame.generation, cross_texture(&ctx, &frame.map)));
+    }
+    egui::Window::new("envis").anchor(egui::Align2::RIGHT_TOP, [-8.0, 8.0]).default_width(320.0).show(&ctx, |ui| {
+        egui::ScrollArea::vertical().show(ui, |ui| {
+            ui.collapsing("Environment", |ui| environment_ui(ui, &mut stream, &mut settings, &mut state));
+            egui::CollapsingHeader::new("Sampling").default_open(true).show(ui, |ui| sampling_ui(ui, &mut settings));
+            ui.collapsing("Materials", |ui| {
+                for mut o in &mut objects {
+                    if material_ui(ui, &o.name.clone(), &mut o.material) {
+                        if let Some(mut m) = materials.get_mut(&o.handle) {
+                            *m = o.material.standard();
+                        }
+                        settings.scene_revision += 1;
+                    }
+                }
+            });
+            egui::CollapsingHeader::new("Timings").default_open(true).show(ui, |ui| {
+                let t = timings.get();
+                let f = |x: Option<f64>| x.map_or("n/a".to_string(), |v| format!("{v:.3} ms"));
+                ui.label(format!("distribution build: GPU {}; light pool: GPU {}; upload + record: CPU {}", f(t.build_gpu_ms), f(t.pool_gpu_ms), f(t.build_cpu_ms)));
+                ui.label(format!("lighting (G-buffer -> MIS): GPU {}, CPU {}", f(t.lighting_gpu_ms), f(t.lighting_cpu_ms)));
+                let px = windows.single().map(|w| (w.physical_width() * w.physical_height()) as f64).unwrap_or(0.0);
+                let budget = (settings.sampling.light_samples + settings.sampling.brdf_samples) as f64;
+                ui.label(format!("{:.1} FPS, sample budget {:.1} M samples/s", state.fps, px * budget * state.fps as f64 / 1e6));
+                ui.label(format!("builds {}, uploads {}, lighting passes {}", counters.get(|c| &c.builds), counters.get(|c| &c.uploads), counters.get(|c| &c.lighting_passes)));
+                ui.label("overlays run inside the lighting pass (no pass of their own)");
+                // Bevy's passes: the prepass writes the G-buffer.
+                let mut bevy_passes: Vec<(String, f64)> = diagnostics
+                    .iter()
+                    .filter(|d| d.path().as_str().starts_with("render/") && d.path().as_str().ends_with("/elapsed_gpu"))
+                    .filter_map(|d| d.smoothed().map(|v| (d.path().as_str().trim_start_matches("render/").trim_end_matches("/elapsed_gpu").to_string(), v)))
+                    .collect();
+                bevy_passes.sort_by(|a, b| b.1.total_cmp(&a.1));
+                egui::CollapsingHeader::new(format!("Bevy passes ({})", bevy_passes.len())).show(ui, |ui| {
+                    for (name, ms) in bevy_passes.iter().take(12) {
+                        ui.label(format!("{name}: {ms:.3} ms GPU"));
+                    }
+                });
+            });
+            for m in stream.log.iter().rev().take(3) {
+                ui.colored_label(egui::Color32::from_rgb(255, 170, 60), m);
+            }
+        });
+    });
+    egui::Window::new("sample debug (right-click a pixel, D)")
+        .anchor(egui::Align2::LEFT_BOTTOM, [8.0, -8.0])
+        .default_width(330.0)
+        .show(&ctx, |ui| debug_ui(ui, &mut settings, &mut state));
+    Ok(())
+}
+
+fn environment_ui(
+    ui: &mut egui::Ui,
+    stream: &mut EnvMapStream,
+    settings: &mut EnvisSettings,
+    state: &mut DemoState,
+) {
+    let s = &mut stream.stream;
+    ui.horizontal(|ui| {
+        if ui
+            .button(if s.playing { "pause" } else { "play" })
+            .clicked()
+        {
+            s.playing = !s.playing;
+        }
+        ui.add(egui::Slider::new(&mut s.speed, 0.0..=8.0).text("speed"));
+    });
+    if let Some(mut h) = s.sky_hours() {
+        if ui
+            .add(egui::Slider::new(&mut h, 0.0..=24.0).text("time of day (h)"))
+            .changed()
+        {
+            s.set_sky_hours(h);
+        }
+    }
+    ui.add(
+        egui::Slider::new(&mut settings.exposure, 0.01..=8.0)
+            .logarithmic(true)
+            .text("exposure"),
+    );
+    ui.checkbox(
+        &mut settings.show_sky,
+        "show the environment behind objects",
+    );
+    let mut face = state.face_size;
+    ui.add(
+        egui::Slider::new(&mut face, 8..=1024)
+            .logarithmic(true)
+            .text("face size"),
+    );
+    ui.horizontal(|ui| {
+        ui.label("source");
+        ui.text_edit_singleline(&mut state.env_text);
+    });
+    ui.horizontal(|ui| {
+        let apply = ui
+            .button("open (file, frame directory, builtin:sky)")
+            .clicked();
+        if apply || face != state.face_size {
+            let src = if state.env_text.trim().is_empty() {
+                Ok(stream.stream.source().clone())
+            } else {
+                StreamSource::parse(state.env_text.trim())
+            };
+            match src {
+                Ok(src) => {
+                    if stream.switch(src, face) {
+                        state.face_size = face;
+                    }
+                }
+                Err(e) => stream.log.push(format!("{e}")),
+            }
+        }
+    });
+    ui.label(format!(
+        "{:?}, generation {}",
+        stream.stream.stats(),
+        stream.stream.generation()
+    ));
+}
+
+fn sampling_ui(ui: &mut egui::Ui, settings: &mut EnvisSettings) {
+    let s = &mut settings.sampling;
+    ui.add(egui::Slider::new(&mut s.light_samples, 0..=256).text("N_L light samples"));
+    ui.add(egui::Slider::new(&mut s.brdf_samples, 0..=256).text("N_B BRDF samples"));
+    if s.light_samples + s.brdf_samples == 0 {
+        s.light_samples = 1;
+    }
+    ui.horizontal(|ui| {
+        ui.label("strategy");
+        for &st in Strategy::value_variants() {
+            ui.selectable_value(&mut s.strategy, st, st.to_string());
+        }
+    });
+    ui.horizontal(|ui| {
+        ui.label("counts [I]");
+        for &c in Counts::value_variants() {
+            ui.selectable_value(&mut s.counts, c, c.to_string());
+        }
+    });
+    ui.horizontal(|ui| {
+        ui.label("MIS");
+        for &h in Heuristic::value_variants() {
+            ui.selectable_value(&mut s.mis, h, h.to_string());
+        }
+    });
+    ui.horizontal(|ui| {
+        ui.add(egui::DragValue::new(&mut s.seed).prefix("seed "));
+        ui.checkbox(&mut s.pixel_offset, "per-pixel pool offset");
+    });
+    ui.checkbox(
+        &mut s.material_budget,
+        "material budget (diffuse: light only, mirror: BRDF only)",
+    );
+    let frame = settings.frame;
+    ui.horizontal(|ui| {
+        ui.checkbox(&mut settings.accumulate, "accumulate over frames");
+        if settings.accumulate {
+            ui.label(format!("{} frames", frame + 1));
+        }
+    });
+    ui.horizontal(|ui| {
+        ui.label("overlay [O]");
+        egui::ComboBox::from_id_salt("overlay")
+            .selected_text(settings.overlay.name())
+            .show_ui(ui, |ui| {
+                for o in Overlay::ALL {
+                    ui.selectable_value(&mut settings.overlay, o, o.name());
+                }
+            });
+    });
+}
+
+/// Returns true when the material changed.
+fn material_ui(ui: &mut egui::Ui, name: &str, m: &mut EnvisMaterial) -> bool {
+    let before = *m;
+    ui.horizontal(|ui| {
+        ui.label(name);
+        let (albedo, alpha, exponent, specular) = match *m {
+            EnvisMaterial::Lambert { albedo } => (albedo, 0.2, 150.0, 0.0),
+            EnvisMaterial::Phong { albedo, exponent } => (albedo, 0.2, exponent, 1.0),
+            EnvisMaterial::Ggx { albedo, alpha } => (albedo, alpha, 150.0, 1.0),
+            EnvisMaterial::Mix {
+                albedo,
+                specular,
+                alpha,
+            } => (albedo, alpha, 150.0, specular),
+        };
+        egui::ComboBox::from_id_salt(name)
+            .selected_text(match m {
+                EnvisMaterial::Lambert { .. } => "diffuse",
+                EnvisMaterial::Phong { .. } => "phong",
+                EnvisMaterial::Ggx { .. } => "ggx",
+                EnvisMaterial::Mix { .. } => "mix",
+            })
+            .show_ui(ui, |ui| {
+                ui.selectable_value(m, EnvisMaterial::Lambert { albedo }, "diffuse");
+                ui.selectable_value(m, EnvisMaterial::Phong { albedo, exponent }, "phong");
+                ui.selectable_value(m, EnvisMaterial::Ggx { albedo, alpha }, "ggx");
+                ui.selectable_value(
+                    m,
+                    EnvisMaterial::Mix {
+                        albedo,
+                        specular: specular.max(0.3),
+                        alpha,
+                    },
+                    "mix",
+                );
+            });
+    });
+    match m {
+        EnvisMaterial::Phong { exponent, .. } => {
+            ui.add(
+                egui::Slider::new(exponent, 0.0..=10000.0)
+                    .logarithmic(true)
+                    .text("exponent"),
+            );
+        }
+        EnvisMaterial::Ggx { alpha, .. } => {
+            ui.add(
+                egui::Slider::new(alpha, 0.001..=1.0)
+                    .logarithmic(true)
+                    .text("alpha"),
+            );
+        }
+        EnvisMaterial::Mix {
+            alpha, specular, ..
+        } => {
+            ui.add(
+                egui::Slider::new(alpha, 0.001..=1.0)
+                    .logarithmic(true)
+                    .text("alpha"),
+            );
+            ui.add(egui::Slider::new(specular, 0.0..=1.0).text("specular"));
+        }
+        EnvisMaterial::Lambert { .. } => {}
+    }
+    *m != before
+}
+
+fn debug_ui(ui: &mut egui::Ui, settings: &mut EnvisSettings, state: &mut DemoState) {
+    ui.checkbox(&mut state.debug, "show the probed pixel's samples [D]");
+    let Some((d, g, gpu)) = &state.pixel else {
+        ui.label("right-click a pixel of an object");
+        return;
+    };
+    if let Some(p) = settings.probe {
+        ui.label(format!(
+            "pixel ({}, {}), n = ({:.2}, {:.2}, {:.2})",
+            p.x, p.y, g.n.x, g.n.y, g.n.z
+        ));
+    }
+    ui.label(format!(
+        "estimate: GPU ({:.3}, {:.3}, {:.3}), CPU twin ({:.3}, {:.3}, {:.3})",
+        gpu.x, gpu.y, gpu.z, d.estimate.x, d.estimate.y, d.estimate.z
+    ));
+    egui::Grid::new("faces").striped(true).show(ui, |ui| {
+        ui.label("face");
+        for f in 0..6 {
+            ui.label(crate::envmap::Face::from_index(f).name());
+        }
+        ui.end_row();
+        ui.label("mu_f");
+        for f in 0..6 {
+            ui.label(format!("{:.3}", d.mu[f]));
+        }
+        ui.end_row();
+        ui.label("N_f");
+        for f in 0..6 {
+            ui.label(format!("{:.2}", d.n_f[f]));
+        }
+        ui.end_row();
+    });
+    let count = |k| d.samples.iter().filter(|s| s.kind == k).count();
+    ui.label(format!(
+        "red (discarded) {}, green (used, cos > 0) {}, yellow (used, cos <= 0) {}",
+        count(SampleKind::Discarded),
+        count(SampleKind::Used),
+        count(SampleKind::Wasted)
+    ));
+    if !state.debug {
+        return;
+    }
+    // The unfolded cube cross with each pool sample at its face coordinates.
+    let w = 320.0;
+    let block = w / 4.0;
+    let (rect, _) =
+        ui.allocate_exact_size(egui::vec2(4.0 * block, 3.0 * block), egui::Sense::hover());
+    let painter = ui.painter_at(rect);
+    if let Some((_, tex)) = &state.cross {
+        painter.image(
+            tex.id(),
+            rect,
+            egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
+            egui::Color32::WHITE,
+        );
+    }
+    for &(bx, by) in &CROSS_BLOCKS {
+        let r = egui::Rect::from_min_size(
+            rect.min + egui::vec2(bx as f32 * block, by as f32 * block),
+            egui::vec2(block, block),
+        );
+        painter.rect_stroke(
+            r,
+            0.0,
+            egui::Stroke::new(1.0, egui::Color32::GRAY),
+            egui::StrokeKind::Inside,
+        );
+    }
+    for s in &d.samples {
+        let (f, a, b) = dir_to_face_ab(s.dir);
+        let (bx, by) = CROSS_BLOCKS[f];
+        let p = rect.min
+            + egui::vec2(
+                (bx as f32 + 0.5 * (a + 1.0)) * block,
+                (by as f32 + 0.5 * (b + 1.0)) * block,
+            );
+        painter.circle_filled(p, 2.5, egui_kind_color(s.kind));
+    }
+}

@@ -1,0 +1,214 @@
+//! `envis render`, `envis reference` and `envis cross`: the bodies of the commands whose
+//! arguments `main.rs` parses.
+
+use super::scene::{check_exr_path, setup};
+use crate::{BackendArg, CrossArgs, ReferenceArgs, RenderArgs};
+use envis::envmap::load::load_env;
+use envis::error::{Error, Result};
+use envis::render::{self, Settings, output, reference};
+
+/// `envis render`.
+pub fn render(r: RenderArgs) -> Result<()> {
+    check_exr_path(&r.out)?;
+    let settings = Settings {
+        light_samples: r.light_samples,
+        brdf_samples: r.brdf_samples,
+        pool_size: r.pool,
+        strategy: r.strategy,
+        counts: r.counts,
+        mis: r.mis,
+        seed: r.seed,
+        pixel_offset: r.pixel_offset,
+        material_budget: r.material_budget,
+    };
+    settings.validate()?;
+    let (env, gbuf, _, scene) = setup(&r.scene)?;
+    // A scene file supplies the sampling settings too.
+    let settings = scene.as_ref().map_or(settings, |sc| sc.settings);
+    let size = r.scene.size;
+    let (mut out, extra) = match r.backend {
+        BackendArg::Cpu => (
+            render::render(&env.cube, &gbuf, size, size, &settings)?,
+            serde_json::json!({ "backend": "cpu" }),
+        ),
+        BackendArg::Wgpu => render_wgpu(&env.cube, &gbuf, size, &settings)?,
+        BackendArg::Gpu => render_bevy(&r.scene, &settings, scene.as_ref())?,
+    };
+    // What the loader clamped, plus anything the GPU's own sanitise pass found.
+    out.stats.clamped_texels.add(env.report);
+    output::write_exr(&r.out, &out.image)?;
+    if let Some(p) = &r.png {
+        output::write_png(p, &out.image, 1.0)?;
+    }
+    if let Some(p) = &r.stats {
+        let mut v =
+            serde_json::to_value(&out.stats).map_err(|e| Error::invalid(format!("stats: {e}")))?;
+        if let (Some(o), Some(e)) = (v.as_object_mut(), extra.as_object()) {
+            o.extend(e.clone());
+        }
+        output::write_json(p, &v)?;
+    }
+    Ok(())
+}
+
+/// `envis reference`.
+pub fn reference(r: ReferenceArgs) -> Result<()> {
+    check_exr_path(&r.out)?;
+    if !(r.refine.is_finite() && r.refine > 0.0) {
+        return Err(Error::invalid("--refine must be > 0"));
+    }
+    let (env, gbuf, mat, _) = setup(&r.scene)?;
+    let t = std::time::Instant::now();
+    let (img, _) =
+        reference::reference_image(&env.cube, &gbuf, r.scene.size, r.scene.size, r.refine);
+    let ms = t.elapsed().as_secs_f64() * 1e3;
+    output::write_exr(&r.out, &img)?;
+    if let Some(p) = &r.png {
+        output::write_png(p, &img, 1.0)?;
+    }
+    if let Some(p) = &r.stats {
+        let k = reference::subdivision(r.scene.size, &mat, r.refine);
+        output::write_json(
+            p,
+            &serde_json::json!({ "reference_ms": ms, "subtexel_points_per_axis": k, "clamped_texels": env.report }),
+        )?;
+    }
+    Ok(())
+}
+
+/// `envis cross`.
+pub fn cross(c: CrossArgs) -> Result<()> {
+    let env = load_env(&c.env.parse()?, c.face_size)?;
+    if env.report.total() > 0 {
+        eprintln!("envis: {}: {}", c.env, env.report);
+    }
+    let img = envis::envmap::cube_to_cross(&env.cube);
+    match c
+        .out
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase())
+        .as_deref()
+    {
+        Some("exr") => output::write_exr(&c.out, &img),
+        Some("png") => output::write_png(&c.out, &img, c.exposure),
+        _ => Err(Error::invalid(format!(
+            "--out {}: expected .exr or .png",
+            c.out.display()
+        ))),
+    }
+}
+
+/// `--backend wgpu`: the WGSL stages on a headless wgpu device (the same shaders the Bevy app runs).
+#[cfg(feature = "gpu")]
+fn render_wgpu(
+    map: &envis::envmap::CubeMap,
+    gbuf: &[Option<render::GPixel>],
+    size: usize,
+    s: &Settings,
+) -> Result<(render::Rendered, serde_json::Value)> {
+    let ctx = envis::gpu::GpuContext::new()?;
+    let (out, t) = envis::gpu::render_gpu(&ctx, map, gbuf, size, size, s)?;
+    let extra = serde_json::json!({ "backend": "wgpu", "device": ctx.info.name, "device_backend": format!("{:?}", ctx.info.backend), "gpu_timings": t });
+    Ok((out, extra))
+}
+
+#[cfg(not(feature = "gpu"))]
+fn render_wgpu(
+    _: &envis::envmap::CubeMap,
+    _: &[Option<render::GPixel>],
+    _: usize,
+    _: &Settings,
+) -> Result<(render::Rendered, serde_json::Value)> {
+    Err(Error::invalid(
+        "--backend wgpu: this envis was built without the `gpu` feature (cargo build --features gpu)",
+    ))
+}
+
+/// `--backend gpu`: the Bevy app headless (no window), sphere mesh + deferred G-buffer. Pixels
+/// off the sphere are 0, as in the CPU contract (the app's sky pass is off).
+#[cfg(feature = "app")]
+fn render_bevy(
+    a: &crate::SceneArgs,
+    s: &Settings,
+    scene: Option<&envis::scene::Scene>,
+) -> Result<(render::Rendered, serde_json::Value)> {
+    use envis::app::{EnvisMaterial, EnvisSettings, headless::HeadlessSphere};
+    use envis::envmap::load::EnvSource;
+    envis::gpu::context::check_adapter()?;
+    use envis::sampling::Lobe;
+    use envis::stream::{EnvStream, StreamSource};
+    let settings = EnvisSettings {
+        sampling: *s,
+        show_sky: false,
+        ..Default::default()
+    };
+    if let Some(sc) = scene {
+        let t0 = std::time::Instant::now();
+        let mut app = HeadlessSphere::from_scene(sc, settings, a.size as u32)?;
+        let data = app.capture()?;
+        let mut stats = render::RenderStats::for_settings(a.size, a.size, s, s.pool_per_face());
+        stats.shade_ms = t0.elapsed().as_secs_f64() * 1e3;
+        let extra = serde_json::json!({ "backend": "gpu", "pipeline": "bevy (offscreen)", "scene": sc.path });
+        return Ok((
+            render::Rendered {
+                image: envis::envmap::Image {
+                    width: a.size,
+                    height: a.size,
+                    data,
+                },
+                stats,
+            },
+            extra,
+        ));
+    }
+    let mat = super::scene::material(a)?;
+    let em = match mat.lobe {
+        Lobe::None => EnvisMaterial::Lambert { albedo: mat.kd },
+        Lobe::Phong { exponent } => EnvisMaterial::Phong {
+            albedo: mat.ks,
+            exponent,
+        },
+        Lobe::Ggx { alpha } => EnvisMaterial::Ggx {
+            albedo: mat.ks,
+            alpha,
+        },
+    };
+    let source = match a.env.parse::<EnvSource>()? {
+        EnvSource::Sky { hours } => StreamSource::Sky { hours, speed: 0.0 },
+        EnvSource::File(p) => StreamSource::File(p),
+    };
+    EnvStream::open(source.clone(), a.face_size)?; // refuse a bad source here, with its error
+    let t0 = std::time::Instant::now();
+    let mut app = HeadlessSphere::new(source, a.face_size, em, settings, a.size as u32);
+    let data = app.capture()?;
+    let mut stats = render::RenderStats::for_settings(a.size, a.size, s, s.pool_per_face());
+    stats.shade_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let c = app.counters();
+    let t = app.app.world().resource::<envis::app::EnvisTimings>().get();
+    let extra = serde_json::json!({
+        "backend": "gpu",
+        "pipeline": "bevy (offscreen)",
+        "pass_times_ms": t,
+        "note": "shade_ms is the wall time of the whole headless app (start-up, pipelines, frames); per-pixel sample counts are not read back",
+        "distribution_builds": c.get(|c| &c.builds),
+        "lighting_passes": c.get(|c| &c.lighting_passes),
+    });
+    let image = envis::envmap::Image {
+        width: a.size,
+        height: a.size,
+        data,
+    };
+    Ok((render::Rendered { image, stats }, extra))
+}
+
+#[cfg(not(feature = "app"))]
+fn render_bevy(
+    _: &crate::SceneArgs,
+    _: &Settings,
+    _: Option<&envis::scene::Scene>,
+) -> Result<(render::Rendered, serde_json::Value)> {
+    Err(Error::invalid(
+        "--backend gpu: this envis was built without the `app` feature (cargo build --features app)",
+    ))
+}

@@ -1,0 +1,107 @@
+//! `envis` with no subcommand: the interactive demo, after checking what it needs (a display,
+//! a GPU adapter, a readable environment) so that a missing piece is a one-line error.
+
+use crate::DemoArgs;
+use envis::error::{Error, Result};
+#[cfg(feature = "app")]
+use envis::render::Settings;
+
+#[cfg(feature = "app")]
+pub fn run_demo(a: DemoArgs) -> Result<()> {
+    use envis::stream::StreamSource;
+    let scene = a
+        .scene
+        .as_deref()
+        .map(envis::scene::Scene::load)
+        .transpose()?;
+    let source = if let Some(sc) = &scene {
+        match StreamSource::parse(&sc.environment)? {
+            StreamSource::Sky { hours, .. } => StreamSource::Sky {
+                hours,
+                speed: sc.file.environment.speed,
+            },
+            other => other,
+        }
+    } else if let Some(dir) = a.sequence {
+        StreamSource::Sequence { dir, fps: a.fps }
+    } else if !a.carousel.is_empty() {
+        StreamSource::Carousel {
+            paths: a.carousel,
+            period: 8.0,
+            fade: 2.0,
+            spin: 0.05,
+        }
+    } else {
+        StreamSource::parse(&a.env)?
+    };
+    check_display()?;
+    envis::gpu::context::check_adapter()?;
+    // Refuse a bad source before opening a window, with its error.
+    envis::stream::EnvStream::open(
+        source.clone(),
+        scene
+            .as_ref()
+            .map_or(a.face_size, |s| s.file.environment.face_size),
+    )?;
+    let (w, h) = a
+        .window
+        .split_once('x')
+        .and_then(|(w, h)| Some((w.parse::<u32>().ok()?, h.parse::<u32>().ok()?)))
+        .filter(|(w, h)| (64..=8192).contains(w) && (64..=8192).contains(h))
+        .ok_or_else(|| {
+            Error::invalid(format!(
+                "--window {}: expected WIDTHxHEIGHT, e.g. 1280x720",
+                a.window
+            ))
+        })?;
+    let sampling = scene.as_ref().map_or(
+        Settings {
+            light_samples: a.light_samples,
+            brdf_samples: a.brdf_samples,
+            ..Default::default()
+        },
+        |s| s.settings,
+    );
+    sampling.validate()?;
+    let face_size = scene
+        .as_ref()
+        .map_or(a.face_size, |s| s.file.environment.face_size);
+    if let Some(d) = &a.script {
+        std::fs::create_dir_all(d).map_err(|e| Error::file(d, format!("cannot create: {e}")))?;
+    }
+    let exit = envis::app::demo::run(envis::app::demo::DemoOptions {
+        source,
+        face_size,
+        script: a.script,
+        window: (w, h),
+        sampling,
+        scene,
+    });
+    match exit {
+        bevy::app::AppExit::Success => Ok(()),
+        bevy::app::AppExit::Error(c) => {
+            Err(Error::invalid(format!("the demo exited with code {c}")))
+        }
+    }
+}
+
+/// The demo opens an X11 window (this build's only windowing backend): without a display, say
+/// what to do instead of letting the event loop panic.
+#[cfg(feature = "app")]
+fn check_display() -> Result<()> {
+    if cfg!(target_os = "linux") && std::env::var_os("DISPLAY").is_none_or(|d| d.is_empty()) {
+        return Err(Error::invalid(
+            "the demo needs a display and DISPLAY is not set: run it under Xvfb \
+             (`xvfb-run -a envis`), or render without a window \
+             (`envis render --env builtin:sky --out sphere.exr`)",
+        ));
+    }
+    Ok(())
+}
+
+#[cfg(not(feature = "app"))]
+pub fn run_demo(_: DemoArgs) -> Result<()> {
+    Err(Error::invalid(
+        "the interactive demo needs the `app` feature (cargo run --release --features app); see `envis --help` for the commands",
+    ))
+}

@@ -1,0 +1,85 @@
+//! The seed's sample-debug view on the CPU: how each pool sample serves one pixel (red:
+//! discarded by face weighting, green: used, yellow: used but below the horizon).
+
+use super::{FrameData, GPixel, Settings, Strategy, shade_pixel};
+use crate::sampling::rng::Rng;
+use crate::sampling::{face_count, face_weights};
+use glam::Vec3;
+
+/// How one pool sample serves a pixel (the seed's sample-debug colours).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub enum SampleKind {
+    /// Red: not taken, discarded by face weighting (beyond the face's `ceil(N_f)`, or an empty slot).
+    Discarded,
+    /// Green: taken, positive cosine.
+    Used,
+    /// Yellow: taken, non-positive cosine (wasted).
+    Wasted,
+}
+
+/// One pool sample as the pixel sees it.
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct DebugSample {
+    pub face: usize,
+    pub dir: Vec3,
+    pub kind: SampleKind,
+}
+
+/// The sample-debug view of one pixel: face weights, counts, every pool sample classified, and
+/// the estimate.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct PixelDebug {
+    pub mu: [f32; 6],
+    /// `N_f = mu_f N_L` (before clamping to the pool).
+    pub n_f: [f32; 6],
+    pub samples: Vec<DebugSample>,
+    pub estimate: Vec3,
+}
+
+/// Classify every pool sample for pixel `px` exactly as [`shade_pixel`]'s light loop uses them
+/// (same face weights, counts, offset), for the `paper` and `light` strategies.
+pub fn debug_pixel(fd: &FrameData, s: &Settings, px: &GPixel, pixel_index: u32) -> PixelDebug {
+    let (estimate, _) = shade_pixel(fd, s, px, pixel_index);
+    let n = px.n.normalize_or_zero();
+    let m = fd.pool.per_face;
+    let (nl, _) = s.budget(&px.material);
+    let fw = face_weights(n, &fd.energies, s.strategy != Strategy::Light);
+    let mut rng = Rng::new(s.seed, pixel_index);
+    let offset = if s.pixel_offset && m > 0 {
+        rng.next_u32() as usize % m
+    } else {
+        0
+    };
+    let mut samples = Vec::with_capacity(6 * m);
+    let o = px.o.normalize_or_zero();
+    let live = matches!(s.strategy, Strategy::Paper | Strategy::Light)
+        && n != Vec3::ZERO
+        && o != Vec3::ZERO
+        && n.dot(o) > 0.0
+        && !px.material.is_black();
+    for f in 0..6 {
+        let c = face_count(fw.mu[f] * nl as f32, m, s.counts);
+        for j in 0..m {
+            let ls = fd.pool.get(f, j);
+            let k = (j + m - offset) % m; // position of slot j in this pixel's order
+            let kind = if !live || k >= c.taken || ls.pdf <= 0.0 {
+                SampleKind::Discarded
+            } else if n.dot(ls.dir) <= 0.0 {
+                SampleKind::Wasted
+            } else {
+                SampleKind::Used
+            };
+            samples.push(DebugSample {
+                face: f,
+                dir: ls.dir,
+                kind,
+            });
+        }
+    }
+    PixelDebug {
+        mu: fw.mu,
+        n_f: std::array::from_fn(|f| fw.mu[f] * nl as f32),
+        samples,
+        estimate,
+    }
+}

@@ -1,0 +1,460 @@
+//! The estimator: one pixel's Monte Carlo estimate of the reflected environment light, from the
+//! frame's light pool (or the global distribution) and the pixel's BRDF samples, combined by MIS.
+//! The twin of `shaders/shade.wgsl`.
+
+use super::{GPixel, PixelStats, Settings, Strategy, pool_seed};
+use crate::envmap::CubeMap;
+use crate::sampling::rng::Rng;
+use crate::sampling::warp::Frame;
+use crate::sampling::{
+    CubeDistribution, GlobalDistribution, LANES, LightPool, LocalBsdf, face_count, face_weights,
+    mis,
+};
+use glam::{Vec2, Vec3};
+
+/// Everything built once per environment frame.
+pub struct FrameData<'a> {
+    pub map: &'a CubeMap,
+    pub dist: CubeDistribution,
+    pub energies: [f64; 6],
+    pub pool: LightPool,
+    pub global: Option<GlobalDistribution>,
+    /// Per cube texel, radiance and `pdf_area` interleaved (`(r, g, b, p)`), so a BRDF-sampled
+    /// direction costs one memory access for both its radiance and its light density.
+    pub texels: Vec<glam::Vec4>,
+}
+
+impl<'a> FrameData<'a> {
+    pub fn prepare(map: &'a CubeMap, s: &Settings) -> Self {
+        let dist = CubeDistribution::build(map);
+        let energies = dist.energies();
+        let pool = if matches!(s.strategy, Strategy::Paper | Strategy::Light) {
+            LightPool::build(map, &dist, s.pool_per_face(), pool_seed(s.seed))
+        } else {
+            LightPool {
+                per_face: 0,
+                samples: Vec::new(),
+            }
+        };
+        let global = (s.strategy == Strategy::Global).then(|| GlobalDistribution::build(map));
+        let nn = map.size * map.size;
+        let texels = map
+            .data
+            .iter()
+            .enumerate()
+            .map(|(i, c)| c.extend(dist.faces[i / nn].pdf_area[i % nn]))
+            .collect();
+        FrameData {
+            map,
+            dist,
+            energies,
+            pool,
+            global,
+            texels,
+        }
+    }
+}
+
+/// One pixel's estimate of `L(p, o) = integral of f(o, w) <n, w>+ L(w) dw`.
+///
+/// On x86-64 CPUs with AVX2 and FMA this runs a copy of the same code compiled for them (LLVM
+/// vectorises the sample loops 8 wide). Rust never fuses a multiply and an add on its own, so
+/// both copies round identically: the result does not depend on the CPU. `ENVIS_PORTABLE=1`
+/// forces the baseline copy (for comparisons).
+pub fn shade_pixel(
+    fd: &FrameData,
+    s: &Settings,
+    px: &GPixel,
+    pixel_index: u32,
+) -> (Vec3, PixelStats) {
+    #[cfg(target_arch = "x86_64")]
+    if simd::enabled() {
+        // SAFETY: the CPU supports the features `shade_pixel_avx2` is compiled for.
+        return unsafe { simd::shade_pixel_avx2(fd, s, px, pixel_index) };
+    }
+    shade_pixel_portable(fd, s, px, pixel_index)
+}
+
+#[cfg(target_arch = "x86_64")]
+mod simd {
+    use super::*;
+    /// AVX2 + FMA present and `ENVIS_PORTABLE` unset (decided once per process).
+    #[inline]
+    pub fn enabled() -> bool {
+        static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+        *ON.get_or_init(|| {
+            std::arch::is_x86_feature_detected!("avx2")
+                && std::arch::is_x86_feature_detected!("fma")
+                && std::env::var_os("ENVIS_PORTABLE").is_none()
+        })
+    }
+    #[target_feature(enable = "avx2,fma")]
+    pub fn shade_pixel_avx2(
+        fd: &FrameData,
+        s: &Settings,
+        px: &GPixel,
+        pixel_index: u32,
+    ) -> (Vec3, PixelStats) {
+        shade_pixel_portable(fd, s, px, pixel_index)
+    }
+}
+
+/// [`shade_pixel`] compiled for the baseline target.
+#[inline(always)]
+fn shade_pixel_portable(
+    fd: &FrameData,
+    s: &Settings,
+    px: &GPixel,
+    pixel_index: u32,
+) -> (Vec3, PixelStats) {
+    let n = px.n.normalize_or_zero();
+    let o = px.o.normalize_or_zero();
+    if n == Vec3::ZERO || o == Vec3::ZERO || n.dot(o) <= 0.0 || px.material.is_black() {
+        return (Vec3::ZERO, PixelStats::default());
+    }
+    // A diffuse-only pixel runs the same code compiled for `Lambert` (no lobe dispatch per
+    // sample); the results are bit-identical to the general `Material` path.
+    match px.material.as_lambert() {
+        Some(lambert) => shade_with(fd, s, &px.material, &lambert, n, o, pixel_index),
+        None => shade_with(fd, s, &px.material, &px.material, n, o, pixel_index),
+    }
+}
+
+/// What the sample loops of one visible pixel share.
+struct Pixel<'a, B> {
+    fd: &'a FrameData<'a>,
+    s: &'a Settings,
+    bsdf: &'a B,
+    frame: Frame,
+    n: Vec3,
+    /// The view direction in the shading frame.
+    ol: Vec3,
+    /// N_L and N_B for this pixel.
+    nl: usize,
+    nb: usize,
+}
+
+impl<B: LocalBsdf> Pixel<'_, B> {
+    /// One light sample in direction `dir` (radiance from `radiance`, read only when the
+    /// sample is above the horizon), of weight `weight` and light density `n_l`: counted green
+    /// or yellow, and added to `sum` with its MIS weight against the pixel's BRDF samples.
+    #[inline(always)]
+    fn light_sample(
+        &self,
+        dir: Vec3,
+        radiance: impl FnOnce() -> Vec3,
+        weight: f32,
+        n_l: f32,
+        sum: &mut Vec3,
+        st: &mut PixelStats,
+    ) {
+        let cos = self.n.dot(dir);
+        if cos <= 0.0 {
+            st.yellow += 1;
+            return;
+        }
+        st.green += 1;
+        let il = self.frame.to_local(dir);
+        let n_b = if self.nb > 0 {
+            self.nb as f32 * self.bsdf.pdf_local(self.ol, il)
+        } else {
+            0.0
+        };
+        *sum += self.bsdf.eval_local(self.ol, il)
+            * radiance()
+            * (weight * cos * mis::weight_over_density(self.s.mis, n_l, n_b));
+    }
+}
+
+/// [`shade_pixel`] for a visible pixel (unit `n`, `o`, `<n, o> > 0`) with BRDF `bsdf` (the
+/// pixel's `material`, or a specialised view of it). The light samples (from the pool, or from
+/// the global distribution), then the BRDF samples, combined by MIS: the sections of
+/// `shade_counts` in `shaders/shade.wgsl`, in the same order, with the same random draws.
+#[inline(always)]
+fn shade_with<B: LocalBsdf>(
+    fd: &FrameData,
+    s: &Settings,
+    material: &crate::sampling::Material,
+    bsdf: &B,
+    n: Vec3,
+    o: Vec3,
+    pixel_index: u32,
+) -> (Vec3, PixelStats) {
+    let frame = Frame::new(n);
+    let (nl, nb) = s.budget(material);
+    let px = Pixel {
+        fd,
+        s,
+        bsdf,
+        frame,
+        n,
+        ol: frame.to_local(o),
+        nl,
+        nb,
+    };
+    let mut st = PixelStats::default();
+    let mut rng = Rng::new(s.seed, pixel_index);
+    let mut sum = Vec3::ZERO;
+    // Light-sample density on each face (N_f, clamped to the pool): `n_L(w) = density[f] p_f(w)`.
+    let mut density = [0.0f32; 6];
+    match s.strategy {
+        Strategy::Paper | Strategy::Light => {
+            density = light_pool_samples(&px, &mut rng, &mut sum, &mut st);
+        }
+        Strategy::Global => global_samples(&px, &mut rng, &mut sum, &mut st),
+        Strategy::Brdf => {}
+    }
+    brdf_samples(&px, &mut rng, &density, &mut sum, &mut st);
+    (sum, st)
+}
+
+/// The seed's light samples: each face weighted by `mu_f`, `N_f = mu_f N_L` samples taken from
+/// its part of the shared pool (from the pixel's offset, wrapping), fractional or integer
+/// counts. Returns the per-face densities `N_f` the BRDF samples' MIS weights need.
+#[inline(always)]
+fn light_pool_samples<B: LocalBsdf>(
+    px: &Pixel<B>,
+    rng: &mut Rng,
+    sum: &mut Vec3,
+    st: &mut PixelStats,
+) -> [f32; 6] {
+    let (fd, s) = (px.fd, px.s);
+    let mut density = [0.0f32; 6];
+    let m = fd.pool.per_face;
+    st.available = (6 * m) as u32;
+    let fw = face_weights(px.n, &fd.energies, s.strategy == Strategy::Paper);
+    let offset = if s.pixel_offset && m > 0 {
+        rng.next_u32() as usize % m
+    } else {
+        0
+    };
+    for (f, dens) in density.iter_mut().enumerate() {
+        let c = face_count(fw.mu[f] * px.nl as f32, m, s.counts);
+        *dens = c.density;
+        // Pool index (offset + k) mod m, kept in range without a division per sample.
+        let mut idx = offset;
+        for k in 0..c.taken {
+            let ls = fd.pool.get(f, idx);
+            idx += 1;
+            if idx == m {
+                idx = 0;
+            }
+            if ls.pdf <= 0.0 {
+                continue;
+            }
+            let weight = if k + 1 == c.taken { c.last_weight } else { 1.0 };
+            px.light_sample(ls.dir, || ls.radiance, weight, c.density * ls.pdf, sum, st);
+        }
+    }
+    density
+}
+
+/// The pbrt-style baseline's light samples: N_L draws from one lat-long distribution.
+#[inline(always)]
+fn global_samples<B: LocalBsdf>(px: &Pixel<B>, rng: &mut Rng, sum: &mut Vec3, st: &mut PixelStats) {
+    let (fd, nl) = (px.fd, px.nl);
+    let Some(g) = fd.global.as_ref() else {
+        return; // FrameData::prepare builds it for Strategy::Global
+    };
+    st.available = nl as u32;
+    for _ in 0..nl {
+        let u = Vec2::new(rng.next_f32(), rng.next_f32());
+        let Some((d, p)) = g.sample(u) else { continue };
+        // Weight 1: 1 * cos is cos exactly, so this is the plain one-sample estimate.
+        px.light_sample(d, || fd.map.lookup(d), 1.0, nl as f32 * p, sum, st);
+    }
+}
+
+/// The N_B BRDF samples, in chunks of LANES, structure of arrays: pass 1 draws the local
+/// directions (vectorised for a branch-free sampler), pass 2 turns them into world directions,
+/// texels and cube Jacobians (vectorised), pass 3 prefetches the texels, pass 4 loads them and
+/// shades. The loads are independent, so they overlap instead of stalling one by one. Same
+/// random draws, same arithmetic, same summation order as one scalar loop.
+#[inline(always)]
+fn brdf_samples<B: LocalBsdf>(
+    px: &Pixel<B>,
+    rng: &mut Rng,
+    density: &[f32; 6],
+    sum: &mut Vec3,
+    st: &mut PixelStats,
+) {
+    let (fd, s, mat, ol) = (px.fd, px.s, px.bsdf, px.ol);
+    let nb_f = px.nb as f32;
+    let mut smp = crate::sampling::SampleLanes::default();
+    let mut hit = HitLanes::default();
+    let n_size = fd.map.size as u32;
+    let mut left = px.nb;
+    while left > 0 {
+        let count = left.min(LANES);
+        left -= count;
+        st.brdf += count as u32;
+        mat.sample_lanes(ol, rng, count, &mut smp);
+        for k in 0..LANES {
+            let d = px.frame.to_world(smp.dir(k));
+            let (face, a, b, texel) = crate::envmap::dir_to_texel_lane(d.x, d.y, d.z, n_size);
+            let q = 1.0 + a * a + b * b;
+            (hit.x[k], hit.y[k], hit.z[k]) = (d.x, d.y, d.z);
+            (hit.face[k], hit.texel[k], hit.jac[k]) = (face, texel, q * q.sqrt());
+        }
+        for k in 0..count {
+            prefetch(&fd.texels[hit.texel[k] as usize]);
+        }
+        for k in 0..count {
+            let p = smp.pdf[k];
+            if p <= 0.0 {
+                continue;
+            }
+            // One texel gives both the radiance and the light density of the direction.
+            let t = fd.texels[hit.texel[k] as usize];
+            let n_l = match s.strategy {
+                Strategy::Paper => density[hit.face[k] as usize] * t.w * hit.jac[k],
+                Strategy::Global => {
+                    px.nl as f32
+                        * fd.global
+                            .as_ref()
+                            .map_or(0.0, |g| g.pdf(Vec3::new(hit.x[k], hit.y[k], hit.z[k])))
+                }
+                _ => 0.0,
+            };
+            let il = smp.dir(k);
+            *sum += mat.eval_local(ol, il)
+                * t.truncate()
+                * (il.z * mis::weight_over_density(s.mis, nb_f * p, n_l));
+        }
+    }
+}
+
+/// World directions, faces, texels and cube Jacobians of a chunk of BRDF samples.
+#[derive(Default)]
+struct HitLanes {
+    x: [f32; LANES],
+    y: [f32; LANES],
+    z: [f32; LANES],
+    face: [u32; LANES],
+    texel: [u32; LANES],
+    jac: [f32; LANES],
+}
+
+/// Hint the CPU to start loading `x`'s cache line (no effect on results; a no-op off x86-64).
+#[inline(always)]
+fn prefetch<T>(x: &T) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: prefetching is a hint; it never faults and reads nothing observable. The pointer
+    // comes from a live reference.
+    unsafe {
+        std::arch::x86_64::_mm_prefetch(x as *const T as *const i8, std::arch::x86_64::_MM_HINT_T0)
+    };
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = x;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::sphere_gbuffer;
+    use crate::sampling::{Heuristic, Material};
+
+    /// The `Lambert` specialisation of the hot loops gives the general `Material` path's values
+    /// bit for bit, for every strategy and both heuristics.
+    #[test]
+    fn lambert_path_is_bit_identical() {
+        let map = crate::envmap::sky::sky_cube(16, 10.0);
+        let w = 24;
+        let mut gbuf = sphere_gbuffer(w, w, Material::diffuse(0.7));
+        for (i, px) in gbuf.iter_mut().flatten().enumerate() {
+            px.material.kd = Vec3::new(0.2 + 0.01 * (i % 50) as f32, 0.5, 0.9);
+        }
+        for strategy in [
+            Strategy::Paper,
+            Strategy::Global,
+            Strategy::Light,
+            Strategy::Brdf,
+        ] {
+            for mis in [Heuristic::Balance, Heuristic::Power] {
+                let s = Settings {
+                    strategy,
+                    mis,
+                    light_samples: 7,
+                    brdf_samples: 5,
+                    seed: 11,
+                    pixel_offset: true,
+                    ..Default::default()
+                };
+                let fd = FrameData::prepare(&map, &s);
+                let mut lit = 0;
+                for (i, px) in gbuf.iter().enumerate() {
+                    let Some(px) = px else { continue };
+                    let (n, o) = (px.n.normalize(), px.o.normalize());
+                    let lambert = px.material.as_lambert().unwrap();
+                    let (a, sa) = shade_with(&fd, &s, &px.material, &lambert, n, o, i as u32);
+                    let (b, sb) = shade_with(&fd, &s, &px.material, &px.material, n, o, i as u32);
+                    assert_eq!(
+                        a.to_array().map(f32::to_bits),
+                        b.to_array().map(f32::to_bits),
+                        "{strategy:?} {mis:?} pixel {i}"
+                    );
+                    assert_eq!(
+                        (sa.green, sa.yellow, sa.brdf),
+                        (sb.green, sb.yellow, sb.brdf)
+                    );
+                    lit += (a.max_element() > 0.0) as usize;
+                }
+                assert!(lit > 100, "{strategy:?}: only {lit} lit pixels");
+            }
+        }
+    }
+
+    /// The dispatching `shade_pixel` (the AVX2 + FMA copy on CPUs that have them) and the
+    /// baseline copy agree bit for bit on every material kind.
+    #[test]
+    fn simd_copy_is_bit_identical() {
+        // Calls both copies directly, whatever `ENVIS_PORTABLE` says (which only steers
+        // `shade_pixel`'s choice). A CPU without AVX2 + FMA cannot run the SIMD copy at all.
+        #[cfg(target_arch = "x86_64")]
+        let has_simd = std::arch::is_x86_feature_detected!("avx2")
+            && std::arch::is_x86_feature_detected!("fma");
+        #[cfg(not(target_arch = "x86_64"))]
+        let has_simd = false;
+        if !has_simd {
+            eprintln!("simd_copy_is_bit_identical: no AVX2 + FMA on this CPU; nothing to compare");
+            return;
+        }
+        let map = crate::envmap::sky::sky_cube(16, 10.0);
+        for mat in [
+            Material::diffuse(0.8),
+            Material::phong(0.9, 150.0),
+            Material::ggx(0.9, 0.3),
+            Material {
+                kd: Vec3::splat(0.4),
+                ks: Vec3::splat(0.5),
+                lobe: crate::sampling::Lobe::Ggx { alpha: 0.1 },
+            },
+        ] {
+            let gbuf = sphere_gbuffer(20, 20, mat);
+            for strategy in [Strategy::Paper, Strategy::Global] {
+                let s = Settings {
+                    strategy,
+                    light_samples: 9,
+                    brdf_samples: 19,
+                    seed: 4,
+                    ..Default::default()
+                };
+                let fd = FrameData::prepare(&map, &s);
+                for (i, px) in gbuf.iter().enumerate() {
+                    let Some(px) = px else { continue };
+                    // SAFETY: the CPU has AVX2 + FMA (checked above).
+                    #[cfg(target_arch = "x86_64")]
+                    let (a, _) = unsafe { simd::shade_pixel_avx2(&fd, &s, px, i as u32) };
+                    #[cfg(not(target_arch = "x86_64"))]
+                    let (a, _) = shade_pixel(&fd, &s, px, i as u32);
+                    let (b, _) = shade_pixel_portable(&fd, &s, px, i as u32);
+                    assert_eq!(
+                        a.to_array().map(f32::to_bits),
+                        b.to_array().map(f32::to_bits),
+                        "{mat:?} {strategy:?} pixel {i}"
+                    );
+                }
+            }
+        }
+    }
+}
