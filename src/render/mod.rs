@@ -6,7 +6,7 @@
 //! - [`estimator`]: one pixel's estimate (light pool / global / BRDF samples, MIS);
 //! - [`stats`]: sample accounting and `--stats`;
 //! - [`debug`]: the seed's red / green / yellow classification of one pixel's pool samples;
-//! - [`reference`]: the exact f64 quadrature the estimators are tested against.
+//! - [`reference`](mod@reference): the exact f64 quadrature the estimators are tested against.
 
 pub mod debug;
 pub mod estimator;

@@ -117,7 +117,7 @@ fn hard_single_bright_texel_centre_edge_corner() {
             ),
         ] {
             test.push(check(
-                &format!("{label} {name}"),
+                format!("{label} {name}"),
                 &shade_seeds(&map, &px, s, 64),
                 reference,
             ));
@@ -314,7 +314,7 @@ fn hard_normals_axes_diagonals_corners_grazing_backfacing_nonunit() {
                 },
                 96,
             );
-            test.push(check(&format!("normal {k} {n} {mat:?}"), &xs, reference));
+            test.push(check(format!("normal {k} {n} {mat:?}"), &xs, reference));
             // Non-unit normals and views give the same estimate as unit ones.
             let scaled = GPixel {
                 n: n * 7.0,
@@ -483,7 +483,7 @@ fn hard_tiny_mu_and_pool_requests() {
         },
     ] {
         test.push(check(
-            &format!("{s:?}"),
+            format!("{s:?}"),
             &shade_seeds(&map, &px, s, 64),
             reference,
         ));

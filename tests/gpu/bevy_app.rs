@@ -224,7 +224,7 @@ fn roughness(img: &[Vec3], size: u32) -> f64 {
     let mut s = 0.0;
     let mut n = 0.0;
     for i in 0..img.len() - 1 {
-        if inside(i) && inside(i + 1) && (i as u32 + 1) % size != 0 {
+        if inside(i) && inside(i + 1) && !(i as u32 + 1).is_multiple_of(size) {
             s += (luminance(img[i]) - luminance(img[i + 1])).abs() as f64;
             n += 1.0;
         }

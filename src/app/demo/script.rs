@@ -44,6 +44,10 @@ const SCRIPT: &[Step] = &[
 ];
 
 /// The scripted CI sequence: one step every few frames, a screenshot after each.
+#[allow(
+    clippy::too_many_arguments,
+    reason = "a Bevy system's parameters are the data it touches"
+)]
 pub(super) fn run_script(
     mut stream: ResMut<EnvMapStream>,
     mut state: ResMut<DemoState>,
@@ -68,7 +72,7 @@ pub(super) fn run_script(
         // A still environment, so the screenshots differ only by what each step changed.
         stream.stream.playing = false;
     }
-    if f < WARMUP || (f - WARMUP) % STEP != 0 {
+    if f < WARMUP || !(f - WARMUP).is_multiple_of(STEP) {
         return;
     }
     let step = (f - WARMUP) / STEP;

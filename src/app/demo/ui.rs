@@ -115,13 +115,12 @@ fn environment_ui(
         }
         ui.add(egui::Slider::new(&mut s.speed, 0.0..=8.0).text("speed"));
     });
-    if let Some(mut h) = s.sky_hours() {
-        if ui
+    if let Some(mut h) = s.sky_hours()
+        && ui
             .add(egui::Slider::new(&mut h, 0.0..=24.0).text("time of day (h)"))
             .changed()
-        {
-            s.set_sky_hours(h);
-        }
+    {
+        s.set_sky_hours(h);
     }
     ui.add(
         egui::Slider::new(&mut settings.exposure, 0.01..=8.0)
