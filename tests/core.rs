@@ -1471,6 +1471,47 @@ fn envis_cmd(args: &[&str]) -> std::process::Output {
         .unwrap()
 }
 
+/// What a new user meets first: the demo on a machine without a display, and the GPU backend
+/// with no such adapter, each give one line saying what to do, and no panic or backtrace.
+#[test]
+fn cli_without_display_or_adapter_says_what_to_do() {
+    let one_line = |out: &std::process::Output, needles: &[&str]| {
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "succeeded: {err}");
+        assert_eq!(err.trim().lines().count(), 1, "not one line: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+        for n in needles {
+            assert!(err.contains(n), "'{err}' does not say '{n}'");
+        }
+    };
+    // Mesa's Vulkan loader prints its own complaint when XDG_RUNTIME_DIR is unset (as on a
+    // desktop it never is): give the children one, so stderr holds only what envis says.
+    let dir = tempdir();
+    let demo = std::process::Command::new(env!("CARGO_BIN_EXE_envis"))
+        .env("XDG_RUNTIME_DIR", &dir)
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .unwrap();
+    if cfg!(feature = "app") {
+        one_line(&demo, &["DISPLAY", "xvfb-run", "envis render"]);
+    } else {
+        one_line(&demo, &["app"]);
+    }
+    let gpu = std::process::Command::new(env!("CARGO_BIN_EXE_envis"))
+        .args(["render", "--backend", "wgpu", "--size", "8", "--out"])
+        .arg(dir.join("x.exr"))
+        .env("XDG_RUNTIME_DIR", &dir)
+        .env("WGPU_ADAPTER_NAME", "no-such-adapter-anywhere")
+        .output()
+        .unwrap();
+    if cfg!(feature = "gpu") {
+        one_line(&gpu, &["no-such-adapter-anywhere", "mesa-vulkan-drivers"]);
+    } else {
+        one_line(&gpu, &["gpu"]);
+    }
+}
+
 #[test]
 fn cli_contract() {
     let dir = tempdir();
