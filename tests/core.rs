@@ -1471,6 +1471,52 @@ fn envis_cmd(args: &[&str]) -> std::process::Output {
         .unwrap()
 }
 
+/// A Bevy user depending on the plugins alone (`default-features = false, features = ["app"]`)
+/// pulls no window system and no egui: checked on the resolved dependency graph.
+#[test]
+fn app_feature_pulls_no_window_system_or_egui() {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let tree = |features: &[&str]| {
+        let out = std::process::Command::new(&cargo)
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .args([
+                "tree",
+                "--offline",
+                "--locked",
+                "-e",
+                "normal",
+                "--prefix",
+                "none",
+            ])
+            .args(["--format", "{p}", "--no-default-features", "--features"])
+            .arg(features.join(","))
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let has = |tree: &str, krate: &str| tree.lines().any(|l| l.starts_with(&format!("{krate} v")));
+    let plugins = tree(&["app"]);
+    assert!(has(&plugins, "bevy"), "the app feature must bring Bevy");
+    for k in [
+        "winit",
+        "bevy_winit",
+        "x11rb",
+        "x11-dl",
+        "egui",
+        "bevy_egui",
+    ] {
+        assert!(!has(&plugins, k), "`--features app` pulls {k}");
+    }
+    // The demo feature does bring them: the check above can see them.
+    let demo = tree(&["demo"]);
+    assert!(has(&demo, "winit") && has(&demo, "egui"));
+}
+
 /// What a new user meets first: the demo on a machine without a display, and the GPU backend
 /// with no such adapter, each give one line saying what to do, and no panic or backtrace.
 #[test]
@@ -1493,10 +1539,10 @@ fn cli_without_display_or_adapter_says_what_to_do() {
         .env_remove("WAYLAND_DISPLAY")
         .output()
         .unwrap();
-    if cfg!(feature = "app") {
+    if cfg!(feature = "demo") {
         one_line(&demo, &["DISPLAY", "xvfb-run", "envis render"]);
     } else {
-        one_line(&demo, &["app"]);
+        one_line(&demo, &["demo"]);
     }
     let gpu = std::process::Command::new(env!("CARGO_BIN_EXE_envis"))
         .args(["render", "--backend", "wgpu", "--size", "8", "--out"])

@@ -672,7 +672,7 @@ fn cli_gpu_backends() {
     assert!(rel(read_exr_mean(&a), read_exr_mean(&b)) < 1e-3);
 }
 
-#[cfg(feature = "app")]
+#[cfg(feature = "demo")]
 #[path = "gpu/demo.rs"]
 mod demo;
 

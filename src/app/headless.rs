@@ -17,7 +17,6 @@ use bevy::render::RenderPlugin;
 use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat, TextureUsages};
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
 use bevy::window::ExitCondition;
-use bevy::winit::WinitPlugin;
 use std::sync::{Arc, Mutex};
 
 /// Frames to wait for a screenshot of the render target before giving up.
@@ -107,29 +106,30 @@ impl HeadlessSphere {
         size: u32,
     ) -> (App, Handle<Image>) {
         let mut app = App::new();
-        app.add_plugins(
-            DefaultPlugins
-                .set(RenderPlugin {
-                    synchronous_pipeline_compilation: true,
-                    ..default()
-                })
-                .set(WindowPlugin {
-                    primary_window: None,
-                    exit_condition: ExitCondition::DontExit,
-                    ..default()
-                })
-                .disable::<WinitPlugin>()
-                .disable::<bevy::log::LogPlugin>(),
-        )
-        .insert_resource(settings)
-        .add_plugins((
-            EnvMapStreamPlugin {
-                source,
-                face_size: face,
-            },
-            EnvMapSamplingPlugin,
-            MisLightingPlugin,
-        ));
+        let plugins = DefaultPlugins
+            .set(RenderPlugin {
+                synchronous_pipeline_compilation: true,
+                ..default()
+            })
+            .set(WindowPlugin {
+                primary_window: None,
+                exit_condition: ExitCondition::DontExit,
+                ..default()
+            })
+            .disable::<bevy::log::LogPlugin>();
+        // With the `demo` feature Bevy has a window system; a headless app drives itself.
+        #[cfg(feature = "demo")]
+        let plugins = plugins.disable::<bevy::winit::WinitPlugin>();
+        app.add_plugins(plugins)
+            .insert_resource(settings)
+            .add_plugins((
+                EnvMapStreamPlugin {
+                    source,
+                    face_size: face,
+                },
+                EnvMapSamplingPlugin,
+                MisLightingPlugin,
+            ));
         let mut img = Image::new_uninit(
             Extent3d {
                 width: size,

@@ -13,6 +13,7 @@
 //! shared by both worlds and counts the work done (builds, uploads, lighting passes), which is how
 //! tests prove that work is skipped when nothing changed.
 
+#[cfg(feature = "demo")]
 pub mod demo;
 pub mod headless;
 pub mod lighting;

@@ -3,10 +3,10 @@
 
 use crate::DemoArgs;
 use envis::error::{Error, Result};
-#[cfg(feature = "app")]
+#[cfg(feature = "demo")]
 use envis::render::Settings;
 
-#[cfg(feature = "app")]
+#[cfg(feature = "demo")]
 pub fn run_demo(a: DemoArgs) -> Result<()> {
     use envis::stream::StreamSource;
     let scene = a
@@ -87,7 +87,7 @@ pub fn run_demo(a: DemoArgs) -> Result<()> {
 
 /// The demo opens an X11 window (this build's only windowing backend): without a display, say
 /// what to do instead of letting the event loop panic.
-#[cfg(feature = "app")]
+#[cfg(feature = "demo")]
 fn check_display() -> Result<()> {
     if cfg!(target_os = "linux") && std::env::var_os("DISPLAY").is_none_or(|d| d.is_empty()) {
         return Err(Error::invalid(
@@ -99,9 +99,9 @@ fn check_display() -> Result<()> {
     Ok(())
 }
 
-#[cfg(not(feature = "app"))]
+#[cfg(not(feature = "demo"))]
 pub fn run_demo(_: DemoArgs) -> Result<()> {
     Err(Error::invalid(
-        "the interactive demo needs the `app` feature (cargo run --release --features app); see `envis --help` for the commands",
+        "the interactive demo needs the `demo` feature (cargo run --release --features demo); see `envis --help` for the commands",
     ))
 }
