@@ -74,19 +74,24 @@ fn hard_single_bright_texel_centre_edge_corner() {
         let p = fd.texel_pmf(col, row) as f64;
         let want = 1e6 * texel_solid_angle(col, row, n) / fd.energy;
         assert!((p - want).abs() < 1e-4, "{label}: pmf {p} vs {want}");
+        // Its hit rate, as a two-bin chi-square test (one of three positions).
         let mut r = Rng::new(1, 1);
-        let mut hits = 0;
-        for _ in 0..20_000 {
-            let s = fd.sample(4, rng_vec2(&mut r)).unwrap();
-            assert!(s.pdf > 0.0 && s.pdf.is_finite(), "{label}: pdf {}", s.pdf);
-            hits += (s.col == col && s.row == row) as u32;
-        }
-        let sd = (20_000.0 * p * (1.0 - p)).sqrt().max(1.0);
-        assert!(
-            (hits as f64 - 20_000.0 * p).abs() < 5.0 * sd,
-            "{label}: {hits} hits, expected {}",
-            20_000.0 * p
+        let hit_rate = Chi2Test::new(
+            format!("bright texel at the {label}"),
+            Discrete(2),
+            20_000,
+            3,
         );
+        hit_rate
+            .run(
+                || {
+                    let s = fd.sample(4, rng_vec2(&mut r)).unwrap();
+                    assert!(s.pdf > 0.0 && s.pdf.is_finite(), "{label}: pdf {}", s.pdf);
+                    Some((s.col == col && s.row == row) as usize)
+                },
+                |hit| if hit == 1 { p } else { 1.0 - p },
+            )
+            .assert();
         // Unbiased renders of a normal facing the texel.
         let px = GPixel {
             n: face_uv_to_dir(
@@ -253,27 +258,28 @@ fn hard_2048_faces_single_bright_texel_keeps_its_pdf() {
         "column share {col_share} vs {col_want}"
     );
     let mut r = Rng::new(4, 4);
-    let (mut hits, ns) = (0u32, 4000u32);
-    for _ in 0..ns {
-        let s = fd.sample(2, rng_vec2(&mut r)).unwrap();
-        assert!(s.pdf > 0.0 && s.pdf.is_finite());
-        if s.col == col && s.row == row {
-            hits += 1;
-            let q = texel_solid_angle(col, row, n) as f32;
-            // pdf x texel solid angle ~= pmf (the Jacobian varies by < 1e-3 across one texel).
-            assert!(
-                ((s.pdf * q) as f64 - p).abs() < 2e-3 * p,
-                "pdf {} x omega {q} vs pmf {p}",
-                s.pdf
-            );
-        }
-    }
-    let sd = (ns as f64 * p * (1.0 - p)).sqrt();
-    assert!(
-        (hits as f64 - ns as f64 * p).abs() < 5.0 * sd + 1.0,
-        "{hits} of {ns}, expected {}",
-        ns as f64 * p
-    );
+    let hit_rate = Chi2Test::new("bright texel on a 2048^2 face", Discrete(2), 4000, 1);
+    hit_rate
+        .run(
+            || {
+                let s = fd.sample(2, rng_vec2(&mut r)).unwrap();
+                assert!(s.pdf > 0.0 && s.pdf.is_finite());
+                let hit = s.col == col && s.row == row;
+                if hit {
+                    let q = texel_solid_angle(col, row, n) as f32;
+                    // pdf x texel solid angle ~= pmf (the Jacobian varies by < 1e-3 across one
+                    // texel).
+                    assert!(
+                        ((s.pdf * q) as f64 - p).abs() < 2e-3 * p,
+                        "pdf {} x omega {q} vs pmf {p}",
+                        s.pdf
+                    );
+                }
+                Some(hit as usize)
+            },
+            |hit| if hit == 1 { p } else { 1.0 - p },
+        )
+        .assert();
 }
 
 #[test]
