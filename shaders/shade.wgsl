@@ -87,6 +87,7 @@ fn shade_counts(px: GPixel, pixel_index: u32, counts: u32) -> Shaded {
     let m = sp.m;
     var density: array<f32, 6>;
 
+    // Section `global_samples` of render/estimator.rs.
     if (sp.strategy == STRATEGY_GLOBAL) {
         res.stats.x = nl;
         for (var j = 0u; j < nl; j++) {
@@ -112,6 +113,7 @@ fn shade_counts(px: GPixel, pixel_index: u32, counts: u32) -> Shaded {
             sum += brdf_eval(mat, ol, il) * radiance * (cosv * mis_weight_over_density(sp.mis, f32(nl) * gs.w, n_b));
         }
     } else if (sp.strategy != STRATEGY_BRDF) {
+        // Section `light_pool_samples` of render/estimator.rs.
         res.stats.x = 6u * m;
         var energy: array<f32, 6>;
         for (var f = 0u; f < 6u; f++) {
@@ -154,6 +156,8 @@ fn shade_counts(px: GPixel, pixel_index: u32, counts: u32) -> Shaded {
         }
     }
 
+    // Section `brdf_samples` of render/estimator.rs (one sample at a time: the GPU's lanes are
+    // its pixels).
     for (var j = 0u; j < nb; j++) {
         res.stats.w += 1u;
         let u1 = rng_next_f32(&rng);
