@@ -1233,7 +1233,12 @@ fn bench_accuracy_quick_smoke() {
         "--out",
         dir.to_str().unwrap(),
     ]);
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success(), "{err}");
+    // stderr is not a terminal here: the progress comes as plain lines, the last at 100%, with
+    // the time left and the rate.
+    let last = err.lines().rfind(|l| l.contains(" left, ")).unwrap_or("");
+    assert!(last.contains("100%") && last.contains("points/s"), "{err}");
     let cfg = envis::bench::accuracy::Config::new(true, None).unwrap();
     let n = envis::bench::accuracy::point_count(&cfg);
     let csv = std::fs::read_to_string(dir.join("accuracy.csv")).unwrap();

@@ -284,7 +284,7 @@ impl Progress {
         let total = self.bar.length().unwrap_or(0) as usize;
         if !self.tty && (done.is_multiple_of((total / 20).max(1)) || done == total) {
             eprintln!(
-                "{done}/{total} {:3.0}%  {:.0} s, ~{:.0} s left, {:.1} points/s  {what}",
+                "{done}/{total} {:3.0}%  {:.1} s, ~{:.1} s left, {:.1} points/s  {what}",
                 100.0 * done as f64 / total.max(1) as f64,
                 self.bar.elapsed().as_secs_f64(),
                 self.bar.eta().as_secs_f64(),
