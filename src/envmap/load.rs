@@ -243,6 +243,11 @@ pub fn read_hdr_bytes(bytes: &[u8]) -> std::result::Result<Image, String> {
     // Rec.709 when the file declares other primaries.
     if exposure != 1.0 {
         let k = (1.0 / exposure) as f32;
+        if !(k.is_finite() && k > 0.0) {
+            return Err(format!(
+                "the EXPOSURE lines multiply to {exposure:e}, out of range"
+            ));
+        }
         img.data.iter_mut().for_each(|c| *c *= k);
     }
     if let Some(m) = primaries

@@ -3,6 +3,7 @@
 //! applied. A crafted file cannot make envis allocate or index beyond it: each accessor is checked
 //! against its buffer view and the binary chunk, and against the size caps below, before a byte
 //! is read (the crate trusts accessor counts and offsets, and would overflow or panic on some).
+//! The crate is in the tree already through Bevy, so no second glTF reader is built.
 
 use super::{TriMesh, err};
 use crate::error::Result;
@@ -24,35 +25,33 @@ pub fn load_glb(path: &Path) -> Result<TriMesh> {
     parse_glb(&bytes).map_err(|m| err(path, format!("not a usable binary glTF: {m}")))
 }
 
-/// [`load_glb`] on bytes in memory; the error says what is wrong.
+/// [`load_glb`] on bytes in memory; the error says what is wrong. A panic inside the `gltf`
+/// crate on some crafted input we do not foresee becomes this file's error, not the program's
+/// end (the checks below exist so that none is expected).
 pub fn parse_glb(bytes: &[u8]) -> std::result::Result<TriMesh, String> {
+    std::panic::catch_unwind(|| parse_checked(bytes))
+        .unwrap_or_else(|_| Err("the glTF reader failed on this file".into()))
+}
+
+fn parse_checked(bytes: &[u8]) -> std::result::Result<TriMesh, String> {
     check_header(bytes)?;
-    // The crate's validation indexes the POSITION accessor before checking that it exists (a
-    // panic on a crafted file): check that first, then validate. A panic the crate may still
-    // have on some other crafted input becomes this file's error, not the program's end.
-    let parsed = std::panic::catch_unwind(|| -> std::result::Result<_, String> {
-        let raw = gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| e.to_string())?;
-        check_position_indices(raw.document.as_json())?;
-        let blob = raw.blob;
-        let document =
-            gltf::Document::from_json(raw.document.into_json()).map_err(|e| e.to_string())?;
-        Ok((document, blob))
-    });
-    let (document, blob) =
-        parsed.map_err(|_| "the glTF reader failed on this file".to_string())??;
-    let blob = blob.as_deref().unwrap_or(&[]);
-    let doc = &document;
+    // The crate's validation indexes each primitive's POSITION accessor before checking that it
+    // exists: check that first, then validate.
+    let raw = gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| e.to_string())?;
+    check_position_indices(raw.document.as_json())?;
+    let blob = raw.blob.unwrap_or_default();
+    let doc = gltf::Document::from_json(raw.document.into_json()).map_err(|e| e.to_string())?;
     let mut mesh = TriMesh::default();
     match doc.default_scene().or_else(|| doc.scenes().next()) {
         Some(scene) => {
             for node in scene.nodes() {
-                add_node(&mut mesh, &node, Mat4::IDENTITY, blob, 0)?;
+                add_node(&mut mesh, &node, Mat4::IDENTITY, &blob, 0)?;
             }
         }
         // No scene: every mesh once, untransformed.
         None => {
             for m in doc.meshes() {
-                add_mesh(&mut mesh, &m, Mat4::IDENTITY, blob)?;
+                add_mesh(&mut mesh, &m, Mat4::IDENTITY, &blob)?;
             }
         }
     }
