@@ -1,6 +1,7 @@
 //! `envis bench --suite accuracy`: what accuracy costs in time (CPU backend).
 //!
-//! Sweep: strategies {paper-fractional, paper-integer, global (power MIS), light, brdf} x total
+//! Sweep: strategies {paper-fractional, paper-offset (a random per-pixel start into the pool),
+//! paper-integer, global (power MIS), light, brdf} x total
 //! sample budgets N = N_L + N_B (4..512; paper and global also at light fractions 1/4 and 3/4) x
 //! materials {diffuse, Phong 150, GGX 0.3, GGX 0.05} x environments (built-in sky at 8h, 12h, 17h,
 //! plus every .exr/.hdr in `--maps DIR`). Each point: relMSE and RMSE of the sphere against the
@@ -117,6 +118,13 @@ fn strategies(n: usize) -> Vec<(String, Settings)> {
     };
     let mut v = vec![
         ("paper-fractional".to_string(), half),
+        (
+            "paper-offset".to_string(),
+            Settings {
+                pixel_offset: true,
+                ..half
+            },
+        ),
         (
             "paper-integer".to_string(),
             Settings {
@@ -450,6 +458,7 @@ pub fn report(cfg: &Config, pts: &[Point], command: &str, gpu_device: Option<&st
     );
     let main = [
         "paper-fractional",
+        "paper-offset",
         "paper-integer",
         "global",
         "light",
@@ -480,24 +489,32 @@ pub fn report(cfg: &Config, pts: &[Point], command: &str, gpu_device: Option<&st
             }
         });
         let (mut wins, mut cases) = (0, 0);
+        // Issue 14's FLIP target: mean FLIP <= 0.8 x global's at N >= 16.
+        let (mut flip_shared, mut flip_offset, mut flip_cases) = (0, 0, 0);
         for env in &cfg.envs {
             for &n in &cfg.budgets {
                 let get = |s: &str| {
-                    pts.iter()
-                        .find(|p| {
-                            &p.env == env
-                                && &p.material == mname
-                                && p.strategy == s
-                                && p.budget == n
-                        })
-                        .map(|p| p.relmse)
+                    pts.iter().find(|p| {
+                        &p.env == env && &p.material == mname && p.strategy == s && p.budget == n
+                    })
                 };
-                if let (Some(a), Some(b)) = (get("paper-fractional"), get("global")) {
+                let (shared, offset, global) =
+                    (get("paper-fractional"), get("paper-offset"), get("global"));
+                if let (Some(a), Some(b)) = (shared, global) {
                     cases += 1;
-                    wins += (a < b) as usize;
+                    wins += (a.relmse < b.relmse) as usize;
+                }
+                if let (Some(a), Some(o), Some(g), true) = (shared, offset, global, n >= 16) {
+                    flip_cases += 1;
+                    flip_shared += (a.flip <= 0.8 * g.flip) as usize;
+                    flip_offset += (o.flip <= 0.8 * g.flip) as usize;
                 }
             }
         }
+        let _ = writeln!(
+            md,
+            "\nMean FLIP at most 0.8 x global's, N >= 16: paper-fractional (shared pool) in **{flip_shared} of {flip_cases}** cases, paper-offset in **{flip_offset} of {flip_cases}**."
+        );
         let wasted = |s: &str| {
             100.0
                 * mean(
@@ -565,8 +582,9 @@ pub fn csv(pts: &[Point]) -> String {
 
 pub use super::chart::{Chart, Series};
 
-const MAIN: [(&str, &str); 5] = [
+const MAIN: [(&str, &str); 6] = [
     ("paper-fractional", "#d62728"),
+    ("paper-offset", "#8c564b"),
     ("paper-integer", "#ff9896"),
     ("global", "#1f77b4"),
     ("light", "#2ca02c"),

@@ -11,6 +11,9 @@
 //!
 //! Suite `offset`: the effect of the per-pixel random start offset into the pool (`DIR/bench-offset.json`).
 //!
+//! Suite `flicker`: seed-to-seed movement of the image mean on a white furnace, per pool layout
+//! (see [`flicker`]).
+//!
 //! Suite `gpu`: per-pass GPU times next to their CPU twins (see [`gpu`]).
 //! Suite `scene`: per-frame cost of a static diffuse scene vs a dynamic glossy one (see [`gpu::scenes`]).
 //!
@@ -18,6 +21,7 @@
 
 pub mod accuracy;
 pub mod chart;
+pub mod flicker;
 pub mod flip;
 #[cfg(feature = "gpu")]
 pub mod gpu;
@@ -41,6 +45,8 @@ pub enum Suite {
     Offset,
     /// The accuracy-vs-time sweep (strategies x budgets x materials x maps).
     Accuracy,
+    /// Seed-to-seed flicker of the image mean on a white furnace, per pool layout.
+    Flicker,
     /// Temporal stability of integer vs fractional counts.
     Popping,
     /// GPU pass times of the WGSL stages and the Bevy pipeline (feature `gpu`).
@@ -90,7 +96,7 @@ pub struct BenchArgs {
     pub cpu_only: bool,
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
+pub(crate) fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(|a, b| a.partial_cmp(b).unwrap());
     v[v.len() / 2]
 }
@@ -108,6 +114,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         Suite::Speed => speed(a, dir),
         Suite::Offset => offset(a, dir),
         Suite::Accuracy => accuracy_suite(a, dir),
+        Suite::Flicker => flicker::run(a, &dir),
         Suite::Popping => popping(a, dir),
         #[cfg(feature = "gpu")]
         Suite::Gpu => gpu::run(a, dir),
