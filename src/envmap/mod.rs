@@ -8,6 +8,7 @@
 //!   texture orientation, so a GPU `textureSample(cube, dir)` and [`dir_to_face_uv`] agree.
 
 pub mod color;
+pub mod hdr;
 pub mod load;
 pub mod resample;
 pub mod sky;

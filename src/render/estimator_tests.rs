@@ -1,0 +1,110 @@
+//! Bit-identity of the estimator's specialised copies (the `Lambert` loops, the AVX2 + FMA
+//! copy) with the general path.
+
+use super::*;
+use crate::render::sphere_gbuffer;
+use crate::sampling::{Heuristic, Material};
+
+/// The `Lambert` specialisation of the hot loops gives the general `Material` path's values
+/// bit for bit, for every strategy and both heuristics.
+#[test]
+fn lambert_path_is_bit_identical() {
+    let map = crate::envmap::sky::sky_cube(16, 10.0);
+    let w = 24;
+    let mut gbuf = sphere_gbuffer(w, w, Material::diffuse(0.7));
+    for (i, px) in gbuf.iter_mut().flatten().enumerate() {
+        px.material.kd = Vec3::new(0.2 + 0.01 * (i % 50) as f32, 0.5, 0.9);
+    }
+    for strategy in [
+        Strategy::Paper,
+        Strategy::Global,
+        Strategy::Light,
+        Strategy::Brdf,
+    ] {
+        for mis in [Heuristic::Balance, Heuristic::Power] {
+            let s = Settings {
+                strategy,
+                mis,
+                light_samples: 7,
+                brdf_samples: 5,
+                seed: 11,
+                pixel_offset: true,
+                ..Default::default()
+            };
+            let fd = FrameData::prepare(&map, &s);
+            let mut lit = 0;
+            for (i, px) in gbuf.iter().enumerate() {
+                let Some(px) = px else { continue };
+                let (n, o) = (px.n.normalize(), px.o.normalize());
+                let lambert = px.material.as_lambert().unwrap();
+                let (a, sa) = shade_with(&fd, &s, &px.material, &lambert, n, o, i as u32);
+                let (b, sb) = shade_with(&fd, &s, &px.material, &px.material, n, o, i as u32);
+                assert_eq!(
+                    a.to_array().map(f32::to_bits),
+                    b.to_array().map(f32::to_bits),
+                    "{strategy:?} {mis:?} pixel {i}"
+                );
+                assert_eq!(
+                    (sa.green, sa.yellow, sa.brdf),
+                    (sb.green, sb.yellow, sb.brdf)
+                );
+                lit += (a.max_element() > 0.0) as usize;
+            }
+            assert!(lit > 100, "{strategy:?}: only {lit} lit pixels");
+        }
+    }
+}
+
+/// The dispatching `shade_pixel` (the AVX2 + FMA copy on CPUs that have them) and the
+/// baseline copy agree bit for bit on every material kind.
+#[test]
+fn simd_copy_is_bit_identical() {
+    // Calls both copies directly, whatever `ENVIS_PORTABLE` says (which only steers
+    // `shade_pixel`'s choice). A CPU without AVX2 + FMA cannot run the SIMD copy at all.
+    #[cfg(target_arch = "x86_64")]
+    let has_simd =
+        std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma");
+    #[cfg(not(target_arch = "x86_64"))]
+    let has_simd = false;
+    if !has_simd {
+        eprintln!("simd_copy_is_bit_identical: no AVX2 + FMA on this CPU; nothing to compare");
+        return;
+    }
+    let map = crate::envmap::sky::sky_cube(16, 10.0);
+    for mat in [
+        Material::diffuse(0.8),
+        Material::phong(0.9, 150.0),
+        Material::ggx(0.9, 0.3),
+        Material {
+            kd: Vec3::splat(0.4),
+            ks: Vec3::splat(0.5),
+            lobe: crate::sampling::Lobe::Ggx { alpha: 0.1 },
+        },
+    ] {
+        let gbuf = sphere_gbuffer(20, 20, mat);
+        for strategy in [Strategy::Paper, Strategy::Global] {
+            let s = Settings {
+                strategy,
+                light_samples: 9,
+                brdf_samples: 19,
+                seed: 4,
+                ..Default::default()
+            };
+            let fd = FrameData::prepare(&map, &s);
+            for (i, px) in gbuf.iter().enumerate() {
+                let Some(px) = px else { continue };
+                // SAFETY: the CPU has AVX2 + FMA (checked above).
+                #[cfg(target_arch = "x86_64")]
+                let (a, _) = unsafe { simd::shade_pixel_avx2(&fd, &s, px, i as u32) };
+                #[cfg(not(target_arch = "x86_64"))]
+                let (a, _) = shade_pixel(&fd, &s, px, i as u32);
+                let (b, _) = shade_pixel_portable(&fd, &s, px, i as u32);
+                assert_eq!(
+                    a.to_array().map(f32::to_bits),
+                    b.to_array().map(f32::to_bits),
+                    "{mat:?} {strategy:?} pixel {i}"
+                );
+            }
+        }
+    }
+}
