@@ -19,6 +19,7 @@ pub mod sampling;
 pub mod scene;
 pub mod stats;
 pub mod stream;
+pub mod visibility;
 mod vocab;
 
 pub use error::{Error, Result};

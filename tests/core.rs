@@ -1852,6 +1852,51 @@ fn material_budget_skips_work_and_stays_unbiased() {
     test.assert();
 }
 
+/// The mesh BVH (obvhs) finds what the brute-force loop over every triangle finds: for 20,000
+/// random rays at the bunny and the torus, the same hit or miss and the same distance; the
+/// normal too, except where a ray meets two triangles at the same distance (an edge), where
+/// either triangle is right: those are counted and must be rare.
+#[test]
+fn mesh_bvh_matches_brute_force() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let bunny = envis::scene::load_glb(&root.join("assets/models/bunny_plain.glb")).unwrap();
+    let torus = envis::scene::torus_mesh(1.0, 0.3, 48, 24);
+    let mut r = Rng::new(13, 17);
+    for (name, mesh) in [("bunny", &bunny), ("torus", &torus)] {
+        let (lo, hi) = mesh.positions.iter().fold(
+            (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
+            |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+        );
+        let (centre, radius) = (0.5 * (lo + hi), 0.5 * (hi - lo).length());
+        let (mut hits, mut edge) = (0, 0);
+        let n = 10_000;
+        for _ in 0..n {
+            // From a sphere around the mesh towards a point inside its box.
+            let o = centre + random_dir(&mut r) * 2.0 * radius;
+            let target = lo + (hi - lo) * Vec3::new(r.next_f32(), r.next_f32(), r.next_f32());
+            let d = (target - o).normalize();
+            let (a, b) = (
+                mesh.intersect(o, d, f32::MAX),
+                mesh.intersect_brute(o, d, f32::MAX),
+            );
+            match (a, b) {
+                (None, None) => {}
+                (Some((ta, na)), Some((tb, nb))) => {
+                    hits += 1;
+                    assert_eq!(ta, tb, "{name}: ray {o} {d}");
+                    edge += (na != nb) as u32;
+                }
+                _ => panic!("{name}: BVH {a:?} vs brute force {b:?} for ray {o} {d}"),
+            }
+        }
+        assert!(hits > n / 4, "{name}: only {hits} of {n} rays hit");
+        assert!(
+            edge * 1000 <= n,
+            "{name}: {edge} of {n} rays differ in the normal"
+        );
+    }
+}
+
 /// Scene files: the shipped examples load and render; errors name the file, the line and the
 /// field; a broken glTF names the file.
 #[test]

@@ -202,6 +202,9 @@ pub struct TriMesh {
     pub positions: Vec<Vec3>,
     pub normals: Vec<Vec3>,
     pub indices: Vec<[u32; 3]>,
+    /// Built on the first ray cast (the mesh is complete and placed by then); a change to the
+    /// mesh after that must go through a method that clears it, like [`TriMesh::transformed`].
+    bvh: std::sync::OnceLock<crate::visibility::MeshBvh>,
 }
 
 /// A loaded scene.
@@ -489,6 +492,7 @@ impl Shape {
 
 impl TriMesh {
     fn transformed(mut self, rot: Quat, pos: Vec3, scale: f32) -> Self {
+        self.bvh = std::sync::OnceLock::new();
         for p in &mut self.positions {
             *p = rot * (*p * scale) + pos;
         }
@@ -498,45 +502,46 @@ impl TriMesh {
         self
     }
 
-    /// Möller-Trumbore over all triangles (after a bounding-sphere test); interpolated normal.
+    /// The closest hit with `1e-4 < t < t_max` and its interpolated normal, through the mesh's
+    /// BVH (built on first use).
     pub fn intersect(&self, o: Vec3, d: Vec3, t_max: f32) -> Option<(f32, Vec3)> {
+        let bvh = self
+            .bvh
+            .get_or_init(|| crate::visibility::MeshBvh::build(&self.positions, &self.indices));
+        let h = bvh.intersect(&self.positions, &self.indices, o, d, 1e-4, t_max)?;
+        Some((h.t, self.normal_at(h.triangle, h.u, h.v)))
+    }
+
+    /// [`Self::intersect`] by testing every triangle in order (after a bounding-sphere test):
+    /// the reference the BVH is tested against.
+    pub fn intersect_brute(&self, o: Vec3, d: Vec3, t_max: f32) -> Option<(f32, Vec3)> {
         let (c, r) = self.bounds();
         let oc = o - c;
         let b = oc.dot(d);
         if b * b - (oc.length_squared() - r * r) < 0.0 {
             return None;
         }
-        let mut best = t_max;
-        let mut hit = None;
-        for tri in &self.indices {
+        let mut best: Option<(f32, usize, f32, f32)> = None;
+        for (i, tri) in self.indices.iter().enumerate() {
             let [a, bb, cc] = tri.map(|i| self.positions[i as usize]);
-            let (e1, e2) = (bb - a, cc - a);
-            let p = d.cross(e2);
-            let det = e1.dot(p);
-            if det.abs() < 1e-12 {
-                continue;
-            }
-            let inv = 1.0 / det;
-            let s = o - a;
-            let u = s.dot(p) * inv;
-            if !(0.0..=1.0).contains(&u) {
-                continue;
-            }
-            let q = s.cross(e1);
-            let v = d.dot(q) * inv;
-            if v < 0.0 || u + v > 1.0 {
-                continue;
-            }
-            let t = e2.dot(q) * inv;
-            if t > 1e-4 && t < best {
-                best = t;
-                let [na, nb, nc] = tri.map(|i| self.normals[i as usize]);
-                let n = (na * (1.0 - u - v) + nb * u + nc * v)
-                    .normalize_or(e1.cross(e2).normalize_or_zero());
-                hit = Some((t, n));
+            if let Some((t, u, v)) = crate::visibility::ray_triangle(o, d, a, bb, cc)
+                && t > 1e-4
+                && t < best.map_or(t_max, |b| b.0)
+            {
+                best = Some((t, i, u, v));
             }
         }
-        hit
+        best.map(|(t, i, u, v)| (t, self.normal_at(i, u, v)))
+    }
+
+    /// The interpolated normal of triangle `i` at barycentrics `(u, v)` (the face normal where
+    /// the vertex normals cancel).
+    fn normal_at(&self, i: usize, u: f32, v: f32) -> Vec3 {
+        let tri = self.indices[i];
+        let [a, b, c] = tri.map(|k| self.positions[k as usize]);
+        let [na, nb, nc] = tri.map(|k| self.normals[k as usize]);
+        (na * (1.0 - u - v) + nb * u + nc * v)
+            .normalize_or((b - a).cross(c - a).normalize_or_zero())
     }
 
     fn bounds(&self) -> (Vec3, f32) {

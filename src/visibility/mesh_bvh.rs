@@ -1,0 +1,112 @@
+//! A BVH over one triangle mesh (`obvhs`' BVH2: PLOC build with SAH reinsertion), traversed
+//! with envis's own ray–triangle test, so a ray finds exactly the hit the brute-force loop over
+//! every triangle finds.
+
+use glam::Vec3;
+use glam_obvhs::Vec3A as OVec3A;
+use obvhs::bvh2::Bvh2;
+use obvhs::ray::{Ray, RayHit};
+use obvhs::triangle::Triangle;
+
+/// The closest hit of a ray: distance, triangle index and barycentrics `(u, v)` of vertices 1, 2.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TriangleHit {
+    pub t: f32,
+    pub triangle: usize,
+    pub u: f32,
+    pub v: f32,
+}
+
+/// The BVH of one mesh (its triangles as given: positions `p`, index triples `tris`).
+#[derive(Clone)]
+pub struct MeshBvh {
+    bvh: Bvh2,
+}
+
+impl std::fmt::Debug for MeshBvh {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "MeshBvh({} nodes)", self.bvh.nodes.len())
+    }
+}
+
+fn ovec(v: Vec3) -> OVec3A {
+    OVec3A::from_array(v.to_array())
+}
+
+impl MeshBvh {
+    /// Build over the triangles `tris` of vertices `p` (indices must be in range).
+    pub fn build(p: &[Vec3], tris: &[[u32; 3]]) -> Self {
+        let triangles: Vec<Triangle> = tris
+            .iter()
+            .map(|t| {
+                let [v0, v1, v2] = t.map(|i| ovec(p[i as usize]));
+                Triangle { v0, v1, v2 }
+            })
+            .collect();
+        let mut core_time = std::time::Duration::ZERO;
+        let bvh = obvhs::bvh2::builder::build_bvh2_from_tris(
+            &triangles,
+            obvhs::BvhBuildParams::medium_build(),
+            &mut core_time,
+        );
+        MeshBvh { bvh }
+    }
+
+    /// The closest hit with `t` in `(t_min, t_max)` of the ray `o + t d`.
+    pub fn intersect(
+        &self,
+        p: &[Vec3],
+        tris: &[[u32; 3]],
+        o: Vec3,
+        d: Vec3,
+        t_min: f32,
+        t_max: f32,
+    ) -> Option<TriangleHit> {
+        if tris.is_empty() {
+            return None;
+        }
+        let ray = Ray::new(ovec(o), ovec(d), t_min, t_max);
+        let mut hit = RayHit::none();
+        let mut best = None;
+        self.bvh.ray_traverse(ray, &mut hit, |ray, slot| {
+            let i = self.bvh.primitive_indices[slot] as usize;
+            let [a, b, c] = tris[i].map(|k| p[k as usize]);
+            match ray_triangle(o, d, a, b, c) {
+                Some((t, u, v)) if t > t_min && t < ray.tmax => {
+                    best = Some(TriangleHit {
+                        t,
+                        triangle: i,
+                        u,
+                        v,
+                    });
+                    t
+                }
+                _ => f32::INFINITY,
+            }
+        });
+        best
+    }
+}
+
+/// Möller–Trumbore: `(t, u, v)` where the ray meets triangle `(a, b, c)`, any `t`.
+#[inline]
+pub fn ray_triangle(o: Vec3, d: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Option<(f32, f32, f32)> {
+    let (e1, e2) = (b - a, c - a);
+    let p = d.cross(e2);
+    let det = e1.dot(p);
+    if det.abs() < 1e-12 {
+        return None;
+    }
+    let inv = 1.0 / det;
+    let s = o - a;
+    let u = s.dot(p) * inv;
+    if !(0.0..=1.0).contains(&u) {
+        return None;
+    }
+    let q = s.cross(e1);
+    let v = d.dot(q) * inv;
+    if v < 0.0 || u + v > 1.0 {
+        return None;
+    }
+    Some((e2.dot(q) * inv, u, v))
+}
