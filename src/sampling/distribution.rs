@@ -219,11 +219,16 @@ pub fn texel_weights(map: &CubeMap) -> Vec<f32> {
     use rayon::prelude::*;
     let n = map.size;
     let omega = face_solid_angles(n);
-    map.data
-        .par_iter()
-        .enumerate()
-        .map(|(i, &c)| luminance(c).max(0.0) * omega[i % (n * n)])
-        .collect()
+    // Face by face, zipped with the face's solid angles: no division or modulo per texel.
+    let mut w = vec![0.0f32; map.data.len()];
+    w.par_chunks_mut(n * n)
+        .zip(map.data.par_chunks(n * n))
+        .for_each(|(wf, face)| {
+            for ((o, &c), &om) in wf.iter_mut().zip(face).zip(omega.iter()) {
+                *o = luminance(c).max(0.0) * om;
+            }
+        });
+    w
 }
 
 impl CubeDistribution {
