@@ -151,6 +151,52 @@ impl Overlay {
             Overlay::CountsDifference => "fractional - integer",
         }
     }
+
+    /// What the overlay's colour scale means: the value at the red end (blue is 0), its unit, and
+    /// what is measured. `budget` is the pixel's `N_L + N_B`. `None` for no overlay.
+    pub fn legend(self, budget: usize) -> Option<OverlayLegend> {
+        let (full_scale, unit, measures) = match self {
+            Overlay::None => return None,
+            Overlay::EffectiveSamples => (
+                budget.max(1) as f32,
+                "samples",
+                "samples each pixel evaluated (used light + BRDF samples; red = the full budget)",
+            ),
+            Overlay::Wasted => (
+                100.0,
+                "%",
+                "share of the used light samples below the horizon (the seed's yellow)",
+            ),
+            // The shader draws heat(4 d): red at a 25% relative difference.
+            Overlay::CountsDifference => (
+                25.0,
+                "%",
+                "|fractional - integer| / |fractional|: where integer counts pop",
+            ),
+        };
+        Some(OverlayLegend {
+            full_scale,
+            unit,
+            measures,
+        })
+    }
+}
+
+/// The colour scale of an overlay (see [`Overlay::legend`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OverlayLegend {
+    /// The value drawn red; 0 is drawn blue, and the scale is linear between.
+    pub full_scale: f32,
+    pub unit: &'static str,
+    pub measures: &'static str,
+}
+
+/// The overlays' colour ramp for `t` in `[0, 1]`: blue, cyan, green, yellow, red (linear RGB).
+/// Twin of `heat` in `shaders/lighting.wgsl`.
+pub fn heat(t: f32) -> Vec3 {
+    let x = t.clamp(0.0, 1.0) * 4.0;
+    let g = if x > 2.0 { 4.0 - x } else { x };
+    Vec3::new(x - 2.0, g, 2.0 - x).clamp(Vec3::ZERO, Vec3::ONE)
 }
 
 /// What the lighting pass read back for the probed pixel.
@@ -208,5 +254,38 @@ impl Plugin for EnvisPlugins {
             EnvMapSamplingPlugin,
             MisLightingPlugin,
         ));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The ramp's stops, as the WGSL computes them.
+    #[test]
+    fn heat_ramp_stops() {
+        let stops = [
+            (0.0, Vec3::new(0.0, 0.0, 1.0)),
+            (0.25, Vec3::new(0.0, 1.0, 1.0)),
+            (0.5, Vec3::new(0.0, 1.0, 0.0)),
+            (0.75, Vec3::new(1.0, 1.0, 0.0)),
+            (1.0, Vec3::new(1.0, 0.0, 0.0)),
+        ];
+        for (t, c) in stops {
+            assert_eq!(heat(t), c, "t = {t}");
+        }
+        assert_eq!(heat(-1.0), heat(0.0));
+        assert_eq!(heat(7.0), heat(1.0));
+    }
+
+    #[test]
+    fn every_overlay_but_none_has_a_legend() {
+        for o in Overlay::ALL {
+            assert_eq!(o.legend(64).is_some(), o != Overlay::None, "{o:?}");
+        }
+        assert_eq!(
+            Overlay::EffectiveSamples.legend(64).unwrap().full_scale,
+            64.0
+        );
     }
 }

@@ -92,11 +92,56 @@ pub(super) fn panel(
             }
         });
     });
+    let budget = settings.sampling.light_samples + settings.sampling.brdf_samples;
+    if let Some(legend) = settings.overlay.legend(budget) {
+        egui::Window::new(format!("overlay: {}", settings.overlay.name()))
+            .anchor(egui::Align2::CENTER_BOTTOM, [0.0, -8.0])
+            .resizable(false)
+            .show(&ctx, |ui| legend_ui(ui, &legend));
+    }
     egui::Window::new("sample debug (right-click a pixel, D)")
         .anchor(egui::Align2::LEFT_BOTTOM, [8.0, -8.0])
         .default_width(330.0)
         .show(&ctx, |ui| debug_ui(ui, &mut settings, &mut state));
     Ok(())
+}
+
+/// The overlay's colour bar with five labelled ticks and what it measures.
+fn legend_ui(ui: &mut egui::Ui, legend: &crate::app::OverlayLegend) {
+    const W: f32 = 320.0;
+    const STEPS: usize = 64;
+    let (rect, _) = ui.allocate_exact_size(egui::vec2(W, 16.0), egui::Sense::hover());
+    let painter = ui.painter_at(rect);
+    for k in 0..STEPS {
+        let c = crate::app::heat((k as f32 + 0.5) / STEPS as f32);
+        let x0 = rect.left() + W * k as f32 / STEPS as f32;
+        let cell = egui::Rect::from_min_max(
+            egui::pos2(x0, rect.top()),
+            egui::pos2(x0 + W / STEPS as f32 + 0.5, rect.bottom()),
+        );
+        let rgb = c.to_array().map(|v| (v * 255.0).round() as u8);
+        painter.rect_filled(cell, 0.0, egui::Color32::from_rgb(rgb[0], rgb[1], rgb[2]));
+    }
+    // Tick labels under the bar, each at its value's position.
+    let (ticks, _) = ui.allocate_exact_size(egui::vec2(W, 14.0), egui::Sense::hover());
+    let font = egui::FontId::proportional(12.0);
+    for k in 0..5 {
+        let v = legend.full_scale * k as f32 / 4.0;
+        let text = if legend.unit == "%" {
+            format!("{v:.0}%")
+        } else {
+            format!("{v:.0}")
+        };
+        let align = match k {
+            0 => egui::Align2::LEFT_TOP,
+            4 => egui::Align2::RIGHT_TOP,
+            _ => egui::Align2::CENTER_TOP,
+        };
+        let pos = egui::pos2(ticks.left() + W * k as f32 / 4.0, ticks.top());
+        let color = ui.visuals().text_color();
+        ui.painter().text(pos, align, text, font.clone(), color);
+    }
+    ui.label(format!("{} ({})", legend.measures, legend.unit));
 }
 
 fn environment_ui(
