@@ -127,11 +127,10 @@ fn legend_ui(ui: &mut egui::Ui, legend: &crate::app::OverlayLegend) {
     let font = egui::FontId::proportional(12.0);
     for k in 0..5 {
         let v = legend.full_scale * k as f32 / 4.0;
-        let text = if legend.unit == "%" {
-            format!("{v:.0}%")
-        } else {
-            format!("{v:.0}")
-        };
+        // Whole numbers as such, others to one decimal (6.3%, not 6%).
+        let digits = if v.fract() == 0.0 { 0 } else { 1 };
+        let unit = if legend.unit == "%" { "%" } else { "" };
+        let text = format!("{v:.digits$}{unit}");
         let align = match k {
             0 => egui::Align2::LEFT_TOP,
             4 => egui::Align2::RIGHT_TOP,
