@@ -72,6 +72,29 @@ pub fn bevy_mesh(m: &crate::scene::TriMesh) -> Mesh {
     .with_inserted_indices(Indices::U32(m.indices.iter().flatten().copied().collect()))
 }
 
+/// Spawn one object: its mesh, the `StandardMaterial` its envis material is written through, and
+/// the [`SceneObject`] that lets the panel edit it.
+pub fn spawn_object(
+    commands: &mut Commands,
+    materials: &mut Assets<StandardMaterial>,
+    name: &str,
+    mesh: Handle<Mesh>,
+    material: EnvisMaterial,
+    transform: Transform,
+) {
+    let handle = materials.add(material.standard());
+    commands.spawn((
+        Mesh3d(mesh),
+        MeshMaterial3d(handle.clone()),
+        transform,
+        SceneObject {
+            name: name.into(),
+            material,
+            handle,
+        },
+    ));
+}
+
 /// Spawn every object of `sc` (spheres and planes as Bevy primitives, tori and glTF meshes as the
 /// same world-space triangles the CPU ray caster uses) and return its camera.
 pub fn spawn_scene_objects(
@@ -102,17 +125,7 @@ pub fn spawn_scene_objects(
             }
             Shape::Mesh(m) => (meshes.add(bevy_mesh(m)), Transform::IDENTITY),
         };
-        let handle = materials.add(material.standard());
-        commands.spawn((
-            Mesh3d(mesh),
-            MeshMaterial3d(handle.clone()),
-            transform,
-            SceneObject {
-                name: o.name.clone(),
-                material,
-                handle,
-            },
-        ));
+        spawn_object(commands, materials, &o.name, mesh, material, transform);
     }
     let c = &sc.file.camera;
     SceneCamera {

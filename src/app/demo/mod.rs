@@ -8,7 +8,7 @@ mod debug_view;
 mod script;
 mod ui;
 
-use super::scene_objects::{SceneObject, spawn_scene_objects};
+use super::scene_objects::{SceneObject, spawn_object, spawn_scene_objects};
 use super::{
     EnvFrame, EnvMapSamplingPlugin, EnvMapStream, EnvMapStreamPlugin, EnvisCamera, EnvisCounters,
     EnvisMaterial, EnvisProbe, EnvisSettings, EnvisTimings, MisLightingPlugin, Overlay,
@@ -148,20 +148,6 @@ fn setup_scene(
     assets: Res<AssetServer>,
     scene: Option<Res<SceneResource>>,
 ) {
-    let mut spawn =
-        |name: &str, mesh: Handle<Mesh>, material: EnvisMaterial, transform: Transform| {
-            let handle = materials.add(material.standard());
-            commands.spawn((
-                Mesh3d(mesh),
-                MeshMaterial3d(handle.clone()),
-                transform,
-                SceneObject {
-                    name: name.into(),
-                    material,
-                    handle,
-                },
-            ));
-        };
     if let Some(sc) = scene {
         let cam = spawn_scene_objects(&mut commands, &mut meshes, &mut materials, &sc.0);
         let d = cam.eye - cam.target;
@@ -186,6 +172,16 @@ fn setup_scene(
         ));
         return;
     }
+    let mut spawn = |name: &str, mesh, material, transform| {
+        spawn_object(
+            &mut commands,
+            &mut materials,
+            name,
+            mesh,
+            material,
+            transform,
+        );
+    };
     spawn(
         "sphere",
         meshes.add(Sphere::new(1.0).mesh().ico(6).expect("icosphere")),
