@@ -1516,15 +1516,7 @@ fn app_feature_pulls_no_window_system_or_egui() {
     let tree = |features: &[&str]| {
         let out = std::process::Command::new(&cargo)
             .current_dir(env!("CARGO_MANIFEST_DIR"))
-            .args([
-                "tree",
-                "--offline",
-                "--locked",
-                "-e",
-                "normal",
-                "--prefix",
-                "none",
-            ])
+            .args(["tree", "--locked", "-e", "normal", "--prefix", "none"])
             .args(["--format", "{p}", "--no-default-features", "--features"])
             .arg(features.join(","))
             .output()
