@@ -45,18 +45,10 @@ pub fn debug_pixel(fd: &FrameData, s: &Settings, px: &GPixel, pixel_index: u32) 
     let (nl, _) = s.budget(&px.material);
     let fw = face_weights(n, &fd.energies, s.strategy != Strategy::Light);
     let mut rng = Rng::new(s.seed, pixel_index);
-    let offset = if s.pixel_offset && m > 0 {
-        rng.next_u32() as usize % m
-    } else {
-        0
-    };
+    let offset = super::estimator::pool_offset(&mut rng, s, m);
     let mut samples = Vec::with_capacity(6 * m);
-    let o = px.o.normalize_or_zero();
     let live = matches!(s.strategy, Strategy::Paper | Strategy::Light)
-        && n != Vec3::ZERO
-        && o != Vec3::ZERO
-        && n.dot(o) > 0.0
-        && !px.material.is_black();
+        && super::estimator::shading_directions(px).is_some();
     for f in 0..6 {
         let c = face_count(fw.mu[f] * nl as f32, m, s.counts);
         for j in 0..m {

@@ -107,11 +107,9 @@ fn shade_pixel_portable(
     px: &GPixel,
     pixel_index: u32,
 ) -> (Vec3, PixelStats) {
-    let n = px.n.normalize_or_zero();
-    let o = px.o.normalize_or_zero();
-    if n == Vec3::ZERO || o == Vec3::ZERO || n.dot(o) <= 0.0 || px.material.is_black() {
+    let Some((n, o)) = shading_directions(px) else {
         return (Vec3::ZERO, PixelStats::default());
-    }
+    };
     // A diffuse-only pixel runs the same code compiled for `Lambert` (no lobe dispatch per
     // sample); the results are bit-identical to the general `Material` path.
     match px.material.as_lambert() {
@@ -223,11 +221,7 @@ fn light_pool_samples<B: LocalBsdf>(
     let m = fd.pool.per_face;
     st.available = (6 * m) as u32;
     let fw = face_weights(px.n, &fd.energies, s.strategy == Strategy::Paper);
-    let offset = if s.pixel_offset && m > 0 {
-        rng.next_u32() as usize % m
-    } else {
-        0
-    };
+    let offset = pool_offset(rng, s, m);
     for (f, dens) in density.iter_mut().enumerate() {
         let c = face_count(fw.mu[f] * px.nl as f32, m, s.counts);
         *dens = c.density;
@@ -247,6 +241,27 @@ fn light_pool_samples<B: LocalBsdf>(
         }
     }
     density
+}
+
+/// The unit normal and view of a pixel that reflects anything (both non-zero, the view in front
+/// of the surface, a material that is not black); `None` for a pixel whose estimate is 0.
+#[inline(always)]
+pub(crate) fn shading_directions(px: &GPixel) -> Option<(Vec3, Vec3)> {
+    let n = px.n.normalize_or_zero();
+    let o = px.o.normalize_or_zero();
+    let visible = n != Vec3::ZERO && o != Vec3::ZERO && n.dot(o) > 0.0;
+    (visible && !px.material.is_black()).then_some((n, o))
+}
+
+/// Where a pixel starts in each face's part of the pool (`m` slots): a random slot, drawn as the
+/// pixel's first random number, with `pixel_offset`; slot 0 otherwise.
+#[inline(always)]
+pub(crate) fn pool_offset(rng: &mut Rng, s: &Settings, m: usize) -> usize {
+    if s.pixel_offset && m > 0 {
+        rng.next_u32() as usize % m
+    } else {
+        0
+    }
 }
 
 /// The pbrt-style baseline's light samples: N_L draws from one lat-long distribution.
