@@ -1265,8 +1265,7 @@ fn bench_accuracy_quick_smoke() {
             }
         }
     }
-    let js: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(dir.join("accuracy.json")).unwrap()).unwrap();
+    let js: serde_json::Value = support::read_json(&dir.join("accuracy.json"));
     assert_eq!(js["points"].as_array().unwrap().len(), n);
     let md = std::fs::read_to_string(dir.join("accuracy-vs-time.md")).unwrap();
     assert!(
@@ -1350,8 +1349,7 @@ fn bench_accuracy_resumes() {
         !dir.join("accuracy.partial.jsonl").exists(),
         "journal left behind"
     );
-    let js: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(dir.join("accuracy.json")).unwrap()).unwrap();
+    let js: serde_json::Value = support::read_json(&dir.join("accuracy.json"));
     let mut pts: Vec<serde_json::Value> = js["points"].as_array().unwrap().clone();
     let n = pts.len();
     // Journal of an interrupted run: 10 finished points (the first marked) and a torn line.
@@ -1427,8 +1425,7 @@ fn bench_popping_quick_smoke() {
         dir.to_str().unwrap(),
     ]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    let js: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(dir.join("popping.json")).unwrap()).unwrap();
+    let js: serde_json::Value = support::read_json(&dir.join("popping.json"));
     let rows = js["rows"].as_array().unwrap();
     assert_eq!(rows.len(), 2);
     for row in rows {
@@ -1492,8 +1489,7 @@ fn bench_flicker_smoke() {
         dir.to_str().unwrap(),
     ]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    let js: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(dir.join("bench-flicker.json")).unwrap()).unwrap();
+    let js: serde_json::Value = support::read_json(&dir.join("bench-flicker.json"));
     let rows = js["rows"].as_array().unwrap();
     assert_eq!(rows.len(), 5);
     let sd = |i: usize| rows[i]["image_mean_rel_sd"].as_f64().unwrap();
@@ -1630,7 +1626,7 @@ fn cli_contract() {
     assert_eq!((img.width, img.height), (24, 24));
     assert_eq!(img.get(0, 0), Vec3::ZERO, "corner pixel is off the sphere");
     assert!(img.get(12, 12).max_element() > 0.0);
-    let js: serde_json::Value = serde_json::from_slice(&std::fs::read(&stats).unwrap()).unwrap();
+    let js: serde_json::Value = support::read_json(&stats);
     for key in [
         "build_ms",
         "shade_ms",
@@ -1929,8 +1925,7 @@ fn scene_files_load_render_and_report_errors() {
         t.join("s.json").to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let j: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(t.join("s.json")).unwrap()).unwrap();
+    let j: serde_json::Value = support::read_json(&t.join("s.json"));
     assert_eq!(
         j["brdf_samples_drawn"], 0,
         "diffuse scene with material_budget drew BRDF samples: {j}"

@@ -591,8 +591,7 @@ fn cli_gpu_backends() {
             "--backend {b}: {}",
             String::from_utf8_lossy(&o.stderr)
         );
-        let j: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+        let j: serde_json::Value = support::read_json(&stats);
         assert_eq!(j["backend"], *b, "{j}");
         means.push(read_exr_mean(&out));
     }

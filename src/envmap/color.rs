@@ -45,8 +45,7 @@ impl Primaries {
     /// RGB -> XYZ for these primaries (white maps to Y = 1); `None` when degenerate (a primary
     /// with y = 0, collinear primaries, non-finite numbers).
     pub fn rgb_to_xyz(&self) -> Option<DMat3> {
-        let xyz =
-            |c: DVec2| (c.y != 0.0).then(|| DVec3::new(c.x / c.y, 1.0, (1.0 - c.x - c.y) / c.y));
+        let xyz = |c: DVec2| (c.y != 0.0).then(|| xy_to_xyz(c));
         let m = DMat3::from_cols(xyz(self.red)?, xyz(self.green)?, xyz(self.blue)?);
         let det = m.determinant();
         if !det.is_finite() || det.abs() < 1e-9 {
@@ -57,6 +56,11 @@ impl Primaries {
     }
 }
 
+/// The XYZ of chromaticity `c` at luminance Y = 1 (non-finite when `c.y` is 0).
+fn xy_to_xyz(c: DVec2) -> DVec3 {
+    DVec3::new(c.x / c.y, 1.0, (1.0 - c.x - c.y) / c.y)
+}
+
 /// Bradford chromatic adaptation (XYZ -> XYZ) from white `from` to white `to` (CIE xy).
 pub fn bradford(from: DVec2, to: DVec2) -> DMat3 {
     // Rows of the Bradford cone-response matrix, as columns of the transpose.
@@ -65,8 +69,7 @@ pub fn bradford(from: DVec2, to: DVec2) -> DMat3 {
         0.2664, 1.7135, -0.0685, //
         -0.1614, 0.0367, 1.0296,
     ]);
-    let xyz = |c: DVec2| DVec3::new(c.x / c.y, 1.0, (1.0 - c.x - c.y) / c.y);
-    let (s, d) = (mb * xyz(from), mb * xyz(to));
+    let (s, d) = (mb * xy_to_xyz(from), mb * xy_to_xyz(to));
     mb.inverse() * DMat3::from_diagonal(d / s) * mb
 }
 

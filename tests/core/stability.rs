@@ -23,11 +23,6 @@ fn shade_seeds(map: &CubeMap, px: &GPixel, s: Settings, k: u32) -> Vec<f64> {
         .collect()
 }
 
-/// The mean of per-seed values against the reference, as one check of an [`UnbiasedTest`].
-fn check(label: impl Into<String>, xs: &[f64], reference: f64) -> MeanCheck {
-    MeanCheck::from_values(label, xs, reference)
-}
-
 /// Directional albedo `int f cos` of `m` seen from `o`, by BRDF sampling: mean and standard
 /// error over `k` samples. In the shading frame, as the renderer evaluates BRDF samples: a round
 /// trip through world space moves a direction by ~1e-7, which a Phong lobe of exponent 1e5 turns
@@ -121,7 +116,7 @@ fn hard_single_bright_texel_centre_edge_corner() {
                 },
             ),
         ] {
-            test.push(check(
+            test.push(MeanCheck::from_values(
                 format!("{label} {name}"),
                 &shade_seeds(&map, &px, s, 64),
                 reference,
@@ -165,7 +160,7 @@ fn hard_dynamic_range_1e_minus6_to_1e6() {
         material: Material::ggx(0.8, 0.3),
     };
     let reference = luminance_f64(reference_pixel(&map, &px, 1.0));
-    test.push(check(
+    test.push(MeanCheck::from_values(
         "dynamic range",
         &shade_seeds(
             &map,
@@ -320,7 +315,11 @@ fn hard_normals_axes_diagonals_corners_grazing_backfacing_nonunit() {
                 },
                 96,
             );
-            test.push(check(format!("normal {k} {n} {mat:?}"), &xs, reference));
+            test.push(MeanCheck::from_values(
+                format!("normal {k} {n} {mat:?}"),
+                &xs,
+                reference,
+            ));
             // Non-unit normals and views give the same estimate as unit ones.
             let scaled = GPixel {
                 n: n * 7.0,
@@ -442,7 +441,7 @@ fn hard_brdf_parameter_extremes() {
             albedo <= 1.0 + 3.0 * albedo_se + 1e-3,
             "{m:?}: albedo {albedo} > 1"
         );
-        let mut c = check(format!("furnace {m:?}"), &xs, albedo);
+        let mut c = MeanCheck::from_values(format!("furnace {m:?}"), &xs, albedo);
         c.se = c.se.hypot(albedo_se);
         test.push(c);
         if m.is_black() {
@@ -488,7 +487,7 @@ fn hard_tiny_mu_and_pool_requests() {
             ..Default::default()
         },
     ] {
-        test.push(check(
+        test.push(MeanCheck::from_values(
             format!("{s:?}"),
             &shade_seeds(&map, &px, s, 64),
             reference,

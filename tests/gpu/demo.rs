@@ -141,8 +141,7 @@ fn demo_scripted_under_xvfb() {
         "BRDF change not visible"
     );
     // The report: per-pass timings, counters, and the probed pixel (GPU estimate = CPU twin).
-    let r: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).unwrap()).unwrap();
+    let r: serde_json::Value = crate::support::read_json(&dir.join("report.json"));
     let t = &r["timings_ms"];
     assert!(
         t["lighting_cpu_ms"].as_f64().is_some_and(|x| x >= 0.0)

@@ -73,3 +73,9 @@ pub fn real_maps() -> Option<Vec<PathBuf>> {
     v.sort();
     Some(v)
 }
+
+/// A JSON file a test's command wrote (the error names the file).
+pub fn read_json(path: &Path) -> serde_json::Value {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_json::from_slice(&bytes).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
