@@ -1408,24 +1408,22 @@ fn bench_accuracy_resumes() {
 #[test]
 fn bench_popping_quick_smoke() {
     let dir = tempdir();
-    let r = envis_cmd(&[
-        "bench",
-        "--suite",
-        "popping",
-        "--quick",
-        "--size",
-        "16",
-        "--face-size",
-        "8",
-        "--light-samples",
-        "4",
-        "--brdf-samples",
-        "0",
-        "--out",
-        dir.to_str().unwrap(),
-    ]);
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    let js: serde_json::Value = support::read_json(&dir.join("popping.json"));
+    let js = bench_json(
+        &dir,
+        &[
+            "popping",
+            "--quick",
+            "--size",
+            "16",
+            "--face-size",
+            "8",
+            "--light-samples",
+            "4",
+            "--brdf-samples",
+            "0",
+        ],
+        "popping.json",
+    );
     let rows = js["rows"].as_array().unwrap();
     assert_eq!(rows.len(), 2);
     for row in rows {
@@ -1471,30 +1469,38 @@ fn bench_popping_quick_smoke() {
 #[test]
 fn bench_flicker_smoke() {
     let dir = tempdir();
-    let r = envis_cmd(&[
-        "bench",
-        "--suite",
-        "flicker",
-        "--size",
-        "24",
-        "--face-size",
-        "8",
-        "--light-samples",
-        "8",
-        "--brdf-samples",
-        "8",
-        "--repeat",
-        "24",
-        "--out",
-        dir.to_str().unwrap(),
-    ]);
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    let js: serde_json::Value = support::read_json(&dir.join("bench-flicker.json"));
+    let js = bench_json(
+        &dir,
+        &[
+            "flicker",
+            "--size",
+            "24",
+            "--face-size",
+            "8",
+            "--light-samples",
+            "8",
+            "--brdf-samples",
+            "8",
+            "--repeat",
+            "24",
+        ],
+        "bench-flicker.json",
+    );
     let rows = js["rows"].as_array().unwrap();
     assert_eq!(rows.len(), 5);
     let sd = |i: usize| rows[i]["image_mean_rel_sd"].as_f64().unwrap();
     assert!((0..5).all(|i| sd(i).is_finite() && sd(i) >= 0.0));
     assert!(sd(0) > 3.0 * sd(1), "shared {} vs offset {}", sd(0), sd(1));
+}
+
+/// `envis bench --suite SUITE_AND_ARGS --out DIR`, which must succeed; returns `DIR/json`.
+fn bench_json(dir: &Path, suite_and_args: &[&str], json: &str) -> serde_json::Value {
+    let mut args = vec!["bench", "--suite"];
+    args.extend_from_slice(suite_and_args);
+    args.extend_from_slice(&["--out", dir.to_str().unwrap()]);
+    let r = envis_cmd(&args);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    support::read_json(&dir.join(json))
 }
 
 fn envis_cmd(args: &[&str]) -> std::process::Output {
