@@ -107,17 +107,7 @@ impl AsyncTimer {
         if !device.features().contains(wgpu::Features::TIMESTAMP_QUERY) {
             return None;
         }
-        let set = device.create_query_set(&wgpu::QuerySetDescriptor {
-            label: Some(label),
-            ty: wgpu::QueryType::Timestamp,
-            count: 2,
-        });
-        let resolve = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some(label),
-            size: 16,
-            usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
+        let (set, resolve) = crate::gpu::timestamp_pair(device, label);
         Some(AsyncTimer {
             set,
             resolve,

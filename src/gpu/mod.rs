@@ -21,6 +21,39 @@ use crate::error::Result;
 use crate::render::{GPixel, PixelStats, RenderStats, Rendered, Settings, Strategy};
 use glam::Vec3;
 
+/// A compute pipeline for entry point `entry` of `module` (labelled with the entry's name).
+pub fn compute_pipeline(
+    device: &wgpu::Device,
+    layout: &wgpu::PipelineLayout,
+    module: &wgpu::ShaderModule,
+    entry: &str,
+) -> wgpu::ComputePipeline {
+    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(entry),
+        layout: Some(layout),
+        module,
+        entry_point: Some(entry),
+        compilation_options: Default::default(),
+        cache: None,
+    })
+}
+
+/// Two timestamp queries (a pass's start and end) and the 16-byte buffer they resolve into.
+pub fn timestamp_pair(device: &wgpu::Device, label: &str) -> (wgpu::QuerySet, wgpu::Buffer) {
+    let set = device.create_query_set(&wgpu::QuerySetDescriptor {
+        label: Some(label),
+        ty: wgpu::QueryType::Timestamp,
+        count: 2,
+    });
+    let resolve = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: 16,
+        usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    (set, resolve)
+}
+
 /// Workgroups for `count` threads of `wg_size`, split over (x, y) when x would pass the 65535
 /// limit; shaders rebuild the linear id as `x + y * num_workgroups.x * wg_size`.
 pub fn dispatch_size(count: u32, wg_size: u32) -> (u32, u32) {

@@ -191,16 +191,7 @@ impl EnvSampler {
             "envis distribution.wgsl",
             &shaders::distribution_source(),
         );
-        let pipe = |entry: &str| {
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(entry),
-                layout: Some(&pl),
-                module: &module,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                cache: None,
-            })
-        };
+        let pipe = |entry: &str| super::compute_pipeline(device, &pl, &module, entry);
         let pipelines = [
             pipe("texel_weights"),
             pipe("column_cdfs"),
@@ -292,16 +283,7 @@ impl EnvSampler {
             immediate_size: 0,
         });
         let module = shaders::module(device, "envis global.wgsl", &shaders::global_source());
-        let pipe = |entry: &str| {
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(entry),
-                layout: Some(&pl),
-                module: &module,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                cache: None,
-            })
-        };
+        let pipe = |entry: &str| super::compute_pipeline(device, &pl, &module, entry);
         let pipelines = [
             pipe("global_cells"),
             pipe("global_row_sums"),

@@ -90,17 +90,7 @@ pub struct PassTimer {
 
 impl PassTimer {
     pub fn new(device: &wgpu::Device, label: &str) -> Self {
-        let set = device.create_query_set(&wgpu::QuerySetDescriptor {
-            label: Some(label),
-            ty: wgpu::QueryType::Timestamp,
-            count: 2,
-        });
-        let resolve = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some(label),
-            size: 16,
-            usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
+        let (set, resolve) = super::timestamp_pair(device, label);
         let readback = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
             size: 16,
@@ -193,14 +183,7 @@ impl Shader {
             immediate_size: 0,
         });
         let module = shaders::module(device, "envis shade.wgsl", &shaders::shade_source());
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("shade_gbuffer"),
-            layout: Some(&pl),
-            module: &module,
-            entry_point: Some("shade_gbuffer"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        let pipeline = super::compute_pipeline(device, &pl, &module, "shade_gbuffer");
         let params = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("envis shade params"),
             size: std::mem::size_of::<ShadeParams>() as u64,
