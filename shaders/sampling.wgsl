@@ -106,6 +106,19 @@ struct Material {
 const LOBE_NONE: u32 = 0u;
 const LOBE_PHONG: u32 = 1u;
 const LOBE_GGX: u32 = 2u;
+// GGX with Schlick's Fresnel (F0 = ks) and Bevy's f90: brdf::Lobe::GgxSchlick.
+const LOBE_GGX_SCHLICK: u32 = 3u;
+
+fn is_ggx(lobe: u32) -> bool {
+    return lobe == LOBE_GGX || lobe == LOBE_GGX_SCHLICK;
+}
+// brdf::fresnel_schlick: F0 + (f90 - F0) (1 - <o, m>)^5 with f90 = saturate(16.5 (F0.r + F0.g + F0.b)).
+fn fresnel_schlick(f0: vec3<f32>, o_m: f32) -> vec3<f32> {
+    let f90 = clamp(dot(f0, vec3(50.0 * 0.33)), 0.0, 1.0);
+    let x = clamp(1.0 - o_m, 0.0, 1.0);
+    let x2 = x * x;
+    return f0 + (vec3(f90) - f0) * (x2 * x2 * x);
+}
 
 fn mirror_cos(ol: vec3<f32>, il: vec3<f32>) -> f32 {
     return il.z * ol.z - il.x * ol.x - il.y * ol.y;
@@ -133,12 +146,16 @@ fn brdf_eval(mat: Material, ol: vec3<f32>, il: vec3<f32>) -> vec3<f32> {
             let e = mat.param;
             v += mat.ks * ((e + 2.0) * 0.5 * INV_PI * pow(c, e));
         }
-    } else if (mat.lobe == LOBE_GGX) {
+    } else if (is_ggx(mat.lobe)) {
         let alpha = mat.param;
         let m = normalize_or_zero(ol + il);
         let den = 2.0 * (il.z * ggx_s(ol.z, alpha) + ol.z * ggx_s(il.z, alpha));
         if (den > 0.0) {
-            v += mat.ks * (ggx_d(m, alpha) / den);
+            var f = mat.ks;
+            if (mat.lobe == LOBE_GGX_SCHLICK) {
+                f = fresnel_schlick(mat.ks, dot(ol, m));
+            }
+            v += f * (ggx_d(m, alpha) / den);
         }
     }
     return v;
@@ -154,7 +171,7 @@ fn brdf_pdf(mat: Material, ol: vec3<f32>, il: vec3<f32>) -> f32 {
         var ps = 0.0;
         if (mat.lobe == LOBE_PHONG) {
             ps = phong_lobe_pdf(mirror_cos(ol, il), mat.param);
-        } else if (mat.lobe == LOBE_GGX) {
+        } else if (is_ggx(mat.lobe)) {
             ps = ggx_vndf_reflect_pdf(ol, il, mat.param);
         }
         p += (1.0 - wd) * ps;
@@ -175,7 +192,7 @@ fn brdf_sample(mat: Material, ol: vec3<f32>, u: vec2<f32>) -> vec4<f32> {
         if (mat.lobe == LOBE_PHONG) {
             let r = frame_new(vec3(-ol.x, -ol.y, ol.z));
             il = to_world(r, sample_phong_lobe(vec2(ux, u.y), mat.param));
-        } else if (mat.lobe == LOBE_GGX) {
+        } else if (is_ggx(mat.lobe)) {
             il = reflect_about(ol, sample_ggx_vndf(ol, mat.param, vec2(ux, u.y)));
         } else {
             return vec4(0.0);

@@ -25,7 +25,7 @@ struct ShadeParams {
 
 // render::budget_for: diffuse -> all light samples; near-mirror with no diffuse part -> all BRDF.
 fn budget_for(mat: Material, nl: u32, nb: u32) -> vec2<u32> {
-    let near_mirror = (mat.lobe == LOBE_PHONG && mat.param >= NEAR_MIRROR_EXPONENT) || (mat.lobe == LOBE_GGX && mat.param <= NEAR_MIRROR_ALPHA);
+    let near_mirror = (mat.lobe == LOBE_PHONG && mat.param >= NEAR_MIRROR_EXPONENT) || (is_ggx(mat.lobe) && mat.param <= NEAR_MIRROR_ALPHA);
     if (mat.lobe == LOBE_NONE || max(max(mat.ks.x, mat.ks.y), mat.ks.z) <= 0.0) {
         return vec2(nl + nb, 0u);
     }

@@ -603,6 +603,51 @@ fn pdfs_integrate_to_one() {
     }
 }
 
+/// Bevy's Schlick GGX lobe at its limits: F0 = 0 has no glossy lobe at all (f90 = 0, so a
+/// reflectance-0 dielectric is pure Lambert, the white-furnace case), F0 = 1 is the F = 1 lobe, and
+/// a dielectric (F0 = 0.04) reflects more at grazing angles than head-on but never more than 1.
+#[test]
+fn schlick_lobe_limits() {
+    use envis::sampling::brdf::{bevy_f90, fresnel_schlick};
+    assert_eq!(bevy_f90(Vec3::ZERO), 0.0);
+    assert_eq!(bevy_f90(Vec3::splat(0.04)), 1.0);
+    assert_eq!(fresnel_schlick(Vec3::splat(0.04), 1.0), Vec3::splat(0.04));
+    assert_eq!(fresnel_schlick(Vec3::splat(0.04), 0.0), Vec3::ONE);
+    let schlick = |kd: f32, f0: f32| Material {
+        kd: Vec3::splat(kd),
+        ks: Vec3::splat(f0),
+        lobe: Lobe::GgxSchlick { alpha: 0.3 },
+    };
+    let n = Vec3::new(0.1, 0.3, 0.9).normalize();
+    let fr = Frame::new(n);
+    let mut r = Rng::new(5, 1);
+    for _ in 0..2000 {
+        let o = Material::diffuse(1.0).sample(&fr, n, rng_vec2(&mut r));
+        let i = Material::diffuse(1.0).sample(&fr, n, rng_vec2(&mut r));
+        let (Some((o, _)), Some((i, _))) = (o, i) else {
+            continue;
+        };
+        let lambert = Material::diffuse(0.5).eval(&fr, o, i);
+        assert_eq!(schlick(0.5, 0.0).eval(&fr, o, i), lambert);
+        let f1 = schlick(0.0, 1.0).eval(&fr, o, i);
+        let ggx = Material::ggx(1.0, 0.3).eval(&fr, o, i);
+        assert!(
+            (f1 - ggx).abs().max_element() <= 1e-6 * ggx.x.max(1.0),
+            "{f1} vs {ggx}"
+        );
+    }
+    // Directional albedo of the dielectric lobe alone, head-on and at grazing view.
+    let albedo =
+        |o: Vec3| integrate_sphere(|d| schlick(0.0, 0.04).eval(&fr, o, d).x * n.dot(d).max(0.0));
+    let head_on = albedo(n);
+    let grazing = albedo(fr.to_world(Vec3::new(0.97, 0.0, 0.243)).normalize());
+    assert!(head_on > 0.03 && head_on < 0.06, "head-on albedo {head_on}");
+    assert!(
+        grazing > 2.0 * head_on && grazing <= 1.0,
+        "grazing albedo {grazing} vs {head_on}"
+    );
+}
+
 #[test]
 fn brdf_samplers_chi2() {
     let n = Vec3::new(0.2, 0.3, 0.93).normalize();
@@ -623,6 +668,14 @@ fn brdf_samplers_chi2() {
                 kd: Vec3::splat(0.5),
                 ks: Vec3::splat(0.5),
                 lobe: Lobe::Ggx { alpha: 0.3 },
+            },
+        ),
+        (
+            "bevy standard (schlick)",
+            Material {
+                kd: Vec3::splat(0.6),
+                ks: Vec3::splat(0.04),
+                lobe: Lobe::GgxSchlick { alpha: 0.25 },
             },
         ),
     ];
@@ -895,6 +948,14 @@ fn estimators_are_unbiased() {
         ("diffuse", Material::diffuse(0.8)),
         ("phong 150", Material::phong(0.8, 150.0)),
         ("ggx 0.2", Material::ggx(0.8, 0.2)),
+        (
+            "bevy metal (schlick)",
+            Material {
+                kd: Vec3::ZERO,
+                ks: Vec3::new(0.9, 0.6, 0.3),
+                lobe: Lobe::GgxSchlick { alpha: 0.3 },
+            },
+        ),
     ];
     let base = Settings {
         light_samples: 4,

@@ -274,6 +274,14 @@ fn gpu_render_matches_cpu_same_seed() {
                 lobe: Lobe::Ggx { alpha: 0.3 },
             },
         ),
+        (
+            "bevy standard (schlick)",
+            Material {
+                kd: Vec3::splat(0.5),
+                ks: Vec3::splat(0.04),
+                lobe: Lobe::GgxSchlick { alpha: 0.25 },
+            },
+        ),
     ];
     let strategies = [
         (

@@ -27,6 +27,7 @@ impl From<&Option<GPixel>> for GpuGPixel {
             Lobe::None => (0.0, 0.0),
             Lobe::Phong { exponent } => (1.0, exponent),
             Lobe::Ggx { alpha } => (2.0, alpha),
+            Lobe::GgxSchlick { alpha } => (3.0, alpha),
         };
         let m = &p.material;
         GpuGPixel {

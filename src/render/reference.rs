@@ -41,7 +41,7 @@ impl BrdfF64 {
         match m.lobe {
             Lobe::None => {}
             Lobe::Phong { .. } => r = 2.0 * no * n - o,
-            Lobe::Ggx { alpha } => {
+            Lobe::Ggx { alpha } | Lobe::GgxSchlick { alpha } => {
                 a2 = (alpha as f64) * (alpha as f64);
                 lambda_o = ggx_lambda(a2, no);
             }
@@ -74,7 +74,7 @@ impl BrdfF64 {
                     v += m.ks.as_dvec3() * ((e + 2.0) / (2.0 * PI) * c.powf(e));
                 }
             }
-            Lobe::Ggx { .. } => {
+            Lobe::Ggx { .. } | Lobe::GgxSchlick { .. } => {
                 let a2 = self.a2;
                 let h = (self.o + i).normalize();
                 let nh = n.dot(h);
@@ -83,11 +83,23 @@ impl BrdfF64 {
                     let t = sin2 + a2 * nh * nh;
                     let d = a2 / (PI * t * t);
                     let g2 = 1.0 / (1.0 + self.lambda_o + ggx_lambda(a2, ni));
-                    v += m.ks.as_dvec3() * (d * g2 / (4.0 * no * ni));
+                    v += self.fresnel(h) * (d * g2 / (4.0 * no * ni));
                 }
             }
         }
         v
+    }
+}
+
+impl BrdfF64 {
+    /// The glossy lobe's Fresnel factor at half vector `h`: `ks`, or Schlick's with Bevy's f90.
+    fn fresnel(&self, h: DVec3) -> DVec3 {
+        let f0 = self.m.ks.as_dvec3();
+        if !matches!(self.m.lobe, Lobe::GgxSchlick { .. }) {
+            return f0;
+        }
+        let f90 = crate::sampling::brdf::bevy_f90(self.m.ks) as f64;
+        f0 + (DVec3::splat(f90) - f0) * (1.0 - self.o.dot(h)).clamp(0.0, 1.0).powi(5)
     }
 }
 

@@ -66,7 +66,7 @@ pub fn budget_for(m: &crate::sampling::Material, nl: usize, nb: usize) -> (usize
     let near_mirror = match m.lobe {
         Lobe::None => false,
         Lobe::Phong { exponent } => exponent >= NEAR_MIRROR_EXPONENT,
-        Lobe::Ggx { alpha } => alpha <= NEAR_MIRROR_ALPHA,
+        Lobe::Ggx { alpha } | Lobe::GgxSchlick { alpha } => alpha <= NEAR_MIRROR_ALPHA,
     };
     if m.lobe == Lobe::None || m.ks.max_element() <= 0.0 {
         (nl + nb, 0)

@@ -29,6 +29,39 @@ pub enum Lobe {
     Ggx {
         alpha: f32,
     },
+    /// GGX as Bevy's `StandardMaterial` shades it: the same microfacet lobe with Schlick's Fresnel,
+    /// `F = ks + (f90 - ks) (1 - <o, m>)^5`, where `ks` is F0 and `f90 = saturate(16.5 (F0.r +
+    /// F0.g + F0.b))` ([`bevy_f90`]). Sampled and weighted exactly like [`Lobe::Ggx`].
+    GgxSchlick {
+        alpha: f32,
+    },
+}
+
+impl Lobe {
+    /// The GGX roughness of either GGX lobe.
+    #[inline]
+    pub fn ggx_alpha(self) -> Option<f32> {
+        match self {
+            Lobe::Ggx { alpha } | Lobe::GgxSchlick { alpha } => Some(alpha),
+            _ => None,
+        }
+    }
+}
+
+/// Bevy's reflectance at grazing angles for a given F0 (`pbr_lighting.wgsl`, `fresnel`): 0 for a
+/// black F0 (so a reflectance-0 dielectric has no specular lobe at all), 1 from F0 ~ 0.02 up.
+#[inline]
+pub fn bevy_f90(f0: Vec3) -> f32 {
+    (f0.dot(Vec3::splat(50.0 * 0.33))).clamp(0.0, 1.0)
+}
+
+/// Schlick's Fresnel with Bevy's f90, for `<o, m>` = `o_m`.
+#[inline]
+pub fn fresnel_schlick(f0: Vec3, o_m: f32) -> Vec3 {
+    let f90 = bevy_f90(f0);
+    let x = (1.0 - o_m).clamp(0.0, 1.0);
+    let x2 = x * x;
+    f0 + (Vec3::splat(f90) - f0) * (x2 * x2 * x)
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -249,12 +282,16 @@ impl Material {
                     v += self.ks * ((e + 2.0) * 0.5 * FRAC_1_PI * c.powf(e));
                 }
             }
-            Lobe::Ggx { alpha } => {
+            Lobe::Ggx { alpha } | Lobe::GgxSchlick { alpha } => {
                 let m = (ol + il).normalize_or_zero();
                 // f = D G2 / (4 o.z i.z) = D / (2 (i.z s(o.z) + o.z s(i.z)))
                 let den = 2.0 * (il.z * ggx_s(ol.z, alpha) + ol.z * ggx_s(il.z, alpha));
                 if den > 0.0 {
-                    v += self.ks * (ggx_d(m, alpha) / den);
+                    let f = match self.lobe {
+                        Lobe::GgxSchlick { .. } => fresnel_schlick(self.ks, ol.dot(m)),
+                        _ => self.ks,
+                    };
+                    v += f * (ggx_d(m, alpha) / den);
                 }
             }
         }
@@ -273,7 +310,9 @@ impl Material {
             let ps = match self.lobe {
                 Lobe::None => 0.0,
                 Lobe::Phong { exponent: e } => phong_lobe_pdf(mirror_cos(ol, il), e),
-                Lobe::Ggx { alpha } => ggx_vndf_reflect_pdf(ol, il, alpha),
+                Lobe::Ggx { alpha } | Lobe::GgxSchlick { alpha } => {
+                    ggx_vndf_reflect_pdf(ol, il, alpha)
+                }
             };
             p += (1.0 - wd) * ps;
         }
@@ -297,7 +336,9 @@ impl Material {
                     let r = Frame::new(Vec3::new(-ol.x, -ol.y, ol.z));
                     r.to_world(sample_phong_lobe(Vec2::new(ux, u.y), e))
                 }
-                Lobe::Ggx { alpha } => reflect(ol, sample_ggx_vndf(ol, alpha, Vec2::new(ux, u.y))),
+                Lobe::Ggx { alpha } | Lobe::GgxSchlick { alpha } => {
+                    reflect(ol, sample_ggx_vndf(ol, alpha, Vec2::new(ux, u.y)))
+                }
             }
         };
         if il.z <= 0.0 {
@@ -316,7 +357,7 @@ impl Material {
         match self.lobe {
             Lobe::None => PI / 2.0,
             Lobe::Phong { exponent } => (1.0 / (exponent + 1.0).sqrt()).min(PI / 2.0),
-            Lobe::Ggx { alpha } => alpha.min(PI / 2.0),
+            Lobe::Ggx { alpha } | Lobe::GgxSchlick { alpha } => alpha.min(PI / 2.0),
         }
     }
 }
