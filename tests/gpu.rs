@@ -87,6 +87,132 @@ fn gpu_build(ctx: &GpuContext, map: &CubeMap, m: usize, seed: u32) -> envis::gpu
     s.read_tables(ctx).unwrap()
 }
 
+/// Upload `layers` (each `w x h`, RGB) as an Rgba32Float 2D texture with that many layers.
+fn upload_texture(ctx: &GpuContext, w: u32, h: u32, layers: &[&[Vec3]]) -> wgpu::Texture {
+    use wgpu::util::DeviceExt;
+    let data: Vec<f32> = layers
+        .iter()
+        .flat_map(|l| l.iter().flat_map(|c| [c.x, c.y, c.z, 1.0]))
+        .collect();
+    ctx.device.create_texture_with_data(
+        &ctx.queue,
+        &wgpu::TextureDescriptor {
+            label: Some("test environment"),
+            size: wgpu::Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: layers.len() as u32,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba32Float,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        },
+        wgpu::util::TextureDataOrder::LayerMajor,
+        bytemuck::cast_slice(&data),
+    )
+}
+
+/// Resample `texture` into a sampler of face `n` on the GPU and build; the texel table read back.
+fn gpu_resample(ctx: &GpuContext, texture: &wgpu::Texture, width: u32, n: usize) -> CubeMap {
+    use envis::envmap::resample::SourceLayout;
+    let size = texture.size();
+    let layout = SourceLayout::detect(size.width, size.height, size.depth_or_array_layers).unwrap();
+    let s = EnvSampler::new(ctx, n, 4).unwrap();
+    let view = envis::gpu::resample::source_view(texture);
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    envis::gpu::ImageResampler::new(&ctx.device).encode(
+        &ctx.device,
+        &mut enc,
+        &view,
+        layout,
+        width,
+        &s,
+    );
+    ctx.wait(ctx.queue.submit([enc.finish()])).unwrap();
+    ctx.wait(s.run(ctx, 1)).unwrap();
+    s.read_tables(ctx).unwrap().to_map()
+}
+
+/// The resample stage (a Bevy `Image` texture -> the cube texel table, on the GPU) equals its CPU
+/// twin for a lat-long and a cube source, bad texels included (read as 0 by both), and a cube
+/// image is read in Bevy's left-handed convention (world +Z is layer 5, -Z).
+#[test]
+fn gpu_resample_matches_cpu() {
+    use envis::envmap::resample::SourceImage;
+    let Some(ctx) = gpu() else { return };
+    let n = 16;
+    let (w, h) = (96usize, 48usize);
+    let mut ll = Image::new(w, h);
+    for y in 0..h {
+        for x in 0..w {
+            let (u, v) = (x as f32 / w as f32, y as f32 / h as f32);
+            ll.data[y * w + x] = Vec3::new(1.0 + u, 0.5 + (6.0 * v).sin().abs(), 2.0 - v);
+        }
+    }
+    ll.data[10 * w + 30] = Vec3::splat(5e3); // a sun
+    ll.data[20 * w + 5] = Vec3::new(f32::NAN, -3.0, f32::INFINITY);
+    let tex = upload_texture(ctx, w as u32, h as u32, &[&ll.data]);
+    let got = gpu_resample(ctx, &tex, w as u32, n);
+    let want = SourceImage::new_latlong(ll).to_cube(n);
+    assert_cubes_close("lat-long", &got, &want);
+
+    let c = 12usize;
+    let mut layers = CubeMap::new(c);
+    for (i, t) in layers.data.iter_mut().enumerate() {
+        let (f, r) = (i / (c * c), (i % (c * c)) as f32 / (c * c) as f32);
+        *t = Vec3::new(f as f32 + 1.0, r, 1.0 - r);
+    }
+    let slices: Vec<&[Vec3]> = layers.data.chunks(c * c).collect();
+    let tex = upload_texture(ctx, c as u32, c as u32, &slices);
+    let got = gpu_resample(ctx, &tex, c as u32, n);
+    let want = SourceImage::new_cube(layers).to_cube(n);
+    assert_cubes_close("cube", &got, &want);
+    let centre = |f: usize| got.texel(f, n / 2, n / 2).x;
+    assert_eq!(centre(2), 3.0, "+Y reads layer 2");
+    assert_eq!(
+        centre(4),
+        6.0,
+        "+Z reads layer 5 (Bevy's cubes are left-handed)"
+    );
+    assert_eq!(centre(5), 5.0, "-Z reads layer 4");
+}
+
+/// Texel tables equal up to the GPU's trigonometry: Vulkan lets `acos` / `atan2` be off by
+/// thousands of ulps (~1e-4 rad), which moves a lat-long tap by that much. So: at most 1% of the
+/// texels may differ by more than 1e-3 relative (next to the sun), none by more than 1e-2, and each
+/// face's sum agrees to 5e-4 (the +Y face, where the azimuth turns fastest, is worst).
+fn assert_cubes_close(what: &str, got: &CubeMap, want: &CubeMap) {
+    assert_eq!(got.size, want.size);
+    let (mut worst, mut off) = (0.0f64, 0usize);
+    for (g, w) in got.data.iter().zip(&want.data) {
+        let r = (0..3)
+            .map(|k| rel(g[k] as f64, w[k] as f64))
+            .fold(0.0, f64::max);
+        worst = worst.max(r);
+        off += (r > 1e-3) as usize;
+    }
+    let n2 = got.size * got.size;
+    assert!(
+        worst < 1e-2 && off * 100 <= got.data.len(),
+        "{what}: worst relative texel difference {worst}, {off} texels above 1e-3"
+    );
+    for f in 0..6 {
+        let sum = |c: &CubeMap| {
+            c.data[f * n2..(f + 1) * n2]
+                .iter()
+                .map(|t| t.x as f64)
+                .sum::<f64>()
+        };
+        assert!(
+            rel(sum(got), sum(want)) < 5e-4,
+            "{what}: face {f} sums differ: {} vs {}", sum(got), sum(want)
+        );
+    }
+}
+
 #[test]
 fn gpu_distribution_matches_cpu() {
     let Some(ctx) = gpu() else { return };

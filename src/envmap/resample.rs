@@ -146,3 +146,92 @@ pub fn latlong_integral(img: &Image) -> glam::DVec3 {
     }
     s
 }
+
+/// How a GPU environment image is laid out (see `shaders/image_source.wgsl`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SourceLayout {
+    /// One 2:1 layer in Mitsuba's lat-long convention.
+    LatLong,
+    /// Six square layers, `+X -X +Y -Y +Z -Z`, in Bevy's (left-handed) cube convention: world
+    /// direction `d` is read at `(d.x, d.y, -d.z)`.
+    Cube,
+}
+
+impl SourceLayout {
+    /// The layout of a texture with this size and layer count, or why it is not an environment.
+    pub fn detect(width: u32, height: u32, layers: u32) -> Result<Self, String> {
+        match layers {
+            1 if width == 2 * height && height > 0 => Ok(SourceLayout::LatLong),
+            6 if width == height && width > 0 => Ok(SourceLayout::Cube),
+            1 => Err(format!(
+                "a {width}x{height} image is not a 2:1 lat-long environment"
+            )),
+            6 => Err(format!(
+                "a cube image needs square layers, this one is {width}x{height}"
+            )),
+            n => Err(format!(
+                "an environment image has 1 (lat-long) or 6 (cube) layers, this one has {n}"
+            )),
+        }
+    }
+
+    /// Sub-points per axis that the GPU resample takes per target texel for a source whose
+    /// layers are `width` texels wide and a target face of `n`: about two per source texel along
+    /// each axis (a face spans a quarter of a lat-long row, or a whole cube layer), 2 to 16.
+    pub fn subpoints(self, width: u32, n: u32) -> u32 {
+        let span = match self {
+            SourceLayout::LatLong => width as f32 / 4.0,
+            SourceLayout::Cube => width as f32,
+        };
+        ((2.0 * span / n.max(1) as f32).ceil() as u32).clamp(2, 16)
+    }
+}
+
+/// An environment image as the GPU reads it (CPU twin of `shaders/image_source.wgsl`): texels
+/// are sanitised (non-finite and negative to 0) before bilinear filtering.
+pub enum SourceImage {
+    LatLong(Image),
+    /// Bevy's layers in order, each `size x size` (a [`CubeMap`] holding the layers as faces).
+    Cube(CubeMap),
+}
+
+impl SourceImage {
+    /// Sanitise a copy of the texels, as every GPU fetch does.
+    pub fn new_latlong(mut img: Image) -> Self {
+        img.sanitize();
+        SourceImage::LatLong(img)
+    }
+    pub fn new_cube(mut layers: CubeMap) -> Self {
+        layers.sanitize();
+        SourceImage::Cube(layers)
+    }
+
+    pub fn layout(&self) -> SourceLayout {
+        match self {
+            SourceImage::LatLong(_) => SourceLayout::LatLong,
+            SourceImage::Cube(_) => SourceLayout::Cube,
+        }
+    }
+
+    /// Width of one layer in texels.
+    pub fn width(&self) -> usize {
+        match self {
+            SourceImage::LatLong(img) => img.width,
+            SourceImage::Cube(c) => c.size,
+        }
+    }
+
+    /// Bilinear radiance in (environment-space) direction `d`.
+    pub fn radiance(&self, d: Vec3) -> Vec3 {
+        match self {
+            SourceImage::LatLong(img) => latlong_bilinear(img, d),
+            SourceImage::Cube(c) => cube_bilinear(c, Vec3::new(d.x, d.y, -d.z)),
+        }
+    }
+
+    /// The sampler's texel table of face size `n`: twin of `shaders/resample.wgsl`.
+    pub fn to_cube(&self, n: usize) -> CubeMap {
+        let s = self.layout().subpoints(self.width() as u32, n as u32) as usize;
+        cube_from_fetch(n, s, |d| self.radiance(d))
+    }
+}

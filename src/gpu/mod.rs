@@ -8,11 +8,13 @@
 //! over its own device and encoder.
 
 pub mod context;
+pub mod resample;
 pub mod sampler;
 pub mod shaders;
 pub mod shading;
 
 pub use context::GpuContext;
+pub use resample::ImageResampler;
 pub use sampler::{EnvSampler, GpuTables};
 pub use shading::{GpuGPixel, Shader};
 

@@ -12,10 +12,17 @@ pub const GLOBAL: &str = include_str!("../../shaders/global.wgsl");
 pub const GLOBAL_LAYOUT: &str = include_str!("../../shaders/global_layout.wgsl");
 pub const SHADE_COMPUTE: &str = include_str!("../../shaders/shade_compute.wgsl");
 pub const LIGHTING: &str = include_str!("../../shaders/lighting.wgsl");
+pub const IMAGE_SOURCE: &str = include_str!("../../shaders/image_source.wgsl");
+pub const RESAMPLE: &str = include_str!("../../shaders/resample.wgsl");
 
 /// Distribution build + pool module.
 pub fn distribution_source() -> String {
     [COMMON, SCAN, CDF, DISTRIBUTION].concat()
+}
+
+/// The resample stage (an environment texture -> the cube texel table).
+pub fn resample_source() -> String {
+    [COMMON, IMAGE_SOURCE, RESAMPLE].concat()
 }
 
 /// Per-pixel shading module (compute entry point `shade_gbuffer`).
