@@ -119,6 +119,20 @@ fn face_ab_to_vec(face: u32, a: f32, b: f32) -> vec3<f32> {
     }
 }
 
+// envmap::dir_to_latlong for a unit direction: (u, v), u in [0, 1).
+fn dir_to_latlong(d: vec3<f32>) -> vec2<f32> {
+    let t = acos(clamp(d.y, -1.0, 1.0));
+    var p = atan2(d.x, -d.z);
+    if (p < 0.0) {
+        p += 2.0 * PI;
+    }
+    var u = p / (2.0 * PI);
+    if (u >= 1.0) {
+        u = 0.0;
+    }
+    return vec2(u, t / PI);
+}
+
 // envmap::dir_to_texel: face, (a, b), column and row of direction d on n x n faces.
 // Ties between axes go to X, then Y, then Z; the zero vector gives face 0, (0, 0).
 struct TexelHit {

@@ -33,20 +33,6 @@ fn latlong_to_dir(u: f32, v: f32) -> vec3<f32> {
     return vec3(sin(t) * sin(p), cos(t), -sin(t) * cos(p));
 }
 
-// envmap::dir_to_latlong for a unit direction: (u, v), u in [0, 1).
-fn dir_to_latlong(d: vec3<f32>) -> vec2<f32> {
-    let t = acos(clamp(d.y, -1.0, 1.0));
-    var p = atan2(d.x, -d.z);
-    if (p < 0.0) {
-        p += 2.0 * PI;
-    }
-    var u = p / (2.0 * PI);
-    if (u >= 1.0) {
-        u = 0.0;
-    }
-    return vec2(u, t / PI);
-}
-
 // Solid-angle pdf of cell (x, y) at v: p(u, v) / (2 pi^2 sin t).
 fn global_pdf_cell(g: GLayout, x: u32, y: u32, v: f32) -> f32 {
     let st = sin(PI * v);

@@ -14,17 +14,6 @@ fn source_texel(src: texture_2d_array<f32>, x: i32, y: i32, layer: i32) -> vec3<
     return vec3(sanitize_channel(c.x), sanitize_channel(c.y), sanitize_channel(c.z));
 }
 
-// envmap::dir_to_latlong.
-fn dir_to_latlong(d: vec3<f32>) -> vec2<f32> {
-    let t = acos(clamp(d.y, -1.0, 1.0));
-    var p = atan2(d.x, -d.z);
-    if (p < 0.0) {
-        p += 2.0 * PI;
-    }
-    let u = p / (2.0 * PI);
-    return vec2(select(u, 0.0, u >= 1.0), t / PI);
-}
-
 // envmap::resample::latlong_bilinear: wraps in u, clamps in v.
 fn latlong_bilinear(src: texture_2d_array<f32>, d: vec3<f32>) -> vec3<f32> {
     let dims = vec2<i32>(textureDimensions(src));

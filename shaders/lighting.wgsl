@@ -1,26 +1,36 @@
-// envis — the Bevy deferred lighting pass: a fullscreen triangle whose fragment decodes Bevy's
-// deferred G-buffer, runs `shade` (shade.wgsl, the twin of render::shade_pixel) and writes HDR
-// radiance; pixels without geometry show the environment map. Needs common.wgsl, sampling.wgsl
-// and shade.wgsl before it.
+// envis — the Bevy lighting pass: a fullscreen triangle over the view's viewport whose fragment
+// decodes Bevy's deferred G-buffer, runs `shade` (shade.wgsl, the twin of render::shade_pixel) and
+// ADDS the environment's radiance to what Bevy's deferred lighting wrote (its lights, shadows,
+// emissive); pixels without geometry show the environment image at full resolution. Needs
+// common.wgsl, sampling.wgsl, shade.wgsl and image_source.wgsl before it.
 //
-// Material convention (written by app::lighting::EnvisMaterial into a StandardMaterial):
-//   kd = base_color (1 - metallic), ks = base_color metallic;
-//   reflectance < 0.25: no glossy lobe; < 0.75: GGX with alpha = perceptual_roughness^2;
-//   otherwise normalised Phong with exponent e = 2 / perceptual_roughness^4 - 2.
+// The output is premultiplied: the pipeline blends src + (1 - src.a) dst, so alpha 0 adds (lit
+// pixels) and alpha 1 replaces (the background, overlays).
+//
+// Which pixels it lights is decided by Bevy's deferred lighting pass id:
+//   1 (StandardMaterial): base colour, metallic, perceptual roughness, reflectance and diffuse
+//     occlusion -> Lambert kd = base (1 - metallic) occlusion plus GGX with Schlick's Fresnel,
+//     F0 = 0.16 reflectance^2 (1 - metallic) + base metallic, alpha = clamp(roughness, 0.089, 1)^2
+//     (Bevy's conventions); unlit materials are left alone;
+//   231 (EnvisMaterial, src/app/material.rs): kd, ks (8-bit), lobe kind, exact lobe parameter;
+//   anything else (forward meshes, other deferred materials): left alone.
 
 struct LightingView {
     world_from_clip: mat4x4<f32>,
+    // The inverse of EnvisEnvironment::rotation: world directions -> the map's.
+    env_from_world: mat4x4<f32>,
     // xyz: camera position; w: 1 for an orthographic projection.
     camera: vec4<f32>,
-    // xyz: camera forward (world); w: exposure multiplier.
+    // xyz: camera forward (world); w: radiance scale (intensity x exposure).
     forward: vec4<f32>,
     // Viewport origin and size in pixels.
     viewport: vec4<f32>,
-    // x: 1 to draw the environment where there is no geometry, 0 for black; y: overlay
-    // (0 none, 1 effective samples per pixel, 2 wasted fraction, 3 |fractional - integer|);
-    // z, w: the probed pixel (negative: none).
+    // x: 1 to draw the environment where there is no geometry; y: overlay (0 none, 1 effective
+    // samples per pixel, 2 wasted fraction, 3 |fractional - integer|); z, w: the probed pixel
+    // (negative: none).
     options: vec4<f32>,
-    // x: 1 to average frames; y: frames averaged before this one (0 restarts the mean).
+    // x: 1 to average frames; y: frames averaged before this one (0 restarts the mean); z: source
+    // layout (SOURCE_LATLONG / SOURCE_CUBE).
     accumulate: vec4<f32>,
 }
 
@@ -37,6 +47,15 @@ struct LightingView {
 @group(0) @binding(8) var<storage, read_write> accum: array<vec4<f32>>;
 // The `global` distribution (global_layout.wgsl); a dummy unless the strategy is global.
 @group(0) @binding(9) var<storage, read> cdfs: array<f32>;
+// Bevy's deferred lighting pass id of each pixel.
+@group(0) @binding(10) var pass_ids: texture_2d<u32>;
+// The environment image itself (image_source.wgsl), for the background.
+@group(0) @binding(11) var source: texture_2d_array<f32>;
+
+const PBR_LIGHTING_PASS_ID: u32 = 1u;
+// app::material::ENVIS_LIGHTING_PASS_ID.
+const ENVIS_LIGHTING_PASS_ID: u32 = 231u;
+const DEFERRED_FLAGS_UNLIT_BIT: u32 = 1u;
 
 // Blue -> cyan -> green -> yellow -> red for t in [0, 1].
 fn heat(t: f32) -> vec3<f32> {
@@ -60,28 +79,32 @@ fn octahedral_decode(v: vec2<f32>) -> vec3<f32> {
     return normalize(n);
 }
 
-// Bevy's deferred G-buffer (pbr_deferred_functions.wgsl) -> an envis G-buffer texel.
-fn decode_gbuffer(g: vec4<u32>, o: vec3<f32>) -> GPixel {
+fn gbuffer_normal(packed: u32) -> vec3<f32> {
+    let oct = vec2(f32(packed & 0xFFFu), f32((packed >> 12u) & 0xFFFu)) / 4095.0;
+    return octahedral_decode(oct);
+}
+
+// A StandardMaterial texel of Bevy's deferred G-buffer (pbr_deferred_functions.wgsl) -> the
+// matching envis material (see the header).
+fn decode_standard(g: vec4<u32>, o: vec3<f32>) -> GPixel {
     let base_rough = unpack4x8unorm(g.r);
     let base = pow(base_rough.rgb, vec3(2.2));
-    let r = base_rough.a;
+    let pr = clamp(base_rough.a, 0.089, 1.0);
     let props = unpack4x8unorm(g.b);
     let reflectance = props.r;
     let metallic = props.g;
-    let oct = vec2(f32(g.a & 0xFFFu), f32((g.a >> 12u) & 0xFFFu)) / 4095.0;
-    let n = octahedral_decode(oct);
-    var lobe = LOBE_NONE;
-    var param = 0.0;
-    if (reflectance >= 0.75) {
-        lobe = LOBE_PHONG;
-        let r2 = max(r * r, 1e-4);
-        param = clamp(2.0 / (r2 * r2) - 2.0, 0.0, 1e6);
-    } else if (reflectance >= 0.25) {
-        lobe = LOBE_GGX;
-        param = clamp(r * r, 1e-4, 1.0);
-    }
-    let ks = select(vec3(0.0), base * metallic, lobe != LOBE_NONE);
-    return GPixel(vec4(n, 1.0), vec4(o, 0.0), vec4(base * (1.0 - metallic), f32(lobe)), vec4(ks, param));
+    let occlusion = props.b;
+    let kd = base * (1.0 - metallic) * occlusion;
+    let f0 = vec3(0.16 * reflectance * reflectance * (1.0 - metallic)) + base * metallic;
+    return GPixel(vec4(gbuffer_normal(g.a), 1.0), vec4(o, 0.0), vec4(kd, f32(LOBE_GGX_SCHLICK)), vec4(f0, pr * pr));
+}
+
+// An EnvisMaterial texel (src/app/material.rs).
+fn decode_envis(g: vec4<u32>, o: vec3<f32>) -> GPixel {
+    let kd = unpack4x8unorm(g.x);
+    let ks = pow(unpack4x8unorm(g.y).rgb, vec3(2.2));
+    let lobe = round(kd.a * 255.0);
+    return GPixel(vec4(gbuffer_normal(g.w), 1.0), vec4(o, 0.0), vec4(pow(kd.rgb, vec3(2.2)), lobe), vec4(ks, bitcast<f32>(g.z)));
 }
 
 @fragment
@@ -91,19 +114,27 @@ fn lighting(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
     let uv = (pos.xy - lv.viewport.xy) / lv.viewport.zw;
     let ndc = vec2(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0);
     let ortho = lv.camera.w > 0.5;
-    let exposure = lv.forward.w;
+    let scale = lv.forward.w;
+    let env = mat3x3(lv.env_from_world[0].xyz, lv.env_from_world[1].xyz, lv.env_from_world[2].xyz);
     if (depth <= 0.0) {
-        // No geometry (reverse-Z far plane): the environment in the direction of the pixel's ray.
+        // No geometry (reverse-Z far plane): the environment image in the direction of the
+        // pixel's ray, or what Bevy drew there.
         if (lv.options.x < 0.5) {
-            return vec4(0.0, 0.0, 0.0, 1.0);
+            return vec4(0.0);
         }
         var dir = lv.forward.xyz;
         if (!ortho) {
             let p = lv.world_from_clip * vec4(ndc, 1.0, 1.0);
             dir = p.xyz / p.w - lv.camera.xyz;
         }
-        let hit = dir_to_texel(dir, sp.n);
-        return vec4(texels[(hit.face * sp.n + hit.row) * sp.n + hit.col].xyz * exposure, 1.0);
+        let kind = u32(lv.accumulate.z);
+        return vec4(source_radiance(source, kind, normalize(env * dir)) * scale, 1.0);
+    }
+    let pass_id = textureLoad(pass_ids, coord, 0).r;
+    let g = textureLoad(gbuffer, coord, 0);
+    let standard = pass_id == PBR_LIGHTING_PASS_ID && ((g.a >> 24u) & DEFERRED_FLAGS_UNLIT_BIT) == 0u;
+    if (!standard && pass_id != ENVIS_LIGHTING_PASS_ID) {
+        return vec4(0.0); // not ours to light
     }
     let wp = lv.world_from_clip * vec4(ndc, depth, 1.0);
     let world = wp.xyz / wp.w;
@@ -111,7 +142,15 @@ fn lighting(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
     if (!ortho) {
         o = normalize(lv.camera.xyz - world);
     }
-    let px = decode_gbuffer(textureLoad(gbuffer, coord, 0), o);
+    // Shade in the map's frame: rotating normal and view together leaves the BRDF unchanged.
+    o = env * o;
+    var px: GPixel;
+    if (standard) {
+        px = decode_standard(g, o);
+    } else {
+        px = decode_envis(g, o);
+    }
+    px.n = vec4(env * px.n.xyz, 1.0);
     let local = vec2<u32>(max(pos.xy - lv.viewport.xy, vec2(0.0)));
     let pixel_index = local.y * u32(lv.viewport.z) + local.x;
     let r = shade(px, pixel_index);
@@ -148,5 +187,5 @@ fn lighting(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
         }
         accum[pixel_index] = vec4(color, 1.0);
     }
-    return vec4(color * exposure, 1.0);
+    return vec4(color * scale, 0.0);
 }

@@ -14,6 +14,8 @@ pub mod envmap;
 pub mod error;
 #[cfg(feature = "gpu")]
 pub mod gpu;
+#[cfg(feature = "app")]
+pub mod prelude;
 pub mod render;
 pub mod sampling;
 pub mod scene;

@@ -208,7 +208,9 @@ fn assert_cubes_close(what: &str, got: &CubeMap, want: &CubeMap) {
         };
         assert!(
             rel(sum(got), sum(want)) < 5e-4,
-            "{what}: face {f} sums differ: {} vs {}", sum(got), sum(want)
+            "{what}: face {f} sums differ: {} vs {}",
+            sum(got),
+            sum(want)
         );
     }
 }
@@ -676,6 +678,10 @@ mod stability;
 #[cfg(feature = "app")]
 #[path = "gpu/bevy_app.rs"]
 mod bevy_app;
+
+#[cfg(feature = "app")]
+#[path = "gpu/bevy_plugin.rs"]
+mod bevy_plugin;
 
 fn read_exr_mean(path: &Path) -> f64 {
     let img = envis::envmap::load::read_exr(path).unwrap();

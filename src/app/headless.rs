@@ -1,15 +1,17 @@
-//! A headless Bevy app (no window): the `sphere` scene of the CPU renderer — the unit sphere seen
-//! by an orthographic camera on +Z looking down -Z, framing `[-1, 1]^2` — drawn through Bevy's
-//! deferred G-buffer and the envis lighting pass into a float image. Used by
-//! `envis render --backend bevy` and by the tests.
+//! A headless Bevy app (no window) built on the public API only (`envis::prelude`):
+//! [`HeadlessApp`] is Bevy's `DefaultPlugins` without a window, [`crate::app::EnvisPlugin`], and
+//! float render targets read back as linear RGB. [`HeadlessSphere`] is the `sphere` scene of the
+//! CPU renderer — the unit sphere seen by an orthographic camera on +Z looking down -Z, framing
+//! `[-1, 1]^2` — lit by an envis stream. Used by `envis render --backend bevy`, the examples'
+//! tests and the Bevy tests.
 
+use super::components::{EnvironmentSampling, EnvisEnvironment, exposure_multiplier};
 use super::{
-    EnvMapSamplingPlugin, EnvMapStream, EnvMapStreamPlugin, EnvisCamera, EnvisCounters,
-    EnvisMaterial, EnvisSettings, MisLightingPlugin,
+    EnvMapStream, EnvMapStreamPlugin, EnvisBrdf, EnvisCounters, EnvisMaterial, EnvisPlugin,
 };
 use crate::stream::StreamSource;
 use bevy::asset::RenderAssetUsages;
-use bevy::camera::{Hdr, RenderTarget, ScalingMode};
+use bevy::camera::{RenderTarget, ScalingMode};
 use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::image::Image;
 use bevy::prelude::*;
@@ -22,89 +24,22 @@ use std::sync::{Arc, Mutex};
 /// Frames to wait for a screenshot of the render target before giving up.
 const CAPTURE_FRAMES: usize = 20;
 
-/// The app, its float render target and the target's size.
-pub struct HeadlessSphere {
+/// A windowless Bevy app with envis, driven by [`HeadlessApp::update`].
+pub struct HeadlessApp {
     pub app: App,
-    target: Handle<Image>,
-    size: u32,
+    finished: bool,
 }
 
-impl HeadlessSphere {
-    /// Build the app: stream `source` at `face` texels per face, the sphere with `mat`, HDR output
-    /// without tonemapping into a `size x size` Rgba32Float image.
-    pub fn new(
-        source: StreamSource,
-        face: usize,
-        mat: EnvisMaterial,
-        settings: EnvisSettings,
-        size: u32,
-    ) -> Self {
-        let (mut app, target) = Self::base(source, face, settings, size);
-        let mesh = app
-            .world_mut()
-            .resource_mut::<Assets<Mesh>>()
-            .add(Sphere::new(1.0).mesh().ico(7).expect("icosphere"));
-        let material = app
-            .world_mut()
-            .resource_mut::<Assets<StandardMaterial>>()
-            .add(mat.standard());
-        app.world_mut()
-            .spawn((Mesh3d(mesh), MeshMaterial3d(material), Transform::IDENTITY));
-        let projection = Projection::Orthographic(OrthographicProjection {
-            scaling_mode: ScalingMode::Fixed {
-                width: 2.0,
-                height: 2.0,
-            },
-            ..OrthographicProjection::default_3d()
-        });
-        Self::finish(
-            app,
-            target,
-            projection,
-            Transform::from_xyz(0.0, 0.0, 5.0).looking_at(Vec3::ZERO, Vec3::Y),
-            size,
-        )
+impl Default for HeadlessApp {
+    fn default() -> Self {
+        Self::new()
     }
+}
 
-    /// A scene file's objects and camera (perspective), with the scene's environment and settings.
-    pub fn from_scene(
-        sc: &crate::scene::Scene,
-        settings: EnvisSettings,
-        size: u32,
-    ) -> crate::error::Result<Self> {
-        let source = match StreamSource::parse(&sc.environment)? {
-            StreamSource::Sky { hours, .. } => StreamSource::Sky { hours, speed: 0.0 },
-            other => other,
-        };
-        let (mut app, target) = Self::base(source, sc.file.environment.face_size, settings, size);
-        let cam = app
-            .world_mut()
-            .resource_scope(|world, mut meshes: Mut<Assets<Mesh>>| {
-                world.resource_scope(|world, mut materials: Mut<Assets<StandardMaterial>>| {
-                    let mut commands = world.commands();
-                    super::scene_objects::spawn_scene_objects(
-                        &mut commands,
-                        &mut meshes,
-                        &mut materials,
-                        sc,
-                    )
-                })
-            });
-        app.world_mut().flush();
-        let projection = Projection::Perspective(PerspectiveProjection {
-            fov: cam.fov,
-            ..default()
-        });
-        Ok(Self::finish(app, target, projection, cam.transform(), size))
-    }
-
-    /// The app with the envis plugins and a float render target.
-    fn base(
-        source: StreamSource,
-        face: usize,
-        settings: EnvisSettings,
-        size: u32,
-    ) -> (App, Handle<Image>) {
+impl HeadlessApp {
+    /// `DefaultPlugins` (no window, no log, pipelines compiled synchronously) + `EnvisPlugin`.
+    /// Add entities and resources through [`Self::app`] before the first update.
+    pub fn new() -> Self {
         let mut app = App::new();
         let plugins = DefaultPlugins
             .set(RenderPlugin {
@@ -120,20 +55,25 @@ impl HeadlessSphere {
         // With the `demo` feature Bevy has a window system; a headless app drives itself.
         #[cfg(feature = "demo")]
         let plugins = plugins.disable::<bevy::winit::WinitPlugin>();
+        // No ambient light: the environment is the only indirect light.
         app.add_plugins(plugins)
-            .insert_resource(settings)
-            .add_plugins((
-                EnvMapStreamPlugin {
-                    source,
-                    face_size: face,
-                },
-                EnvMapSamplingPlugin,
-                MisLightingPlugin,
-            ));
+            .add_plugins(EnvisPlugin)
+            .insert_resource(GlobalAmbientLight {
+                brightness: 0.0,
+                ..default()
+            });
+        HeadlessApp {
+            app,
+            finished: false,
+        }
+    }
+
+    /// A `width x height` Rgba32Float image a camera can render into and [`Self::capture`] read.
+    pub fn float_target(&mut self, width: u32, height: u32) -> Handle<Image> {
         let mut img = Image::new_uninit(
             Extent3d {
-                width: size,
-                height: size,
+                width,
+                height,
                 depth_or_array_layers: 1,
             },
             TextureDimension::D2,
@@ -141,50 +81,44 @@ impl HeadlessSphere {
             RenderAssetUsages::RENDER_WORLD,
         );
         img.texture_descriptor.usage |= TextureUsages::RENDER_ATTACHMENT | TextureUsages::COPY_SRC;
-        let target = app.world_mut().resource_mut::<Assets<Image>>().add(img);
-        (app, target)
+        self.app
+            .world_mut()
+            .resource_mut::<Assets<Image>>()
+            .add(img)
     }
 
-    /// Add the camera (HDR, no tonemapping, into the float target) and finish the app.
-    fn finish(
-        mut app: App,
-        target: Handle<Image>,
-        projection: Projection,
-        transform: Transform,
-        size: u32,
-    ) -> Self {
-        app.world_mut().spawn((
-            Camera3d::default(),
-            projection,
-            transform,
-            RenderTarget::from(target.clone()),
-            Hdr,
-            Msaa::Off,
-            Tonemapping::None,
-            EnvisCamera,
-        ));
-        app.finish();
-        app.cleanup();
-        HeadlessSphere { app, target, size }
+    /// Add an asset.
+    pub fn add<A: Asset>(&mut self, asset: impl Into<A>) -> Handle<A> {
+        self.app.world_mut().resource_mut::<Assets<A>>().add(asset)
     }
 
     pub fn update(&mut self) {
+        if !self.finished {
+            self.app.finish();
+            self.app.cleanup();
+            self.finished = true;
+        }
         self.app.update();
     }
 
-    /// Draw frames until a capture of the target arrives (after a few frames of set-up: meshes,
+    /// Draw frames until a capture of `target` arrives (after a few frames of set-up: meshes,
     /// materials and pipelines are prepared over the first frames). Linear RGB, row-major. An
     /// error (never a panic) when no capture comes or it has the wrong size.
-    pub fn capture(&mut self) -> crate::error::Result<Vec<Vec3>> {
-        use crate::error::Error;
+    pub fn capture(&mut self, target: &Handle<Image>) -> crate::error::Result<Vec<Vec3>> {
         for _ in 0..3 {
             self.update();
         }
+        self.capture_next(target)
+    }
+
+    /// [`Self::capture`] without the set-up frames: the first frame rendered from now.
+    pub fn capture_next(&mut self, target: &Handle<Image>) -> crate::error::Result<Vec<Vec3>> {
+        use crate::error::Error;
         let got: Arc<Mutex<Option<Image>>> = Arc::default();
         let sink = got.clone();
         self.app
             .world_mut()
-            .spawn(Screenshot::image(self.target.clone()))
+            .spawn(Screenshot::image(target.clone()))
             .observe(move |ev: On<ScreenshotCaptured>| {
                 if let Ok(mut slot) = sink.lock() {
                     *slot = Some(ev.image.clone());
@@ -194,8 +128,9 @@ impl HeadlessSphere {
             self.update();
             let img = got.lock().ok().and_then(|mut slot| slot.take());
             let Some(img) = img else { continue };
+            let (w, h) = (img.width(), img.height());
             let data = img.data.unwrap_or_default();
-            let want = (self.size * self.size * 4) as usize;
+            let want = (w * h * 4) as usize;
             // Decoded byte by byte: the capture's bytes need not be aligned for f32.
             let px: Vec<f32> = data
                 .chunks_exact(4)
@@ -203,10 +138,8 @@ impl HeadlessSphere {
                 .collect();
             if px.len() != want {
                 return Err(Error::invalid(format!(
-                    "the GPU capture has {} floats, expected {want} ({}x{} RGBA32F)",
-                    px.len(),
-                    self.size,
-                    self.size
+                    "the GPU capture has {} floats, expected {want} ({w}x{h} RGBA32F)",
+                    px.len()
                 )));
             }
             return Ok(px
@@ -223,8 +156,196 @@ impl HeadlessSphere {
     pub fn counters(&self) -> EnvisCounters {
         self.app.world().resource::<EnvisCounters>().clone()
     }
+}
+
+/// A camera rendering HDR radiance as it is (no tonemapping, exposure multiplier 1, black where
+/// nothing is drawn) into `target`, with envis sampling `env`.
+pub fn radiance_camera(
+    target: Handle<Image>,
+    projection: Projection,
+    transform: Transform,
+    sampling: EnvironmentSampling,
+    env: EnvisEnvironment,
+) -> impl Bundle {
+    (
+        Camera3d::default(),
+        Camera {
+            clear_color: ClearColorConfig::Custom(Color::BLACK),
+            ..default()
+        },
+        projection,
+        transform,
+        RenderTarget::from(target),
+        Tonemapping::None,
+        exposure_multiplier(1.0),
+        sampling,
+        env,
+    )
+}
+
+/// The orthographic camera of the CPU renderer's `sphere` scene.
+pub fn sphere_view() -> (Projection, Transform) {
+    (
+        Projection::Orthographic(OrthographicProjection {
+            scaling_mode: ScalingMode::Fixed {
+                width: 2.0,
+                height: 2.0,
+            },
+            ..OrthographicProjection::default_3d()
+        }),
+        Transform::from_xyz(0.0, 0.0, 5.0).looking_at(Vec3::ZERO, Vec3::Y),
+    )
+}
+
+/// The sphere scene lit by an envis stream, and its float render target.
+pub struct HeadlessSphere {
+    pub app: HeadlessApp,
+    target: Handle<Image>,
+}
+
+impl HeadlessSphere {
+    /// Build the app: stream `source` at `face` texels per face (and sample it at that face
+    /// size), the sphere with `brdf`, HDR output without tonemapping into a `size x size`
+    /// Rgba32Float image.
+    pub fn new(
+        source: StreamSource,
+        face: usize,
+        brdf: EnvisBrdf,
+        sampling: EnvironmentSampling,
+        size: u32,
+    ) -> Self {
+        let mut h = HeadlessApp::new();
+        h.app.add_plugins(EnvMapStreamPlugin {
+            source,
+            face_size: face,
+        });
+        let mesh = h.add::<Mesh>(Sphere::new(1.0).mesh().ico(7).expect("icosphere"));
+        let material = h.add::<EnvisMaterial>(brdf);
+        h.app
+            .world_mut()
+            .spawn((Mesh3d(mesh), MeshMaterial3d(material), Transform::IDENTITY));
+        let (projection, transform) = sphere_view();
+        Self::finish(h, projection, transform, sampling, face, size)
+    }
+
+    /// A scene file's objects and camera (perspective), with the scene's environment.
+    pub fn from_scene(
+        sc: &crate::scene::Scene,
+        sampling: EnvironmentSampling,
+        size: u32,
+    ) -> crate::error::Result<Self> {
+        let source = match StreamSource::parse(&sc.environment)? {
+            StreamSource::Sky { hours, .. } => StreamSource::Sky { hours, speed: 0.0 },
+            other => other,
+        };
+        let face = sc.file.environment.face_size;
+        let mut h = HeadlessApp::new();
+        h.app.add_plugins(EnvMapStreamPlugin {
+            source,
+            face_size: face,
+        });
+        let cam = h
+            .app
+            .world_mut()
+            .resource_scope(|world, mut meshes: Mut<Assets<Mesh>>| {
+                world.resource_scope(|world, mut materials: Mut<Assets<EnvisMaterial>>| {
+                    let mut commands = world.commands();
+                    super::scene_objects::spawn_scene_objects(
+                        &mut commands,
+                        &mut meshes,
+                        &mut materials,
+                        sc,
+                    )
+                })
+            });
+        h.app.world_mut().flush();
+        let projection = Projection::Perspective(PerspectiveProjection {
+            fov: cam.fov,
+            ..default()
+        });
+        Ok(Self::finish(
+            h,
+            projection,
+            cam.transform(),
+            sampling,
+            face,
+            size,
+        ))
+    }
+
+    /// Add the camera (HDR radiance into the float target), lit by the stream's image.
+    fn finish(
+        mut h: HeadlessApp,
+        projection: Projection,
+        transform: Transform,
+        mut sampling: EnvironmentSampling,
+        face: usize,
+        size: u32,
+    ) -> Self {
+        let target = h.float_target(size, size);
+        let image = h.app.world().resource::<EnvMapStream>().image.clone();
+        sampling.face_size = face as u32;
+        let env = EnvisEnvironment {
+            show_background: false,
+            ..EnvisEnvironment::new(image)
+        };
+        h.app.world_mut().spawn(radiance_camera(
+            target.clone(),
+            projection,
+            transform,
+            sampling,
+            env,
+        ));
+        HeadlessSphere { app: h, target }
+    }
+
+    pub fn update(&mut self) {
+        self.app.update();
+    }
+
+    /// See [`HeadlessApp::capture`].
+    pub fn capture(&mut self) -> crate::error::Result<Vec<Vec3>> {
+        self.app.capture(&self.target)
+    }
+
+    pub fn counters(&self) -> EnvisCounters {
+        self.app.counters()
+    }
 
     pub fn stream_mut(&mut self) -> Mut<'_, EnvMapStream> {
-        self.app.world_mut().resource_mut::<EnvMapStream>()
+        self.app.app.world_mut().resource_mut::<EnvMapStream>()
+    }
+
+    /// The camera's environment (change it between frames).
+    pub fn env_mut(&mut self) -> Mut<'_, EnvisEnvironment> {
+        let world = self.app.app.world_mut();
+        let e = world
+            .query_filtered::<Entity, With<EnvisEnvironment>>()
+            .single(world)
+            .expect("one envis camera");
+        world.get_mut::<EnvisEnvironment>(e).expect("camera")
+    }
+
+    /// Frames the camera has accumulated before its last frame.
+    pub fn accumulated_frames(&mut self) -> u32 {
+        let world = self.app.app.world_mut();
+        let e = world
+            .query_filtered::<Entity, With<EnvironmentSampling>>()
+            .single(world)
+            .expect("one envis camera");
+        world
+            .resource::<super::AccumulatedFrames>()
+            .get(e)
+            .unwrap_or(0)
+    }
+
+    /// The camera's sampling settings (change them between frames).
+    pub fn sampling_mut(&mut self) -> Mut<'_, EnvironmentSampling> {
+        let world = self.app.app.world_mut();
+        let e = world
+            .query_filtered::<Entity, With<EnvironmentSampling>>()
+            .single(world)
+            .expect("one envis camera");
+        world.get_mut::<EnvironmentSampling>(e).expect("camera")
     }
 }

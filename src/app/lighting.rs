@@ -1,23 +1,24 @@
-//! `MisLightingPlugin`: the face-weighted MIS deferred lighting pass, replacing Bevy's for cameras
-//! marked [`EnvisCamera`]. Meshes write Bevy's deferred G-buffer through a `StandardMaterial`
-//! made by [`EnvisMaterial`]; the pass decodes it and runs the same `shade` function as the
-//! headless backend (`shaders/shade.wgsl`).
+//! `MisLightingPlugin`: the face-weighted MIS lighting pass of every camera with
+//! [`EnvironmentSampling`] and an [`EnvisEnvironment`]. It runs after Bevy's deferred lighting
+//! (which keeps lighting `StandardMaterial` pixels with Bevy's own lights and shadows) and adds
+//! the environment term on top; `EnvisMaterial` pixels get the environment alone; the background
+//! shows the environment image. The pass decodes the G-buffer and runs the same `shade` function
+//! as the headless backend (`shaders/shade.wgsl`), limited to the camera's viewport.
 
-use super::sampling::EnvSamplingState;
+use super::components::{EnvironmentSampling, EnvisEnvironment};
+use super::sampling::{EnvSamplers, ViewSampling};
 use super::timing::{AsyncRead, AsyncTimer, EnvisTimings};
-use super::{EnvisCounters, EnvisSettings};
-use super::{EnvisProbe, Overlay, ProbeResult};
+use super::{EnvisCounters, EnvisProbe, Overlay, ProbeResult};
+use crate::envmap::resample::SourceLayout;
 use crate::gpu::shaders;
 use crate::gpu::shading::ShadeParams;
 use crate::render::Strategy;
 use crate::sampling::{Lobe, Material};
 use bevy::core_pipeline::core_3d::main_opaque_pass_3d;
-use bevy::core_pipeline::prepass::{DeferredPrepass, DepthPrepass, ViewPrepassTextures};
+use bevy::core_pipeline::prepass::ViewPrepassTextures;
 use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
-use bevy::material::OpaqueRendererMethod;
-use bevy::pbr::deferred::SkipDeferredLighting;
 use bevy::prelude::*;
-use bevy::render::extract_component::{ExtractComponent, ExtractComponentPlugin};
+use bevy::render::camera::ExtractedCamera;
 use bevy::render::renderer::{RenderContext, RenderDevice, ViewQuery};
 use bevy::render::view::{ExtractedView, ViewTarget};
 use bevy::render::{Render, RenderApp, RenderStartup, RenderSystems};
@@ -25,124 +26,11 @@ use std::collections::HashMap;
 use std::sync::Mutex;
 use wgpu::util::DeviceExt;
 
-/// Marks a 3D camera whose lighting is done by envis. Brings the deferred prepasses it needs;
-/// the camera must also have `Msaa::Off` (deferred rendering has no MSAA).
-#[derive(Component, Clone, Copy, Default, ExtractComponent)]
-#[require(DepthPrepass, DeferredPrepass)]
-pub struct EnvisCamera;
-
-/// An envis material, written into Bevy's deferred G-buffer as a `StandardMaterial`
-/// (the encoding is documented in `shaders/lighting.wgsl` and `docs/gpu.md`).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum EnvisMaterial {
-    Lambert {
-        albedo: Vec3,
-    },
-    /// Normalised Phong; exponent up to 1e4 (stored as roughness `(2 / (e + 2))^(1/4)`, 8 bits).
-    Phong {
-        albedo: Vec3,
-        exponent: f32,
-    },
-    /// GGX with F = 1 (stored as perceptual roughness `sqrt(alpha)`, 8 bits).
-    Ggx {
-        albedo: Vec3,
-        alpha: f32,
-    },
-    /// Lambert `(1 - specular) albedo` plus GGX `specular albedo`.
-    Mix {
-        albedo: Vec3,
-        specular: f32,
-        alpha: f32,
-    },
-}
-
-/// sRGB-ish 8-bit round trip of Bevy's G-buffer base colour (`pow(c, 1/2.2)` in unorm8).
-fn gbuffer_color(c: Vec3) -> Vec3 {
-    c.map(|x| ((x.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0).round() / 255.0).powf(2.2))
-}
-fn unorm8(x: f32) -> f32 {
-    (x.clamp(0.0, 1.0) * 255.0).round() / 255.0
-}
-
-impl EnvisMaterial {
-    fn encode(&self) -> (Vec3, f32, f32, f32) {
-        // (albedo, metallic, reflectance, perceptual roughness)
-        match *self {
-            EnvisMaterial::Lambert { albedo } => (albedo, 0.0, 0.0, 1.0),
-            EnvisMaterial::Phong { albedo, exponent } => (
-                albedo,
-                1.0,
-                1.0,
-                (2.0 / (exponent.max(0.0) + 2.0)).powf(0.25),
-            ),
-            EnvisMaterial::Ggx { albedo, alpha } => {
-                (albedo, 1.0, 0.5, alpha.clamp(1e-4, 1.0).sqrt())
-            }
-            EnvisMaterial::Mix {
-                albedo,
-                specular,
-                alpha,
-            } => (
-                albedo,
-                specular.clamp(0.0, 1.0),
-                0.5,
-                alpha.clamp(1e-4, 1.0).sqrt(),
-            ),
-        }
-    }
-
-    /// The `StandardMaterial` that writes this material into the deferred G-buffer.
-    pub fn standard(&self) -> StandardMaterial {
-        let (c, metallic, reflectance, roughness) = self.encode();
-        StandardMaterial {
-            base_color: Color::linear_rgb(c.x, c.y, c.z),
-            metallic,
-            reflectance,
-            perceptual_roughness: roughness,
-            opaque_render_method: OpaqueRendererMethod::Deferred,
-            ..default()
-        }
-    }
-
-    /// The core material the lighting pass decodes from the G-buffer (8-bit quantised), i.e.
-    /// what the CPU twin must render to compare with a Bevy frame.
-    pub fn decoded(&self) -> Material {
-        let (c, metallic, reflectance, roughness) = self.encode();
-        let (base, m, refl, r) = (
-            gbuffer_color(c),
-            unorm8(metallic),
-            unorm8(reflectance),
-            unorm8(roughness),
-        );
-        let lobe = if refl >= 0.75 {
-            let r2 = (r * r).max(1e-4);
-            Lobe::Phong {
-                exponent: (2.0 / (r2 * r2) - 2.0).clamp(0.0, 1e6),
-            }
-        } else if refl >= 0.25 {
-            Lobe::Ggx {
-                alpha: (r * r).clamp(1e-4, 1.0),
-            }
-        } else {
-            Lobe::None
-        };
-        let ks = if lobe == Lobe::None {
-            Vec3::ZERO
-        } else {
-            base * m
-        };
-        Material {
-            kd: base * (1.0 - m),
-            ks,
-            lobe,
-        }
-    }
-}
-
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 struct LightingView {
     world_from_clip: [[f32; 4]; 4],
+    env_from_world: [[f32; 4]; 4],
     camera: [f32; 4],
     forward: [f32; 4],
     viewport: [f32; 4],
@@ -162,6 +50,8 @@ pub struct LightingPipelines {
     /// The probed pixel's record (6 vec4) and its readback.
     probe: wgpu::Buffer,
     probe_read: AsyncRead,
+    /// The seed of the frame whose probe is being read back.
+    probe_seed: Mutex<u32>,
     /// Per view: the running mean of the accumulated frames (one vec4 per pixel) and its size.
     accum: Mutex<HashMap<Entity, (wgpu::Buffer, UVec2)>>,
 }
@@ -207,6 +97,15 @@ impl LightingPipelines {
                 e(7, buf(BB::Storage { read_only: false })),
                 e(8, buf(BB::Storage { read_only: false })),
                 e(9, buf(BB::Storage { read_only: true })),
+                e(
+                    10,
+                    B::Texture {
+                        sample_type: wgpu::TextureSampleType::Uint,
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                ),
+                e(11, crate::gpu::resample::source_binding()),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -233,8 +132,35 @@ impl LightingPipelines {
             timer,
             probe,
             probe_read,
+            probe_seed: Mutex::new(0),
             accum: Mutex::new(HashMap::new()),
         }
+    }
+
+    /// The view's running-mean buffer: one vec4 per viewport pixel while accumulating (a new one,
+    /// so a new mean, when the viewport size changes), a 16-byte placeholder otherwise.
+    fn accumulation_buffer(
+        &self,
+        device: &wgpu::Device,
+        view: Entity,
+        accumulate: bool,
+        vp: UVec4,
+    ) -> wgpu::Buffer {
+        let buffer = |bytes: u64| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("envis accumulation"),
+                size: bytes,
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            })
+        };
+        let mut map = self.accum.lock().expect("accumulation buffers");
+        let size = UVec2::new(vp.z.max(1), vp.w.max(1));
+        let entry = map.entry(view).or_insert_with(|| (buffer(16), UVec2::ZERO));
+        if accumulate && entry.1 != size {
+            *entry = (buffer(size.x as u64 * size.y as u64 * 16), size);
+        }
+        entry.0.clone()
     }
 
     fn pipeline(&self, device: &wgpu::Device, format: wgpu::TextureFormat) -> wgpu::RenderPipeline {
@@ -254,9 +180,10 @@ impl LightingPipelines {
                         module: &self.module,
                         entry_point: Some("lighting"),
                         compilation_options: Default::default(),
+                        // Premultiplied: alpha 0 adds to Bevy's lighting, alpha 1 replaces.
                         targets: &[Some(wgpu::ColorTargetState {
                             format,
-                            blend: None,
+                            blend: Some(wgpu::BlendState::PREMULTIPLIED_ALPHA_BLENDING),
                             write_mask: wgpu::ColorWrites::ALL,
                         })],
                     }),
@@ -271,33 +198,41 @@ impl LightingPipelines {
     }
 }
 
-/// Adds the envis deferred lighting pass for [`EnvisCamera`] views.
+/// Adds the envis lighting pass to every camera with [`EnvironmentSampling`] and an
+/// [`EnvisEnvironment`].
 pub struct MisLightingPlugin;
 
 impl Plugin for MisLightingPlugin {
     fn build(&self, app: &mut App) {
-        app.add_plugins(ExtractComponentPlugin::<EnvisCamera>::default());
+        super::share_resources(app);
         let Some(render_app) = app.get_sub_app_mut(RenderApp) else {
             return;
         };
         render_app
             .add_systems(RenderStartup, init_lighting)
-            .init_resource::<EnvisTimings>()
             .add_systems(
                 Render,
-                skip_bevy_deferred_lighting.in_set(RenderSystems::CreateViews),
-            )
-            .init_resource::<EnvisProbe>()
-            .add_systems(
-                Render,
-                poll_lighting_readbacks.in_set(RenderSystems::Prepare),
+                (poll_lighting_readbacks, drop_stale_view_buffers).in_set(RenderSystems::Prepare),
             )
             .add_systems(
                 Core3d,
                 mis_lighting
+                    .after(bevy::pbr::deferred::deferred_lighting)
                     .before(main_opaque_pass_3d)
                     .in_set(Core3dSystems::MainPass),
             );
+    }
+}
+
+/// Accumulation buffers of views that are gone (or stopped sampling) are freed.
+fn drop_stale_view_buffers(
+    pipes: Option<Res<LightingPipelines>>,
+    views: Query<Entity, With<ViewSampling>>,
+) {
+    let Some(pipes) = pipes else { return };
+    let mut map = pipes.accum.lock().expect("accumulation buffers");
+    if map.keys().any(|e| !views.contains(*e)) {
+        map.retain(|e, _| views.contains(*e));
     }
 }
 
@@ -325,6 +260,7 @@ fn poll_lighting_readbacks(
             let lobe = match v[2][3] as u32 {
                 1 => Lobe::Phong { exponent: v[3][3] },
                 2 => Lobe::Ggx { alpha: v[3][3] },
+                3 => Lobe::GgxSchlick { alpha: v[3][3] },
                 _ => Lobe::None,
             };
             let v3 = |a: [f32; 4]| Vec3::new(a[0], a[1], a[2]);
@@ -341,43 +277,47 @@ fn poll_lighting_readbacks(
                 },
                 estimate: v3(v[4]),
                 pixel_index: v[5][2] as u32,
+                seed: *pipes.probe_seed.lock().expect("probe seed"),
             };
             *probe.lock().expect("probe") = Some(r);
         }
     }
 }
 
-/// Bevy's own deferred lighting must not also light envis views.
-fn skip_bevy_deferred_lighting(
-    mut commands: Commands,
-    views: Query<Entity, (With<EnvisCamera>, Without<SkipDeferredLighting>)>,
-) {
-    for e in &views {
-        commands.entity(e).insert(SkipDeferredLighting);
-    }
-}
-
-/// The per-view lighting pass: G-buffer + this frame's distribution and pool -> HDR radiance.
+/// The per-view lighting pass: G-buffer + this frame's distribution and pool -> HDR radiance,
+/// added to Bevy's lighting inside the view's viewport.
 #[allow(clippy::too_many_arguments)]
 fn mis_lighting(
-    view: ViewQuery<(&ViewTarget, &ViewPrepassTextures, &ExtractedView), With<EnvisCamera>>,
+    view: ViewQuery<(
+        &ViewTarget,
+        &ViewPrepassTextures,
+        &ExtractedView,
+        &ExtractedCamera,
+        &EnvironmentSampling,
+        &EnvisEnvironment,
+        &ViewSampling,
+    )>,
     pipes: Option<Res<LightingPipelines>>,
-    state: Res<EnvSamplingState>,
-    settings: Res<EnvisSettings>,
+    samplers: Res<EnvSamplers>,
     counters: Res<EnvisCounters>,
     timings: Res<EnvisTimings>,
     mut ctx: RenderContext,
 ) {
     let t0 = std::time::Instant::now();
     let view_entity = view.entity();
-    let (target, prepass, ev) = view.into_inner();
-    let (Some(pipes), Some(sampler)) = (pipes, state.sampler.as_ref()) else {
+    let (target, prepass, ev, cam, sampling, env, vs) = view.into_inner();
+    let (Some(pipes), Some(slot)) = (pipes, samplers.slots.get(&vs.key)) else {
         return;
     };
-    let (Some(depth), Some(deferred)) = (prepass.depth_view(), prepass.deferred_view()) else {
+    let sampler = &slot.sampler;
+    let (Some(depth), Some(deferred), Some(ids)) = (
+        prepass.depth_view(),
+        prepass.deferred_view(),
+        prepass.deferred_lighting_pass_id.as_ref(),
+    ) else {
         return;
     };
-    let mut s = settings.sampling;
+    let mut s = sampling.settings();
     if s.strategy == Strategy::Global && !sampler.has_global() {
         return; // its distribution is built from the next frame on
     }
@@ -385,73 +325,11 @@ fn mis_lighting(
         s.light_samples = 1;
     }
     let vp = ev.viewport;
-    s.seed = settings.frame_seed();
+    s.seed = vs.seed;
     let params = ShadeParams::new(&s, sampler.n, sampler.m, (vp.z * vp.w) as usize);
-    let world_from_view = ev.world_from_view.to_matrix();
-    let lv = LightingView {
-        world_from_clip: (world_from_view * ev.clip_from_view.inverse()).to_cols_array_2d(),
-        camera: ev
-            .world_from_view
-            .translation()
-            .extend(if ev.clip_from_view.w_axis.w == 1.0 {
-                1.0
-            } else {
-                0.0
-            })
-            .to_array(),
-        forward: ev
-            .world_from_view
-            .forward()
-            .as_vec3()
-            .extend(settings.exposure)
-            .to_array(),
-        viewport: [vp.x as f32, vp.y as f32, vp.z as f32, vp.w as f32],
-        options: {
-            let overlay = Overlay::ALL
-                .iter()
-                .position(|o| *o == settings.overlay)
-                .unwrap_or(0) as f32;
-            let p = settings
-                .probe
-                .map_or([-1.0, -1.0], |p| [p.x as f32, p.y as f32]);
-            [settings.show_sky as u32 as f32, overlay, p[0], p[1]]
-        },
-        accumulate: [
-            settings.accumulate as u32 as f32,
-            settings.frame as f32,
-            0.0,
-            0.0,
-        ],
-    };
+    let lv = lighting_view(ev, cam, sampling, env, vs, slot.layout);
     let device = ctx.render_device().wgpu_device().clone();
-    let accum = {
-        let mut map = pipes.accum.lock().expect("accumulation buffers");
-        let size = UVec2::new(vp.z.max(1), vp.w.max(1));
-        let entry = map.entry(view_entity).or_insert_with(|| {
-            (
-                device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("envis accumulation"),
-                    size: 16,
-                    usage: wgpu::BufferUsages::STORAGE,
-                    mapped_at_creation: false,
-                }),
-                UVec2::ZERO,
-            )
-        });
-        if settings.accumulate && entry.1 != size {
-            let bytes = size.x as u64 * size.y as u64 * 16;
-            *entry = (
-                device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("envis accumulation"),
-                    size: bytes,
-                    usage: wgpu::BufferUsages::STORAGE,
-                    mapped_at_creation: false,
-                }),
-                size,
-            );
-        }
-        entry.0.clone()
-    };
+    let accum = pipes.accumulation_buffer(&device, view_entity, sampling.accumulate, vp);
     let pipeline = pipes.pipeline(&device, target.main_texture_format());
     let ubuf = |label: &str, bytes: &[u8]| {
         device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -469,53 +347,35 @@ fn mis_lighting(
         offset: 0,
         size: wgpu::BufferSize::new(crate::gpu::sampler::TOTALS_COLUMNS as u64 * 4),
     };
+    use wgpu::BindingResource as R;
+    let resources = [
+        R::TextureView(deferred),
+        R::TextureView(depth),
+        sampler.texels.as_entire_binding(),
+        sampler.pool.as_entire_binding(),
+        R::Buffer(energies),
+        pbuf.as_entire_binding(),
+        vbuf.as_entire_binding(),
+        pipes.probe.as_entire_binding(),
+        accum.as_entire_binding(),
+        sampler.gdist.as_entire_binding(),
+        R::TextureView(&ids.texture.default_view),
+        R::TextureView(&slot.source),
+    ];
+    let entries: Vec<wgpu::BindGroupEntry> = resources
+        .into_iter()
+        .enumerate()
+        .map(|(i, resource)| wgpu::BindGroupEntry {
+            binding: i as u32,
+            resource,
+        })
+        .collect();
     let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("envis lighting"),
         layout: &pipes.layout,
-        entries: &[
-            wgpu::BindGroupEntry {
-                binding: 0,
-                resource: wgpu::BindingResource::TextureView(deferred),
-            },
-            wgpu::BindGroupEntry {
-                binding: 1,
-                resource: wgpu::BindingResource::TextureView(depth),
-            },
-            wgpu::BindGroupEntry {
-                binding: 2,
-                resource: sampler.texels.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 3,
-                resource: sampler.pool.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 4,
-                resource: wgpu::BindingResource::Buffer(energies),
-            },
-            wgpu::BindGroupEntry {
-                binding: 5,
-                resource: pbuf.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 6,
-                resource: vbuf.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 7,
-                resource: pipes.probe.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 8,
-                resource: accum.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 9,
-                resource: sampler.gdist.as_entire_binding(),
-            },
-        ],
+        entries: &entries,
     });
-    let probing = settings.probe.is_some() && pipes.probe_read.ready();
+    let probing = sampling.probe.is_some() && pipes.probe_read.ready();
     let timer = pipes.timer.as_ref().filter(|t| t.ready());
     let enc = ctx.command_encoder();
     if probing {
@@ -530,6 +390,8 @@ fn mis_lighting(
             occlusion_query_set: None,
             multiview_mask: None,
         });
+        // Only this camera's viewport: a split-screen neighbour keeps its pixels.
+        pass.set_viewport(vp.x as f32, vp.y as f32, vp.z as f32, vp.w as f32, 0.0, 1.0);
         pass.set_pipeline(&pipeline);
         pass.set_bind_group(0, &bind, &[]);
         pass.draw(0..3, 0..1);
@@ -539,11 +401,60 @@ fn mis_lighting(
     }
     if probing {
         pipes.probe_read.copy_from(enc, &pipes.probe);
+        *pipes.probe_seed.lock().expect("probe seed") = vs.seed;
     }
     counters.bump(|c| &c.lighting_passes);
-    if settings.overlay != Overlay::None {
+    if sampling.overlay != Overlay::None {
         counters.bump(|c| &c.overlay_passes);
     }
     let ms = t0.elapsed().as_secs_f64() * 1e3;
     timings.set(|t| t.lighting_cpu_ms = Some(ms));
+}
+
+/// The pass's per-view uniform.
+fn lighting_view(
+    ev: &ExtractedView,
+    cam: &ExtractedCamera,
+    sampling: &EnvironmentSampling,
+    env: &EnvisEnvironment,
+    vs: &ViewSampling,
+    layout: SourceLayout,
+) -> LightingView {
+    let vp = ev.viewport;
+    let world_from_view = ev.world_from_view.to_matrix();
+    let ortho = ev.clip_from_view.w_axis.w == 1.0;
+    let overlay = Overlay::ALL
+        .iter()
+        .position(|o| *o == sampling.overlay)
+        .unwrap_or(0) as f32;
+    let p = sampling
+        .probe
+        .map_or([-1.0, -1.0], |p| [p.x as f32, p.y as f32]);
+    let kind = match layout {
+        SourceLayout::LatLong => 0.0,
+        SourceLayout::Cube => 1.0,
+    };
+    LightingView {
+        world_from_clip: (world_from_view * ev.clip_from_view.inverse()).to_cols_array_2d(),
+        env_from_world: Mat4::from_quat(env.rotation.inverse()).to_cols_array_2d(),
+        camera: ev
+            .world_from_view
+            .translation()
+            .extend(ortho as u32 as f32)
+            .to_array(),
+        forward: ev
+            .world_from_view
+            .forward()
+            .as_vec3()
+            .extend(env.intensity * cam.exposure)
+            .to_array(),
+        viewport: [vp.x as f32, vp.y as f32, vp.z as f32, vp.w as f32],
+        options: [env.show_background as u32 as f32, overlay, p[0], p[1]],
+        accumulate: [
+            sampling.accumulate as u32 as f32,
+            vs.frame as f32,
+            kind,
+            0.0,
+        ],
+    }
 }

@@ -1,130 +1,103 @@
-//! The Bevy layer: one plugin per capability, resources as the interface between the main and the
-//! render world, and the same WGSL stages as the headless backend ([`crate::gpu`]).
+//! The Bevy layer: [`EnvisPlugin`] and two camera components give a Bevy app unbiased,
+//! per-frame importance-sampled environment lighting (`docs/bevy.md`):
 //!
-//! - [`EnvMapStreamPlugin`] (main world): advances an [`crate::stream::EnvStream`] every update
-//!   and publishes the current frame as the [`EnvFrame`] resource (extracted to the render world).
-//! - [`EnvMapSamplingPlugin`] (render world): uploads a frame only when its generation changed and
-//!   records the distribution build + light pool in the `RenderGraph` schedule, before
-//!   `camera_driver`, so every camera of the frame shades with this frame's distribution.
-//! - [`MisLightingPlugin`] (render world): replaces Bevy's deferred lighting with the face-weighted
-//!   MIS pass (`Core3d`, main pass, before the opaque pass); the sky shows the environment map.
+//! ```no_run
+//! use bevy::prelude::*;
+//! use envis::prelude::*;
 //!
-//! [`EnvisSettings`] (main world, extracted) holds the sampling settings; [`EnvisCounters`] is
-//! shared by both worlds and counts the work done (builds, uploads, lighting passes), which is how
-//! tests prove that work is skipped when nothing changed.
+//! fn setup(mut commands: Commands, assets: Res<AssetServer>) {
+//!     commands.spawn((
+//!         Camera3d::default(),
+//!         EnvironmentSampling { light_samples: 32, brdf_samples: 32, ..default() },
+//!         EnvisEnvironment { intensity: 0.5, ..EnvisEnvironment::new(assets.load("sky.exr")) },
+//!     ));
+//! }
+//! # fn main() {
+//! # App::new().add_plugins((DefaultPlugins, EnvisPlugin)).add_systems(Startup, setup).run();
+//! # }
+//! ```
+//!
+//! One plugin per capability, all added by [`EnvisPlugin`]:
+//! - [`EnvisMaterialPlugin`]: the [`EnvisMaterial`] deferred material.
+//! - [`EnvMapSamplingPlugin`] (render world): per environment image, the resample, distribution
+//!   and light pool on the GPU, in the `RenderGraph` schedule before `camera_driver`.
+//! - [`MisLightingPlugin`] (render world): per camera, the face-weighted MIS pass after Bevy's
+//!   deferred lighting (`Core3d`, main pass, before the opaque pass).
+//!
+//! [`EnvMapStreamPlugin`] (not in [`EnvisPlugin`]) plays envis's own streams (file sequences,
+//! the carousel, the built-in sky) into an `Image` for [`EnvisEnvironment`].
+//!
+//! [`EnvisCounters`] is shared by both worlds and counts the work done (builds, lighting passes,
+//! bytes uploaded), which is how tests prove that work is skipped when nothing changed.
 
+pub mod components;
 #[cfg(feature = "demo")]
 pub mod demo;
 pub mod headless;
 pub mod lighting;
+pub mod material;
 pub mod sampling;
 pub mod scene_objects;
 pub mod stream;
 pub mod timing;
 
-pub use lighting::{EnvisCamera, EnvisMaterial, MisLightingPlugin};
+pub use components::{EnvironmentSampling, EnvisEnvironment, exposure_multiplier};
+pub use lighting::MisLightingPlugin;
+pub use material::{
+    ENVIS_LIGHTING_PASS_ID, EnvisBrdf, EnvisMaterial, EnvisMaterialPlugin,
+    standard_material_decoded,
+};
 pub use sampling::EnvMapSamplingPlugin;
 pub use stream::{EnvFrame, EnvMapStream, EnvMapStreamPlugin};
 pub use timing::{EnvisTimings, PassTimes};
 
-use crate::render::Settings;
 use bevy::prelude::*;
-use bevy::render::extract_resource::ExtractResource;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-/// Sampling settings of the app (the core's [`Settings`]) plus display options.
-#[derive(Resource, Clone, ExtractResource)]
-pub struct EnvisSettings {
-    pub sampling: Settings,
-    /// Multiplier applied to the HDR radiance before tonemapping.
-    pub exposure: f32,
-    /// Draw the environment where there is no geometry (off: those pixels are 0, as in the CPU
-    /// renderer's contract).
-    pub show_sky: bool,
-    /// Full-screen debug overlay (none costs nothing: the shader skips it).
-    pub overlay: Overlay,
-    /// Pixel (viewport coordinates) whose G-buffer texel and estimate are read back for the
-    /// sample-debug view ([`EnvisProbe`]).
-    pub probe: Option<UVec2>,
-    /// Average frames while nothing changes: every frame draws a new pool and new per-pixel
-    /// streams (seeds mixed with [`Self::frame`]), so the running mean converges to the integral.
-    pub accumulate: bool,
-    /// Frames accumulated so far (0 = this frame starts a new average). Kept by
-    /// [`track_accumulation`]; bump [`Self::scene_revision`] when the scene changes.
-    pub frame: u32,
-    /// Changes whenever something the image depends on changed outside the settings (materials).
-    pub scene_revision: u32,
-    /// Rebuild the distribution and pool every frame even when nothing changed (the always-on
-    /// path the skipping is tested against; off in normal use).
-    pub always_rebuild: bool,
-}
+/// Everything envis needs (and nothing from egui or the demo): add it next to `DefaultPlugins`.
+/// Cameras without [`EnvironmentSampling`] + [`EnvisEnvironment`] are not affected.
+pub struct EnvisPlugin;
 
-impl EnvisSettings {
-    /// The seed of this frame: the user's seed, mixed with the accumulation frame when accumulating.
-    pub fn frame_seed(&self) -> u32 {
-        if self.accumulate && self.frame > 0 {
-            crate::sampling::rng::hash_combine(&[self.sampling.seed, self.frame])
-        } else {
-            self.sampling.seed
-        }
+impl Plugin for EnvisPlugin {
+    fn build(&self, app: &mut App) {
+        app.register_type::<EnvironmentSampling>()
+            .register_type::<EnvisEnvironment>()
+            .add_plugins((EnvisMaterialPlugin, EnvMapSamplingPlugin, MisLightingPlugin));
     }
 }
 
-/// Restart the running mean when the camera, the environment frame, the settings or the scene
-/// changed; otherwise count one more frame.
-pub fn track_accumulation(
-    mut settings: ResMut<EnvisSettings>,
-    cams: Query<&GlobalTransform, With<EnvisCamera>>,
-    frame: Res<EnvFrame>,
-    mut last: Local<Option<String>>,
-) {
-    if !settings.accumulate {
-        if settings.frame != 0 {
-            settings.frame = 0;
-        }
-        *last = None;
-        return;
-    }
-    let s = &*settings;
-    let key = format!(
-        "{:?}|{}|{}|{:?}|{}|{}|{}",
-        s.sampling,
-        s.exposure,
-        s.show_sky,
-        s.overlay,
-        s.scene_revision,
-        frame.generation,
-        cams.iter()
-            .map(|t| format!("{:?}", t.to_matrix().to_cols_array()))
-            .collect::<String>()
-    );
-    if last.as_deref() == Some(key.as_str()) {
-        settings.frame += 1;
-    } else {
-        settings.frame = 0;
-        *last = Some(key);
-    }
-}
-
-impl Default for EnvisSettings {
-    fn default() -> Self {
-        EnvisSettings {
-            sampling: Settings::default(),
-            exposure: 1.0,
-            show_sky: true,
-            overlay: Overlay::None,
-            probe: None,
-            accumulate: false,
-            frame: 0,
-            scene_revision: 0,
-            always_rebuild: false,
-        }
+/// Insert the resources both worlds share ([`EnvisCounters`], [`EnvisTimings`], [`EnvisProbe`],
+/// [`AccumulatedFrames`])
+/// once, the same `Arc`s in each world.
+pub(crate) fn share_resources(app: &mut App) {
+    let counters = app
+        .world_mut()
+        .get_resource_or_insert_with(EnvisCounters::default)
+        .clone();
+    let timings = app
+        .world_mut()
+        .get_resource_or_insert_with(EnvisTimings::default)
+        .clone();
+    let probe = app
+        .world_mut()
+        .get_resource_or_insert_with(EnvisProbe::default)
+        .clone();
+    let frames = app
+        .world_mut()
+        .get_resource_or_insert_with(AccumulatedFrames::default)
+        .clone();
+    if let Some(render_app) = app.get_sub_app_mut(bevy::render::RenderApp) {
+        render_app
+            .insert_resource(counters)
+            .insert_resource(timings)
+            .insert_resource(probe)
+            .insert_resource(frames);
     }
 }
 
 /// Full-screen debug overlays of the lighting pass.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Reflect)]
 pub enum Overlay {
     #[default]
     None,
@@ -209,6 +182,8 @@ pub struct ProbeResult {
     pub estimate: Vec3,
     /// Its random-stream index (the CPU twin needs it to reproduce the estimate).
     pub pixel_index: u32,
+    /// The seed of the frame it was read in (per frame while accumulating).
+    pub seed: u32,
 }
 
 /// The latest probe result, shared by both worlds.
@@ -218,10 +193,11 @@ pub struct EnvisProbe(pub Arc<std::sync::Mutex<Option<ProbeResult>>>);
 /// Work counters, shared by the main and the render world.
 #[derive(Default, Debug)]
 pub struct Counters {
-    /// Distribution + pool builds recorded.
+    /// Distribution + pool builds recorded (resample, distribution, pool).
     pub builds: AtomicU64,
-    /// Frames uploaded to the GPU.
-    pub uploads: AtomicU64,
+    /// Bytes of environment images that Bevy uploaded from the CPU (an `Image` added or modified
+    /// on the CPU); an image written on the GPU adds nothing.
+    pub image_bytes_uploaded: AtomicU64,
     /// GPU sampler (re)allocations (face size or pool size changed).
     pub allocations: AtomicU64,
     /// Lighting passes recorded (one per camera per frame).
@@ -229,6 +205,18 @@ pub struct Counters {
     /// Lighting passes that ran an overlay (the overlay is a branch of the lighting pass: with
     /// overlays off this stays 0 and no overlay code runs).
     pub overlay_passes: AtomicU64,
+}
+
+/// Frames each accumulating camera (main-world entity) has averaged so far, written by the
+/// render world; shared by both worlds.
+#[derive(Resource, Clone, Default)]
+pub struct AccumulatedFrames(pub Arc<std::sync::Mutex<std::collections::HashMap<Entity, u32>>>);
+
+impl AccumulatedFrames {
+    /// Frames averaged by `camera` before its last frame (0: the last frame started the mean).
+    pub fn get(&self, camera: Entity) -> Option<u32> {
+        self.0.lock().ok()?.get(&camera).copied()
+    }
 }
 
 /// Handle to the shared [`Counters`] (present in both worlds).
@@ -240,20 +228,10 @@ impl EnvisCounters {
         c(&self.0).load(Ordering::Relaxed)
     }
     pub(crate) fn bump(&self, c: impl Fn(&Counters) -> &AtomicU64) {
-        c(&self.0).fetch_add(1, Ordering::Relaxed);
+        self.add(c, 1);
     }
-}
-
-/// The three envis plugins with default settings: the built-in sky, faces of 64^2.
-pub struct EnvisPlugins;
-
-impl Plugin for EnvisPlugins {
-    fn build(&self, app: &mut App) {
-        app.add_plugins((
-            EnvMapStreamPlugin::default(),
-            EnvMapSamplingPlugin,
-            MisLightingPlugin,
-        ));
+    pub(crate) fn add(&self, c: impl Fn(&Counters) -> &AtomicU64, n: u64) {
+        c(&self.0).fetch_add(n, Ordering::Relaxed);
     }
 }
 

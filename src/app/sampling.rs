@@ -1,139 +1,448 @@
-//! `EnvMapSamplingPlugin`: the per-frame distribution build and light pool on the GPU, recorded in
-//! the render world's `RenderGraph` schedule before `camera_driver` — only when the frame (or the
-//! pool seed / size) changed, so a static map costs nothing per frame after the first build.
+//! `EnvMapSamplingPlugin`: the sampling distribution and light pool of every environment in use,
+//! built on the GPU from the `Image` texture itself (resample, distribution, pool) in the render
+//! world's `RenderGraph` schedule before `camera_driver`, so every camera of the frame shades with
+//! this frame's distribution.
+//!
+//! A distribution is kept per (image, face size, pool size, pool seed): cameras that agree share
+//! one; an accumulating camera, whose pool changes every frame, has its own. It is rebuilt only
+//! when the image changed (an `AssetEvent`, or a new GPU texture), every frame for a `dynamic`
+//! environment, and when its pool seed changed; distributions no camera used this frame are
+//! dropped.
 
+use super::components::{EnvironmentSampling, EnvisEnvironment};
 use super::timing::{AsyncTimer, EnvisTimings};
-use super::{EnvFrame, EnvisCounters, EnvisSettings};
-use crate::gpu::EnvSampler;
-use crate::render::pool_seed;
+use super::{Counters, EnvisCounters};
+use crate::envmap::resample::SourceLayout;
+use crate::gpu::resample::source_view;
+use crate::gpu::{EnvSampler, ImageResampler};
+use crate::render::{Strategy, pool_seed};
 use bevy::core_pipeline::schedule::camera_driver;
 use bevy::prelude::*;
+use bevy::render::extract_component::ExtractComponentPlugin;
+use bevy::render::extract_resource::{ExtractResource, ExtractResourcePlugin};
+use bevy::render::render_asset::RenderAssets;
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderGraph, RenderQueue};
-use bevy::render::{Render, RenderApp, RenderSystems};
+use bevy::render::sync_world::MainEntity;
+use bevy::render::texture::GpuImage;
+use bevy::render::view::ExtractedView;
+use bevy::render::{Render, RenderApp, RenderStartup, RenderSystems};
+use std::collections::{HashMap, HashSet};
 
-/// The GPU sampler of the render world and what it currently holds.
-#[derive(Resource, Default)]
-pub struct EnvSamplingState {
-    pub sampler: Option<EnvSampler>,
-    /// Generation of the frame in `sampler.texels`.
-    pub uploaded: Option<u64>,
+/// How often each environment image changed in the main world (its `AssetEvent`s), extracted to
+/// the render world: a new version means "rebuild from this image".
+#[derive(Resource, Clone, Default, ExtractResource)]
+pub struct EnvImageVersions(pub HashMap<AssetId<Image>, u64>);
+
+/// Counts changes to the scene (materials, meshes, transforms of meshes), extracted to the render
+/// world: accumulation restarts when it changes.
+#[derive(Resource, Clone, Copy, Default, ExtractResource)]
+pub struct SceneRevision(pub u64);
+
+/// Bump [`SceneRevision`] when a material or mesh asset changed, or a mesh moved, appeared or
+/// went away.
+#[allow(clippy::too_many_arguments)]
+pub fn track_scene_changes(
+    mut standard: MessageReader<AssetEvent<StandardMaterial>>,
+    mut envis: MessageReader<AssetEvent<super::EnvisMaterial>>,
+    mut meshes: MessageReader<AssetEvent<Mesh>>,
+    moved: Query<(), (With<Mesh3d>, Changed<GlobalTransform>)>,
+    mut removed: RemovedComponents<Mesh3d>,
+    mut revision: ResMut<SceneRevision>,
+) {
+    let changed = standard.read().count() + envis.read().count() + meshes.read().count() > 0
+        || !moved.is_empty()
+        || removed.read().count() > 0;
+    if changed {
+        revision.0 += 1;
+    }
+}
+
+/// Whose seed a pool has: every camera with this seed, or one accumulating camera.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum SeedOwner {
+    Shared(u32),
+    View(Entity),
+}
+
+/// Identifies a distribution + pool in the render world.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct SamplerKey {
+    pub image: AssetId<Image>,
+    pub face_size: usize,
+    pub pool_per_face: usize,
+    pub seed: SeedOwner,
+}
+
+/// One built distribution and what it was built from.
+pub struct SamplerSlot {
+    pub sampler: EnvSampler,
+    /// The source texture (all layers) and its layout, also read by the lighting pass for the
+    /// background at full resolution.
+    pub source: wgpu::TextureView,
+    pub layout: SourceLayout,
+    width: u32,
+    /// (image version, texture) the table was last resampled from; the pool seed last drawn.
+    built: Option<(u64, bevy::render::render_resource::TextureId)>,
     seed: Option<u32>,
-    /// The uploaded frame (or seed) has not been built yet.
     dirty: bool,
-    /// Last allocation error, reported once.
-    failed: Option<(usize, usize)>,
+    /// Times the distribution was built (the lighting pass resets accumulation when it changes).
+    pub generation: u64,
+}
+
+/// The view's distribution and accumulation state (render world, on the view entity).
+#[derive(Component, Clone, Copy, Debug)]
+pub struct ViewSampling {
+    pub key: SamplerKey,
+    /// Frames averaged before this one (0: this frame starts the mean).
+    pub frame: u32,
+    /// Seed of this frame's per-pixel streams.
+    pub seed: u32,
+}
+
+/// Every distribution of the render world, the resample pipeline and the build timers.
+#[derive(Resource, Default)]
+pub struct EnvSamplers {
+    pub slots: HashMap<SamplerKey, SamplerSlot>,
+    resampler: Option<ImageResampler>,
     timer: Option<AsyncTimer>,
     pool_timer: Option<AsyncTimer>,
+    /// Per view: what its accumulation key was and how many frames it has averaged.
+    accumulation: HashMap<Entity, (u64, u32)>,
+    /// Images already reported as unusable (reported once).
+    refused: HashSet<AssetId<Image>>,
 }
 
 pub struct EnvMapSamplingPlugin;
 
 impl Plugin for EnvMapSamplingPlugin {
     fn build(&self, app: &mut App) {
+        super::share_resources(app);
+        app.init_resource::<EnvImageVersions>()
+            .init_resource::<SceneRevision>()
+            .add_plugins((
+                ExtractComponentPlugin::<EnvironmentSampling>::default(),
+                ExtractComponentPlugin::<EnvisEnvironment>::default(),
+                ExtractResourcePlugin::<EnvImageVersions>::default(),
+                ExtractResourcePlugin::<SceneRevision>::default(),
+            ))
+            .add_systems(
+                PostUpdate,
+                (
+                    // After the asset events of this frame are sent (and before extraction
+                    // drops a render-world-only image's bytes from the main world).
+                    track_image_versions.after(bevy::asset::AssetEventSystems),
+                    track_scene_changes
+                        .after(bevy::asset::AssetEventSystems)
+                        .after(bevy::transform::TransformSystems::Propagate),
+                ),
+            );
         let Some(render_app) = app.get_sub_app_mut(RenderApp) else {
             return;
         };
         render_app
-            .init_resource::<EnvSamplingState>()
-            .init_resource::<EnvisCounters>()
-            .init_resource::<EnvisTimings>()
-            .add_systems(Render, prepare_env_sampler.in_set(RenderSystems::Prepare))
-            .add_systems(RenderGraph, build_env_distribution.before(camera_driver));
+            .init_resource::<EnvSamplers>()
+            .add_systems(RenderStartup, init_samplers)
+            .add_systems(Render, prepare_samplers.in_set(RenderSystems::Prepare))
+            .add_systems(RenderGraph, build_distributions.before(camera_driver));
     }
 }
 
-/// (Re)allocate when the face size or pool size changed; upload a new frame; set the pool seed.
-pub fn prepare_env_sampler(
-    frame: Option<Res<EnvFrame>>,
-    settings: Option<Res<EnvisSettings>>,
+fn init_samplers(
     device: Res<RenderDevice>,
     queue: Res<RenderQueue>,
-    mut state: ResMut<EnvSamplingState>,
-    counters: Res<EnvisCounters>,
-    timings: Res<EnvisTimings>,
+    mut samplers: ResMut<EnvSamplers>,
 ) {
-    let (Some(frame), Some(settings)) = (frame, settings) else {
-        return;
-    };
-    let t0 = std::time::Instant::now();
-    if let Some(ms) = state.timer.as_ref().and_then(|t| t.poll()) {
-        timings.set(|t| t.build_gpu_ms = Some(ms));
-    }
-    if let Some(ms) = state.pool_timer.as_ref().and_then(|t| t.poll()) {
-        timings.set(|t| t.pool_gpu_ms = Some(ms));
-    }
-    let (n, m) = (frame.map.size, settings.sampling.pool_per_face());
-    if state.sampler.as_ref().is_none_or(|s| s.n != n || s.m != m) {
-        if state.failed == Some((n, m)) {
-            return;
+    let device = device.wgpu_device();
+    samplers.resampler = Some(ImageResampler::new(device));
+    samplers.timer = AsyncTimer::new(device, &queue, "envis build timer");
+    samplers.pool_timer = AsyncTimer::new(device, &queue, "envis pool timer");
+}
+
+/// Bump the version of every environment image that was added or changed on the CPU, and count
+/// the bytes Bevy uploads for it (a GPU-written image never counts any).
+pub fn track_image_versions(
+    mut events: MessageReader<AssetEvent<Image>>,
+    mut versions: ResMut<EnvImageVersions>,
+    envs: Query<&EnvisEnvironment>,
+    images: Res<Assets<Image>>,
+    counters: Res<EnvisCounters>,
+) {
+    let used: HashSet<AssetId<Image>> = envs.iter().map(|e| e.image.id()).collect();
+    for ev in events.read() {
+        let (AssetEvent::Added { id } | AssetEvent::Modified { id }) = *ev else {
+            continue;
+        };
+        if !used.contains(&id) {
+            continue;
         }
-        match EnvSampler::with_device(device.wgpu_device(), &queue, n, m, false) {
-            Ok(s) => {
-                let timer = AsyncTimer::new(device.wgpu_device(), &queue, "envis build timer");
-                let pool_timer = AsyncTimer::new(device.wgpu_device(), &queue, "envis pool timer");
-                *state = EnvSamplingState {
-                    sampler: Some(s),
-                    timer,
-                    pool_timer,
-                    ..default()
-                };
-                counters.bump(|c| &c.allocations);
-            }
-            Err(e) => {
-                error!("envis: {e}");
-                state.failed = Some((n, m));
-                return;
-            }
-        }
+        *versions.0.entry(id).or_default() += 1;
+        let bytes = images
+            .get(id)
+            .and_then(|i| i.data.as_ref())
+            .map_or(0, |d| d.len());
+        counters.add(|c| &c.image_bytes_uploaded, bytes as u64);
     }
-    let state = &mut *state;
-    if settings.sampling.strategy == crate::render::Strategy::Global
-        && state.sampler.as_ref().is_some_and(|s| !s.has_global())
-    {
-        let s = state.sampler.as_mut().expect("allocated above");
-        match s.enable_global(device.wgpu_device(), &queue) {
-            Ok(()) => state.dirty = true,
-            Err(e) => error!("envis: {e}"),
-        }
-    }
-    let sampler = state.sampler.as_ref().expect("allocated above");
-    if state.uploaded != Some(frame.generation) {
-        sampler.upload(&queue, &frame.map);
-        state.uploaded = Some(frame.generation);
-        state.dirty = true;
-        counters.bump(|c| &c.uploads);
-    }
-    let seed = pool_seed(settings.frame_seed());
-    if state.seed != Some(seed) {
-        sampler.set_seed(&queue, seed);
-        state.seed = Some(seed);
-        state.dirty = true;
-    }
-    if settings.always_rebuild {
-        state.dirty = true;
-    }
-    if state.dirty {
-        let ms = t0.elapsed().as_secs_f64() * 1e3;
-        timings.set(|t| t.build_cpu_ms = Some(ms));
+    // Forget images no camera uses any more.
+    if versions.0.keys().any(|id| !used.contains(id)) {
+        versions.0.retain(|id, _| used.contains(id));
     }
 }
 
-/// Record the build (five compute dispatches) into this frame's command stream, before any camera.
-pub fn build_env_distribution(
-    mut ctx: RenderContext,
-    mut state: ResMut<EnvSamplingState>,
+/// Per view: choose (and allocate) its distribution, decide whether that needs a rebuild, and
+/// track accumulation. Drops distributions and view state that no view uses any more.
+#[allow(clippy::too_many_arguments)]
+pub fn prepare_samplers(
+    mut commands: Commands,
+    views: Query<(
+        Entity,
+        &MainEntity,
+        &ExtractedView,
+        &EnvironmentSampling,
+        &EnvisEnvironment,
+    )>,
+    accumulated: Res<super::AccumulatedFrames>,
+    images: Res<RenderAssets<GpuImage>>,
+    versions: Option<Res<EnvImageVersions>>,
+    scene: Option<Res<SceneRevision>>,
+    device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
+    mut samplers: ResMut<EnvSamplers>,
     counters: Res<EnvisCounters>,
     timings: Res<EnvisTimings>,
 ) {
-    if !state.dirty {
-        return;
+    let samplers = &mut *samplers;
+    for (t, f) in [
+        (&samplers.timer, build_ms as fn(&mut _, f64)),
+        (&samplers.pool_timer, pool_ms),
+    ] {
+        if let Some(ms) = t.as_ref().and_then(|t| t.poll()) {
+            timings.set(|p| f(p, ms));
+        }
     }
+    let mut used = HashSet::new();
+    let mut live_views = HashSet::new();
+    let mut frames = accumulated.0.lock().ok();
+    if let Some(f) = frames.as_mut() {
+        f.clear();
+    }
+    for (entity, main, view, sampling, env) in &views {
+        let Some(gpu) = images.get(env.image.id()) else {
+            continue; // not loaded yet: Bevy's lighting alone until it is
+        };
+        let size = gpu.texture_descriptor.size;
+        let layout = match check_source(gpu) {
+            Ok(l) => l,
+            Err(e) => {
+                if samplers.refused.insert(env.image.id()) {
+                    error!("envis: the environment image cannot be used: {e}");
+                }
+                continue;
+            }
+        };
+        let version = versions
+            .as_ref()
+            .and_then(|v| v.0.get(&env.image.id()).copied())
+            .unwrap_or(0);
+        let settings = sampling.settings();
+        let face_size = (sampling.face_size as usize).clamp(1, 2048);
+        // Accumulation: restart the mean whenever anything the image depends on changed.
+        let scene = scene.as_ref().map_or(0, |s| s.0);
+        let acc_key = accumulation_key(sampling, env, view, (version, scene));
+        let frame = {
+            let e = samplers.accumulation.entry(entity).or_insert((acc_key, 0));
+            if !sampling.accumulate || e.0 != acc_key || env.dynamic {
+                *e = (acc_key, 0);
+            } else {
+                e.1 += 1;
+            }
+            e.1
+        };
+        if let Some(f) = frames.as_mut() {
+            f.insert(main.id(), frame);
+        }
+        let seed = if sampling.accumulate && frame > 0 {
+            crate::sampling::rng::hash_combine(&[sampling.seed, frame])
+        } else {
+            sampling.seed
+        };
+        let key = SamplerKey {
+            image: env.image.id(),
+            face_size,
+            pool_per_face: settings.pool_per_face(),
+            seed: if sampling.accumulate {
+                SeedOwner::View(entity)
+            } else {
+                SeedOwner::Shared(sampling.seed)
+            },
+        };
+        let Some(slot) = slot_for(samplers, key, gpu, layout, &device, &queue, &counters) else {
+            continue;
+        };
+        let source_id = gpu.texture.id();
+        if slot.built != Some((version, source_id)) || env.dynamic {
+            if slot.built.is_some_and(|b| b.1 != source_id) || slot.width != size.width {
+                slot.source = source_view(&gpu.texture);
+                slot.width = size.width;
+                slot.layout = layout;
+            }
+            slot.built = Some((version, source_id));
+            slot.dirty = true;
+        }
+        let pool = pool_seed(seed);
+        if slot.seed != Some(pool) {
+            slot.sampler.set_seed(&queue, pool);
+            slot.seed = Some(pool);
+            slot.dirty = true;
+        }
+        if settings.strategy == Strategy::Global && !slot.sampler.has_global() {
+            match slot.sampler.enable_global(device.wgpu_device(), &queue) {
+                Ok(()) => slot.dirty = true,
+                Err(e) => error!("envis: {e}"),
+            }
+        }
+        used.insert(key);
+        live_views.insert(entity);
+        commands
+            .entity(entity)
+            .insert(ViewSampling { key, frame, seed });
+    }
+    samplers.slots.retain(|k, _| used.contains(k));
+    samplers.accumulation.retain(|e, _| live_views.contains(e));
+}
+
+fn build_ms(p: &mut super::PassTimes, ms: f64) {
+    p.build_gpu_ms = Some(ms);
+}
+fn pool_ms(p: &mut super::PassTimes, ms: f64) {
+    p.pool_gpu_ms = Some(ms);
+}
+
+/// The layout of an environment texture, or why it cannot be one.
+fn check_source(gpu: &GpuImage) -> Result<SourceLayout, String> {
+    let d = &gpu.texture_descriptor;
+    if !matches!(
+        d.format.sample_type(None, None),
+        Some(wgpu::TextureSampleType::Float { .. })
+    ) {
+        return Err(format!("its format {:?} is not a float format", d.format));
+    }
+    if !d.usage.contains(wgpu::TextureUsages::TEXTURE_BINDING) {
+        return Err("its texture cannot be bound (no TEXTURE_BINDING usage)".into());
+    }
+    SourceLayout::detect(d.size.width, d.size.height, d.size.depth_or_array_layers)
+}
+
+/// A hash of everything a view's image depends on besides the frame's seed.
+fn accumulation_key(
+    s: &EnvironmentSampling,
+    env: &EnvisEnvironment,
+    view: &ExtractedView,
+    version: (u64, u64),
+) -> u64 {
+    use std::hash::{Hash, Hasher};
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    format!("{s:?}").hash(&mut h);
+    let floats = [
+        env.intensity,
+        env.rotation.x,
+        env.rotation.y,
+        env.rotation.z,
+        env.rotation.w,
+    ];
+    for x in floats
+        .iter()
+        .chain(view.world_from_view.to_matrix().to_cols_array().iter())
+        .chain(view.clip_from_view.to_cols_array().iter())
+    {
+        x.to_bits().hash(&mut h);
+    }
+    (env.image.id(), env.show_background, view.viewport, version).hash(&mut h);
+    h.finish()
+}
+
+/// The slot for `key`, allocated on first use; `None` (reported once) when the device refuses.
+#[allow(clippy::too_many_arguments)]
+fn slot_for<'a>(
+    samplers: &'a mut EnvSamplers,
+    key: SamplerKey,
+    gpu: &GpuImage,
+    layout: SourceLayout,
+    device: &RenderDevice,
+    queue: &RenderQueue,
+    counters: &EnvisCounters,
+) -> Option<&'a mut SamplerSlot> {
+    if !samplers.slots.contains_key(&key) {
+        match EnvSampler::with_device(
+            device.wgpu_device(),
+            queue,
+            key.face_size,
+            key.pool_per_face,
+            false,
+        ) {
+            Ok(sampler) => {
+                counters.bump(|c: &Counters| &c.allocations);
+                samplers.slots.insert(
+                    key,
+                    SamplerSlot {
+                        sampler,
+                        source: source_view(&gpu.texture),
+                        layout,
+                        width: gpu.texture_descriptor.size.width,
+                        built: None,
+                        seed: None,
+                        dirty: true,
+                        generation: 0,
+                    },
+                );
+            }
+            Err(e) => {
+                if samplers.refused.insert(key.image) {
+                    error!("envis: {e}");
+                }
+                return None;
+            }
+        }
+    }
+    samplers.slots.get_mut(&key)
+}
+
+/// Record every pending build (resample, distribution, pool) into this frame's command stream,
+/// before any camera.
+pub fn build_distributions(
+    mut ctx: RenderContext,
+    mut samplers: ResMut<EnvSamplers>,
+    counters: Res<EnvisCounters>,
+    timings: Res<EnvisTimings>,
+) {
     let t0 = std::time::Instant::now();
-    if let Some(s) = &state.sampler {
-        let timer = state.timer.as_ref().filter(|t| t.ready());
-        let pool_timer = state.pool_timer.as_ref().filter(|t| t.ready());
+    let samplers = &mut *samplers;
+    let Some(resampler) = &samplers.resampler else {
+        return;
+    };
+    let device = ctx.render_device().wgpu_device().clone();
+    let mut timed = false;
+    let mut any = false;
+    for slot in samplers.slots.values_mut().filter(|s| s.dirty) {
         let enc = ctx.command_encoder();
-        s.encode_with(
+        resampler.encode(
+            &device,
+            enc,
+            &slot.source,
+            slot.layout,
+            slot.width,
+            &slot.sampler,
+        );
+        // Time the first build of the frame (timers are read back asynchronously).
+        let (timer, pool_timer) = if timed {
+            (None, None)
+        } else {
+            timed = true;
+            (
+                samplers.timer.as_ref().filter(|t| t.ready()),
+                samplers.pool_timer.as_ref().filter(|t| t.ready()),
+            )
+        };
+        slot.sampler.encode_with(
             enc,
             timer.map(|t| t.compute_writes()),
             pool_timer.map(|t| t.compute_writes()),
@@ -141,9 +450,13 @@ pub fn build_env_distribution(
         for t in [timer, pool_timer].into_iter().flatten() {
             t.resolve(enc);
         }
+        slot.dirty = false;
+        slot.generation += 1;
+        any = true;
         counters.bump(|c| &c.builds);
     }
-    state.dirty = false;
-    let ms = t0.elapsed().as_secs_f64() * 1e3;
-    timings.set(|t| t.build_cpu_ms = Some(t.build_cpu_ms.unwrap_or(0.0) + ms));
+    if any {
+        let ms = t0.elapsed().as_secs_f64() * 1e3;
+        timings.set(|t| t.build_cpu_ms = Some(ms));
+    }
 }

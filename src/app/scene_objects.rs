@@ -1,17 +1,16 @@
 //! Scene objects in the Bevy world: a [`crate::scene::Scene`] (a TOML scene file) spawned as
 //! meshes with envis materials, shared by the demo and the headless app.
 
-use super::EnvisMaterial;
+use super::{EnvisBrdf, EnvisMaterial};
 use crate::scene::{Scene, Shape};
 use bevy::prelude::*;
 
-/// One object of the scene and its material (the panel edits it; `handle` is its
-/// `StandardMaterial`).
+/// One object of the scene and its BRDF (the panel edits it; `handle` is its material asset).
 #[derive(Component)]
 pub struct SceneObject {
     pub name: String,
-    pub material: EnvisMaterial,
-    pub handle: Handle<StandardMaterial>,
+    pub material: EnvisBrdf,
+    pub handle: Handle<EnvisMaterial>,
 }
 
 /// The scene file's camera.
@@ -25,31 +24,6 @@ pub struct SceneCamera {
 impl SceneCamera {
     pub fn transform(&self) -> Transform {
         Transform::from_translation(self.eye).looking_at(self.target, Vec3::Y)
-    }
-}
-
-/// The envis material that writes `m` into the G-buffer.
-pub fn envis_material(m: &crate::sampling::Material) -> EnvisMaterial {
-    use crate::sampling::Lobe;
-    match m.lobe {
-        Lobe::None => EnvisMaterial::Lambert { albedo: m.kd },
-        Lobe::Phong { exponent } => EnvisMaterial::Phong {
-            albedo: m.ks + m.kd,
-            exponent,
-        },
-        Lobe::Ggx { alpha } if m.kd.max_element() <= 0.0 => EnvisMaterial::Ggx {
-            albedo: m.ks,
-            alpha,
-        },
-        Lobe::Ggx { alpha } => {
-            let all = m.kd + m.ks;
-            let lum = crate::envmap::luminance;
-            EnvisMaterial::Mix {
-                albedo: all,
-                specular: lum(m.ks) / lum(all).max(1e-6),
-                alpha,
-            }
-        }
     }
 }
 
@@ -72,17 +46,17 @@ pub fn bevy_mesh(m: &crate::scene::TriMesh) -> Mesh {
     .with_inserted_indices(Indices::U32(m.indices.iter().flatten().copied().collect()))
 }
 
-/// Spawn one object: its mesh, the `StandardMaterial` its envis material is written through, and
-/// the [`SceneObject`] that lets the panel edit it.
+/// Spawn one object: its mesh, its [`EnvisMaterial`], and the [`SceneObject`] that lets the
+/// panel edit it.
 pub fn spawn_object(
     commands: &mut Commands,
-    materials: &mut Assets<StandardMaterial>,
+    materials: &mut Assets<EnvisMaterial>,
     name: &str,
     mesh: Handle<Mesh>,
-    material: EnvisMaterial,
+    material: EnvisBrdf,
     transform: Transform,
 ) {
-    let handle = materials.add(material.standard());
+    let handle = materials.add(EnvisMaterial::from(material));
     commands.spawn((
         Mesh3d(mesh),
         MeshMaterial3d(handle.clone()),
@@ -100,11 +74,11 @@ pub fn spawn_object(
 pub fn spawn_scene_objects(
     commands: &mut Commands,
     meshes: &mut Assets<Mesh>,
-    materials: &mut Assets<StandardMaterial>,
+    materials: &mut Assets<EnvisMaterial>,
     sc: &Scene,
 ) -> SceneCamera {
     for o in &sc.objects {
-        let material = envis_material(&o.material);
+        let material = EnvisBrdf::from_material(&o.material);
         let (mesh, transform) = match &o.shape {
             Shape::Sphere { center, radius } => (
                 meshes.add(Sphere::new(*radius).mesh().ico(6).expect("icosphere")),

@@ -1,15 +1,19 @@
-//! `EnvMapStreamPlugin`: the environment-map stream as a main-world resource.
+//! `EnvMapStreamPlugin`: envis's own environment streams (the built-in sky, file sequences, the
+//! carousel) played into a Bevy `Image`, so they light cameras through the same
+//! [`super::EnvisEnvironment`] as any other image.
 
-use super::{EnvisCounters, EnvisSettings};
 use crate::envmap::CubeMap;
 use crate::stream::{EnvStream, StreamSource};
+use bevy::asset::RenderAssetUsages;
 use bevy::prelude::*;
-use bevy::render::extract_resource::{ExtractResource, ExtractResourcePlugin};
+use bevy::render::render_resource::{
+    Extent3d, TextureDimension, TextureFormat, TextureViewDescriptor, TextureViewDimension,
+};
 use std::sync::Arc;
 
-/// The current environment frame, extracted to the render world every frame (an `Arc` clone).
-/// `generation` changes exactly when the map does.
-#[derive(Resource, Clone, ExtractResource)]
+/// The stream's current frame (main world; the demo's CPU twin reads it). `generation` changes
+/// exactly when the map does, and the stream's `Image` is rewritten then.
+#[derive(Resource, Clone)]
 pub struct EnvFrame {
     pub generation: u64,
     pub map: Arc<CubeMap>,
@@ -20,6 +24,8 @@ pub struct EnvFrame {
 #[derive(Resource)]
 pub struct EnvMapStream {
     pub stream: EnvStream,
+    /// The cube image the frames are written into (give it to an `EnvisEnvironment`).
+    pub image: Handle<Image>,
     /// Recent messages (bad frames, clamped texels, refused switches), newest last, at most 32.
     pub log: Vec<String>,
 }
@@ -50,7 +56,8 @@ impl EnvMapStream {
     }
 }
 
-/// Adds [`EnvMapStream`] and [`EnvFrame`] (the built-in animated sky by default).
+/// Adds [`EnvMapStream`] and [`EnvFrame`] (the built-in animated sky by default); frames are
+/// `face_size` texels per cube face.
 pub struct EnvMapStreamPlugin {
     pub source: StreamSource,
     pub face_size: usize,
@@ -85,44 +92,46 @@ impl Plugin for EnvMapStreamPlugin {
             generation: stream.generation(),
             map: stream.frame().clone(),
         };
-        let counters = app
+        let image = app
             .world_mut()
-            .get_resource_or_insert_with(EnvisCounters::default)
-            .clone();
-        let timings = app
-            .world_mut()
-            .get_resource_or_insert_with(super::EnvisTimings::default)
-            .clone();
-        let probe = app
-            .world_mut()
-            .get_resource_or_insert_with(super::EnvisProbe::default)
-            .clone();
+            .resource_mut::<Assets<Image>>()
+            .add(cube_image(&frame.map));
         app.insert_resource(EnvMapStream {
             stream,
+            image,
             log: Vec::new(),
         })
         .insert_resource(frame)
-        .init_resource::<EnvisSettings>()
-        .add_plugins((
-            ExtractResourcePlugin::<EnvFrame>::default(),
-            ExtractResourcePlugin::<EnvisSettings>::default(),
-        ))
-        .add_systems(
-            PostUpdate,
-            (
-                advance_stream,
-                super::track_accumulation.after(bevy::transform::TransformSystems::Propagate),
-            )
-                .chain(),
-        );
-        // Share the counters with the render world.
-        if let Some(render_app) = app.get_sub_app_mut(bevy::render::RenderApp) {
-            render_app
-                .insert_resource(counters)
-                .insert_resource(timings)
-                .insert_resource(probe);
-        }
+        .add_systems(PostUpdate, advance_stream);
     }
+}
+
+/// A Bevy cube image (6 layers, `Rgba32Float`, Bevy's convention) of a cube map.
+pub fn cube_image(map: &CubeMap) -> Image {
+    let layers = crate::envmap::resample::bevy_cube_layers(map);
+    let data: Vec<u8> = layers
+        .data
+        .iter()
+        .flat_map(|c| [c.x, c.y, c.z, 1.0])
+        .flat_map(f32::to_ne_bytes)
+        .collect();
+    let n = map.size as u32;
+    let mut img = Image::new(
+        Extent3d {
+            width: n,
+            height: n,
+            depth_or_array_layers: 6,
+        },
+        TextureDimension::D2,
+        data,
+        TextureFormat::Rgba32Float,
+        RenderAssetUsages::RENDER_WORLD,
+    );
+    img.texture_view_descriptor = Some(TextureViewDescriptor {
+        dimension: Some(TextureViewDimension::Cube),
+        ..default()
+    });
+    img
 }
 
 /// Advance the stream by the frame time; publish a new [`EnvFrame`] only when the map changed
@@ -132,6 +141,7 @@ pub fn advance_stream(
     time: Res<Time>,
     mut stream: ResMut<EnvMapStream>,
     mut frame: ResMut<EnvFrame>,
+    mut images: ResMut<Assets<Image>>,
 ) {
     stream.stream.advance(time.delta_secs_f64());
     for m in stream.stream.take_messages() {
@@ -143,5 +153,7 @@ pub fn advance_stream(
             generation,
             map: stream.stream.frame().clone(),
         };
+        // A new image rather than new bytes in the old one: the face size may have changed.
+        let _ = images.insert(&stream.image, cube_image(&frame.map));
     }
 }

@@ -133,16 +133,12 @@ fn render_bevy(
     s: &Settings,
     scene: Option<&envis::scene::Scene>,
 ) -> Result<(render::Rendered, serde_json::Value)> {
-    use envis::app::{EnvisMaterial, EnvisSettings, headless::HeadlessSphere};
+    use envis::app::{EnvironmentSampling, EnvisBrdf, headless::HeadlessSphere};
     use envis::envmap::load::EnvSource;
     envis::gpu::context::check_adapter()?;
-    use envis::sampling::Lobe;
     use envis::stream::{EnvStream, StreamSource};
-    let settings = EnvisSettings {
-        sampling: *s,
-        show_sky: false,
-        ..Default::default()
-    };
+    let mut settings = EnvironmentSampling::default();
+    settings.set_settings(s);
     if let Some(sc) = scene {
         let t0 = std::time::Instant::now();
         let mut app = HeadlessSphere::from_scene(sc, settings, a.size as u32)?;
@@ -163,17 +159,7 @@ fn render_bevy(
         ));
     }
     let mat = super::scene::material(a)?;
-    let em = match mat.lobe {
-        Lobe::None => EnvisMaterial::Lambert { albedo: mat.kd },
-        Lobe::Phong { exponent } => EnvisMaterial::Phong {
-            albedo: mat.ks,
-            exponent,
-        },
-        Lobe::Ggx { alpha } => EnvisMaterial::Ggx {
-            albedo: mat.ks,
-            alpha,
-        },
-    };
+    let em = EnvisBrdf::from_material(&mat);
     let source = match a.env.parse::<EnvSource>()? {
         EnvSource::Sky { hours } => StreamSource::Sky { hours, speed: 0.0 },
         EnvSource::File(p) => StreamSource::File(p),
@@ -185,7 +171,12 @@ fn render_bevy(
     let mut stats = render::RenderStats::for_settings(a.size, a.size, s, s.pool_per_face());
     stats.shade_ms = t0.elapsed().as_secs_f64() * 1e3;
     let c = app.counters();
-    let t = app.app.world().resource::<envis::app::EnvisTimings>().get();
+    let t = app
+        .app
+        .app
+        .world()
+        .resource::<envis::app::EnvisTimings>()
+        .get();
     let extra = serde_json::json!({
         "backend": "gpu",
         "pipeline": "bevy (offscreen)",

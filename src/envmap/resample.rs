@@ -178,7 +178,12 @@ impl SourceLayout {
     /// Sub-points per axis that the GPU resample takes per target texel for a source whose
     /// layers are `width` texels wide and a target face of `n`: about two per source texel along
     /// each axis (a face spans a quarter of a lat-long row, or a whole cube layer), 2 to 16.
+    /// A cube image of exactly the target's size is copied texel for texel (one sub-point at each
+    /// texel centre, where the bilinear lookup is exact).
     pub fn subpoints(self, width: u32, n: u32) -> u32 {
+        if self == SourceLayout::Cube && width == n {
+            return 1;
+        }
         let span = match self {
             SourceLayout::LatLong => width as f32 / 4.0,
             SourceLayout::Cube => width as f32,
@@ -234,4 +239,22 @@ impl SourceImage {
         let s = self.layout().subpoints(self.width() as u32, n as u32) as usize;
         cube_from_fetch(n, s, |d| self.radiance(d))
     }
+}
+
+/// A cube map as the six layers of a Bevy cube image (a [`CubeMap`] holding them as faces):
+/// layer `L` at `(a, b)` holds the map in direction `face_ab_to_vec(L, a, b)` with `z` negated
+/// (Bevy's cubes are left-handed). A mirror, so each layer texel is exactly one map texel;
+/// [`SourceImage::Cube`] reads it back.
+pub fn bevy_cube_layers(map: &CubeMap) -> CubeMap {
+    let n = map.size;
+    let mut out = CubeMap::new(n);
+    for (i, t) in out.data.iter_mut().enumerate() {
+        let (layer, row, col) = (i / (n * n), (i / n) % n, i % n);
+        let a = (2 * col + 1) as f32 / n as f32 - 1.0;
+        let b = (2 * row + 1) as f32 / n as f32 - 1.0;
+        let s = face_ab_to_vec(layer, a, b);
+        let hit = super::dir_to_texel(Vec3::new(s.x, s.y, -s.z), n);
+        *t = map.texel(hit.face, hit.col, hit.row);
+    }
+    out
 }

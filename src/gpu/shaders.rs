@@ -41,7 +41,16 @@ pub fn module(device: &wgpu::Device, label: &str, source: &str) -> wgpu::ShaderM
 
 /// The Bevy deferred lighting pass (fullscreen vertex + fragment `lighting`).
 pub fn lighting_source() -> String {
-    [COMMON, SAMPLING, CDF, GLOBAL_LAYOUT, SHADE, LIGHTING].concat()
+    [
+        COMMON,
+        SAMPLING,
+        CDF,
+        GLOBAL_LAYOUT,
+        SHADE,
+        IMAGE_SOURCE,
+        LIGHTING,
+    ]
+    .concat()
 }
 
 /// The `global` baseline's build (lat-long distribution over the sphere).

@@ -10,6 +10,8 @@ use crate::sampling::{Counts, Heuristic};
 #[derive(
     Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum,
 )]
+// Reflected for the Bevy camera component (`app::EnvironmentSampling`); the core stays Bevy-free.
+#[cfg_attr(feature = "app", derive(bevy::reflect::Reflect))]
 #[serde(rename_all = "lowercase")]
 pub enum Strategy {
     /// The seed's method: per-pixel face weighting (light energy x pseudo form factor) of the

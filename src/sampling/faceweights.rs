@@ -29,6 +29,8 @@ pub const FACE_CORNERS: [[usize; 4]; 6] = [
 #[derive(
     Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum,
 )]
+// Reflected for the Bevy camera component (`app::EnvironmentSampling`); the core stays Bevy-free.
+#[cfg_attr(feature = "app", derive(bevy::reflect::Reflect))]
 #[serde(rename_all = "lowercase")]
 pub enum Counts {
     /// floor(N_f) samples of weight 1 plus one of weight frac(N_f), divided by N_f: unbiased, no popping.

@@ -6,6 +6,8 @@
 #[derive(
     Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum,
 )]
+// Reflected for the Bevy camera component (`app::EnvironmentSampling`); the core stays Bevy-free.
+#[cfg_attr(feature = "app", derive(bevy::reflect::Reflect))]
 #[serde(rename_all = "lowercase")]
 pub enum Heuristic {
     /// `w_a = n_a / (n_a + n_b)`.

@@ -6,10 +6,17 @@
 use super::*;
 use bevy::math::Vec3;
 use envis::app::headless::HeadlessSphere;
-use envis::app::{EnvFrame, EnvisMaterial, EnvisSettings};
+use envis::app::{EnvFrame, EnvironmentSampling, EnvisBrdf};
 use envis::stream::StreamSource;
 
-fn on_sphere(size: u32) -> impl Fn(usize) -> bool {
+/// A camera's sampling component with the core's settings `s`.
+fn sampling_of(s: &Settings) -> EnvironmentSampling {
+    let mut c = EnvironmentSampling::default();
+    c.set_settings(s);
+    c
+}
+
+pub(crate) fn on_sphere(size: u32) -> impl Fn(usize) -> bool {
     move |i| {
         let (x, y) = ((i as u32 % size) as f32, (i as u32 / size) as f32);
         let (u, v) = (
@@ -34,20 +41,20 @@ fn bevy_frame_matches_cpu_renderer() {
     let mats = [
         (
             "diffuse",
-            EnvisMaterial::Lambert {
+            EnvisBrdf::Lambert {
                 albedo: Vec3::splat(0.8),
             },
         ),
         (
             "phong 150",
-            EnvisMaterial::Phong {
+            EnvisBrdf::Phong {
                 albedo: Vec3::splat(0.8),
                 exponent: 150.0,
             },
         ),
         (
             "ggx 0.2",
-            EnvisMaterial::Ggx {
+            EnvisBrdf::Ggx {
                 albedo: Vec3::splat(0.8),
                 alpha: 0.2,
             },
@@ -64,12 +71,10 @@ fn bevy_frame_matches_cpu_renderer() {
             StreamSource::Sky { hours, speed: 0.0 },
             face,
             mat,
-            EnvisSettings {
-                sampling,
-                ..Default::default()
-            },
+            sampling_of(&sampling),
             size,
         );
+        h.env_mut().show_background = true;
         let img = h.capture().unwrap();
         if let Ok(dir) = std::env::var("ENVIS_TEST_DUMP") {
             let im = envis::envmap::Image {
@@ -114,8 +119,12 @@ fn bevy_frame_matches_cpu_renderer() {
             "{name}: only {close} of {} pixels within 10% of the CPU render",
             idx.len()
         );
-        // The sky: an orthographic camera looking down -Z sees the map in direction -Z everywhere.
-        let sky = map.lookup(-Vec3::Z);
+        // The background: an orthographic camera looking down -Z sees the image in direction -Z
+        // everywhere (filtered from the stream's cube image, as its CPU twin reads it).
+        let source = envis::envmap::resample::SourceImage::new_cube(
+            envis::envmap::resample::bevy_cube_layers(&map),
+        );
+        let sky = source.radiance(-Vec3::Z);
         let corner = img[0];
         assert!(
             (corner - sky).abs().max_element() <= 1e-3 * sky.max_element().max(1.0),
@@ -135,7 +144,7 @@ fn bevy_frame_matches_cpu_renderer() {
 #[test]
 fn bevy_builds_only_when_the_frame_changes() {
     let Some(ctx) = gpu() else { return };
-    let mat = EnvisMaterial::Lambert {
+    let mat = EnvisBrdf::Lambert {
         albedo: Vec3::splat(0.8),
     };
     let mut h = HeadlessSphere::new(
@@ -145,7 +154,7 @@ fn bevy_builds_only_when_the_frame_changes() {
         },
         16,
         mat,
-        EnvisSettings::default(),
+        EnvironmentSampling::default(),
         32,
     );
     for _ in 0..100 {
@@ -153,10 +162,16 @@ fn bevy_builds_only_when_the_frame_changes() {
     }
     let c = h.counters();
     assert_eq!(c.get(|c| &c.builds), 1, "static map: {:?}", c.0);
-    assert_eq!(c.get(|c| &c.uploads), 1);
+    // One CPU upload of the stream's cube image (6 layers of 16^2 RGBA32F texels).
+    assert_eq!(c.get(|c| &c.image_bytes_uploaded), 6 * 16 * 16 * 16);
     assert!(c.get(|c| &c.lighting_passes) >= 95, "{:?}", c.0);
     // Per-pass times as a resource: CPU always, GPU from timestamp queries (lavapipe has them).
-    let t = h.app.world().resource::<envis::app::EnvisTimings>().get();
+    let t = h
+        .app
+        .app
+        .world()
+        .resource::<envis::app::EnvisTimings>()
+        .get();
     assert!(
         t.build_cpu_ms.is_some() && t.lighting_cpu_ms.is_some(),
         "{t:?}"
@@ -175,7 +190,7 @@ fn bevy_builds_only_when_the_frame_changes() {
     let after = h.capture().unwrap();
     let c = h.counters();
     assert_eq!(c.get(|c| &c.builds), 2, "{:?}", c.0);
-    let generation = h.app.world().resource::<EnvFrame>().generation;
+    let generation = h.app.app.world().resource::<EnvFrame>().generation;
     assert!(generation >= 2);
     let diff: f32 = before
         .iter()
@@ -183,7 +198,8 @@ fn bevy_builds_only_when_the_frame_changes() {
         .map(|(a, b)| (*a - *b).abs().max_element())
         .sum();
     assert!(diff > 1.0, "the image did not follow the new frame");
-    // A new face size mid-stream reallocates the GPU sampler (once) and the image follows.
+    // A new face size mid-stream is a new image (one more build); the distribution keeps the
+    // camera's face size, so nothing is reallocated.
     assert_eq!(c.get(|c| &c.allocations), 1);
     assert!(h.stream_mut().switch(
         StreamSource::Sky {
@@ -194,8 +210,14 @@ fn bevy_builds_only_when_the_frame_changes() {
     ));
     let resized = h.capture().unwrap();
     let c = h.counters();
-    assert_eq!(c.get(|c| &c.allocations), 2, "{:?}", c.0);
+    assert_eq!(c.get(|c| &c.allocations), 1, "{:?}", c.0);
     assert_eq!(c.get(|c| &c.builds), 3, "{:?}", c.0);
+    // A new distribution face size on the camera allocates (once) and builds.
+    h.sampling_mut().face_size = 32;
+    let _ = h.capture().unwrap();
+    let c = h.counters();
+    assert_eq!(c.get(|c| &c.allocations), 2, "{:?}", c.0);
+    assert_eq!(c.get(|c| &c.builds), 4, "{:?}", c.0);
     let diff: f32 = after
         .iter()
         .zip(&resized)
@@ -238,7 +260,7 @@ fn roughness(img: &[Vec3], size: u32) -> f64 {
 fn bevy_accumulation_converges() {
     let Some(_) = gpu() else { return };
     let (size, face) = (48u32, 16usize);
-    let mat = EnvisMaterial::Ggx {
+    let mat = EnvisBrdf::Ggx {
         albedo: Vec3::splat(0.8),
         alpha: 0.3,
     };
@@ -254,20 +276,16 @@ fn bevy_accumulation_converges() {
         },
         face,
         mat,
-        EnvisSettings {
-            sampling,
-            accumulate: false,
-            ..Default::default()
-        },
+        sampling_of(&sampling),
         size,
     );
     let one = h.capture().unwrap();
-    h.app.world_mut().resource_mut::<EnvisSettings>().accumulate = true;
+    h.sampling_mut().accumulate = true;
     for _ in 0..30 {
         h.update();
     }
     let acc = h.capture().unwrap();
-    let frames = h.app.world().resource::<EnvisSettings>().frame;
+    let frames = h.accumulated_frames();
     assert!(frames >= 30, "accumulated only {frames} frames");
     // Against a converged CPU render of the same (quantised) scene: the error shrinks, and the
     // running mean stays unbiased.
@@ -318,10 +336,10 @@ fn bevy_accumulation_converges() {
         mean(&cpu)
     );
     // Moving the camera restarts the average.
-    h.app
-        .world_mut()
+    let world = h.app.app.world_mut();
+    world
         .query::<&mut bevy::prelude::Transform>()
-        .iter_mut(h.app.world_mut())
+        .iter_mut(world)
         .for_each(|mut t| {
             if t.translation.z > 1.0 {
                 t.translation.x += 0.01;
@@ -330,7 +348,7 @@ fn bevy_accumulation_converges() {
     h.update();
     h.update();
     assert!(
-        h.app.world().resource::<EnvisSettings>().frame < 3,
+        h.accumulated_frames() < 3,
         "the camera moved but the average went on"
     );
 }
@@ -340,7 +358,7 @@ fn bevy_accumulation_converges() {
 #[test]
 fn bevy_skipping_is_bit_identical_to_the_always_on_path() {
     let Some(_) = gpu() else { return };
-    let mat = EnvisMaterial::Ggx {
+    let mat = EnvisBrdf::Ggx {
         albedo: Vec3::splat(0.8),
         alpha: 0.3,
     };
@@ -353,12 +371,11 @@ fn bevy_skipping_is_bit_identical_to_the_always_on_path() {
             },
             16,
             mat,
-            EnvisSettings {
-                always_rebuild: always,
-                ..Default::default()
-            },
+            EnvironmentSampling::default(),
             32,
         );
+        // A dynamic environment is rebuilt every frame (the always-on path).
+        h.env_mut().dynamic = always;
         for _ in 0..10 {
             h.update();
         }

@@ -45,7 +45,7 @@ pub(super) fn orbit_camera(
 
 pub(super) fn keys(
     keys: Res<ButtonInput<KeyCode>>,
-    mut settings: ResMut<EnvisSettings>,
+    mut cams: Query<&mut EnvironmentSampling, With<DemoCamera>>,
     mut state: ResMut<DemoState>,
     mut last: Local<Option<std::time::Instant>>,
 ) {
@@ -60,8 +60,11 @@ pub(super) fn keys(
         };
     }
     *last = Some(now);
+    let Ok(mut settings) = cams.single_mut() else {
+        return;
+    };
     if keys.just_pressed(KeyCode::KeyI) {
-        settings.sampling.counts = if settings.sampling.counts == Counts::Fractional {
+        settings.counts = if settings.counts == Counts::Fractional {
             Counts::Integer
         } else {
             Counts::Fractional
@@ -84,14 +87,14 @@ pub(super) fn pick_pixel(
     mut contexts: EguiContexts,
     buttons: Res<ButtonInput<MouseButton>>,
     windows: Query<&Window, With<PrimaryWindow>>,
-    mut settings: ResMut<EnvisSettings>,
+    mut cams: Query<&mut EnvironmentSampling, With<DemoCamera>>,
     mut state: ResMut<DemoState>,
 ) {
     if egui_wants_pointer(&mut contexts) || !buttons.just_pressed(MouseButton::Right) {
         return;
     }
     let Ok(w) = windows.single() else { return };
-    if let Some(p) = w.physical_cursor_position() {
+    if let (Some(p), Ok(mut settings)) = (w.physical_cursor_position(), cams.single_mut()) {
         settings.probe = Some(UVec2::new(p.x as u32, p.y as u32));
         state.debug = true;
     }

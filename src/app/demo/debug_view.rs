@@ -7,17 +7,18 @@ use super::*;
 /// Recompute the CPU twin's view of the probed pixel when the probe, the frame or the settings change.
 pub(super) fn update_debug_view(
     frame: Res<EnvFrame>,
-    settings: Res<EnvisSettings>,
+    cams: Query<&EnvironmentSampling, With<DemoCamera>>,
     probe: Res<EnvisProbe>,
     mut state: ResMut<DemoState>,
 ) {
     let Some(p) = *probe.lock().expect("probe") else {
         return;
     };
-    // The seed the GPU used for this frame (it changes per frame while accumulating).
+    let Ok(sampling) = cams.single() else { return };
+    // The seed the GPU used for the probed frame (it changes per frame while accumulating).
     let s = Settings {
-        seed: settings.frame_seed(),
-        ..settings.sampling
+        seed: p.seed,
+        ..sampling.settings()
     };
     let key = (frame.generation, s, p.pixel_index, p.gpixel.n);
     if state.key == Some(key) {
@@ -32,7 +33,7 @@ pub(super) fn update_debug_view(
 /// The probed pixel's pool samples on the sky, far away in their directions.
 pub(super) fn draw_debug_samples(
     state: Res<DemoState>,
-    cams: Query<&Transform, With<EnvisCamera>>,
+    cams: Query<&Transform, With<DemoCamera>>,
     mut gizmos: Gizmos,
 ) {
     let (Some((d, _, _)), true) = (&state.pixel, state.debug) else {

@@ -10,10 +10,11 @@ mod ui;
 
 use super::scene_objects::{SceneObject, spawn_object, spawn_scene_objects};
 use super::{
-    EnvFrame, EnvMapSamplingPlugin, EnvMapStream, EnvMapStreamPlugin, EnvisCamera, EnvisCounters,
-    EnvisMaterial, EnvisProbe, EnvisSettings, EnvisTimings, MisLightingPlugin, Overlay,
+    EnvFrame, EnvMapStream, EnvMapStreamPlugin, EnvisBrdf, EnvisCounters, EnvisMaterial,
+    EnvisPlugin, EnvisProbe, EnvisTimings, Overlay,
 };
 use crate::envmap::{CROSS_BLOCKS, CubeMap, dir_to_face_ab};
+use crate::prelude::{EnvironmentSampling, EnvisEnvironment, exposure_multiplier};
 use crate::render::{FrameData, PixelDebug, SampleKind, Settings, Strategy, debug_pixel};
 use crate::sampling::{Counts, Heuristic};
 use crate::stream::StreamSource;
@@ -67,17 +68,12 @@ pub fn run(opts: DemoOptions) -> AppExit {
                 ..default()
             }),
     )
-    .insert_resource(EnvisSettings {
-        sampling: opts.sampling,
-        ..default()
-    })
     .add_plugins((
+        EnvisPlugin,
         EnvMapStreamPlugin {
             source: opts.source.clone(),
             face_size: opts.face_size,
         },
-        EnvMapSamplingPlugin,
-        MisLightingPlugin,
     ))
     .add_plugins(EguiPlugin::default())
     // Bevy's own per-pass GPU timings (its prepass writes the G-buffer) for the Timings panel.
@@ -86,6 +82,8 @@ pub fn run(opts: DemoOptions) -> AppExit {
         debug: false,
         script: opts.script.clone(),
         face_size: opts.face_size,
+        exposure: 1.0,
+        sampling: opts.sampling,
         ..default()
     })
     .add_systems(Startup, setup_scene)
@@ -139,15 +137,41 @@ pub struct DemoState {
     face_size: usize,
     env_text: String,
     fps: f32,
+    /// The exposure multiplier the panel sets (written to the camera's `Exposure`).
+    exposure: f32,
+    /// The sampling settings the camera starts with.
+    sampling: Settings,
+}
+
+/// The demo's camera (the one the panel, the keys and the script edit).
+#[derive(Component)]
+pub struct DemoCamera;
+
+/// The demo camera's envis components, lit by the stream's image, starting with `s`.
+fn envis_camera(stream: &EnvMapStream, s: &Settings, face_size: usize) -> impl Bundle {
+    let mut sampling = EnvironmentSampling {
+        face_size: face_size as u32,
+        ..default()
+    };
+    sampling.set_settings(s);
+    (
+        sampling,
+        EnvisEnvironment::new(stream.image.clone()),
+        exposure_multiplier(1.0),
+        DemoCamera,
+    )
 }
 
 fn setup_scene(
     mut commands: Commands,
     mut meshes: ResMut<Assets<Mesh>>,
-    mut materials: ResMut<Assets<StandardMaterial>>,
+    mut materials: ResMut<Assets<EnvisMaterial>>,
     assets: Res<AssetServer>,
     scene: Option<Res<SceneResource>>,
+    stream: Res<EnvMapStream>,
+    state: Res<DemoState>,
 ) {
+    let camera = envis_camera(&stream, &state.sampling, state.face_size);
     if let Some(sc) = scene {
         let cam = spawn_scene_objects(&mut commands, &mut meshes, &mut materials, &sc.0);
         let d = cam.eye - cam.target;
@@ -158,10 +182,8 @@ fn setup_scene(
                 fov: cam.fov,
                 ..default()
             }),
-            bevy::camera::Hdr,
-            Msaa::Off,
             Tonemapping::TonyMcMapface,
-            EnvisCamera,
+            camera,
             Orbit {
                 yaw: d.x.atan2(d.z),
                 pitch: (d.y / distance).asin(),
@@ -185,7 +207,7 @@ fn setup_scene(
     spawn(
         "sphere",
         meshes.add(Sphere::new(1.0).mesh().ico(6).expect("icosphere")),
-        EnvisMaterial::Phong {
+        EnvisBrdf::Phong {
             albedo: Vec3::splat(0.8),
             exponent: 150.0,
         },
@@ -201,7 +223,7 @@ fn setup_scene(
     spawn(
         "bunny",
         bunny,
-        EnvisMaterial::Ggx {
+        EnvisBrdf::Ggx {
             albedo: Vec3::new(0.9, 0.75, 0.5),
             alpha: 0.2,
         },
@@ -210,7 +232,7 @@ fn setup_scene(
     spawn(
         "torus",
         meshes.add(Torus::new(0.45, 0.9)),
-        EnvisMaterial::Mix {
+        EnvisBrdf::Mix {
             albedo: Vec3::new(0.2, 0.5, 0.8),
             specular: 0.4,
             alpha: 0.3,
@@ -220,17 +242,15 @@ fn setup_scene(
     spawn(
         "ground",
         meshes.add(Plane3d::default().mesh().size(12.0, 12.0)),
-        EnvisMaterial::Lambert {
+        EnvisBrdf::Lambert {
             albedo: Vec3::splat(0.5),
         },
         Transform::IDENTITY,
     );
     commands.spawn((
         Camera3d::default(),
-        bevy::camera::Hdr,
-        Msaa::Off,
         Tonemapping::TonyMcMapface,
-        EnvisCamera,
+        camera,
         Orbit {
             yaw: 0.0,
             pitch: 0.35,

@@ -51,11 +51,10 @@ const SCRIPT: &[Step] = &[
 pub(super) fn run_script(
     mut stream: ResMut<EnvMapStream>,
     mut state: ResMut<DemoState>,
-    mut settings: ResMut<EnvisSettings>,
     mut objects: Query<&mut SceneObject>,
-    mut materials: ResMut<Assets<StandardMaterial>>,
+    mut materials: ResMut<Assets<EnvisMaterial>>,
     windows: Query<&Window, With<PrimaryWindow>>,
-    cams: Query<(&Camera, &GlobalTransform), With<EnvisCamera>>,
+    mut cams: Query<(&Camera, &GlobalTransform, &mut EnvironmentSampling), With<DemoCamera>>,
     timings: Res<EnvisTimings>,
     counters: Res<EnvisCounters>,
     mut commands: Commands,
@@ -76,6 +75,9 @@ pub(super) fn run_script(
         return;
     }
     let step = (f - WARMUP) / STEP;
+    let Ok((camera, cam_transform, mut settings)) = cams.single_mut() else {
+        return;
+    };
     let shot = |commands: &mut Commands, name: &str| {
         commands
             .spawn(Screenshot::primary_window())
@@ -87,17 +89,16 @@ pub(super) fn run_script(
         .unwrap_or((0, 0));
     match SCRIPT.get(step as usize) {
         Some(Step::Shot(name)) => shot(&mut commands, name),
-        Some(Step::Counts(c)) => settings.sampling.counts = *c,
+        Some(Step::Counts(c)) => settings.counts = *c,
         Some(Step::Overlay(o)) => settings.overlay = *o,
         Some(Step::Probe) => {
             settings.overlay = Overlay::None;
-            settings.sampling.counts = Counts::Fractional;
+            settings.counts = Counts::Fractional;
             // Probe a pixel on the sphere: its centre, projected (physical pixels).
             let scale = windows.single().map(|w| w.scale_factor()).unwrap_or(1.0);
-            let p = cams
-                .single()
+            let p = camera
+                .world_to_viewport(cam_transform, Vec3::new(-2.3, 1.0, 0.0))
                 .ok()
-                .and_then(|(c, t)| c.world_to_viewport(t, Vec3::new(-2.3, 1.0, 0.0)).ok())
                 .unwrap_or(Vec2::new(w as f32 * 0.3, h as f32 * 0.5));
             settings.probe = Some((p * scale).as_uvec2());
             state.debug = true;
@@ -106,12 +107,12 @@ pub(super) fn run_script(
         Some(Step::GlossySphere) => {
             for mut o in &mut objects {
                 if o.name == "sphere" {
-                    o.material = EnvisMaterial::Ggx {
+                    o.material = EnvisBrdf::Ggx {
                         albedo: Vec3::splat(0.8),
                         alpha: 0.05,
                     };
                     if let Some(mut m) = materials.get_mut(&o.handle) {
-                        *m = o.material.standard();
+                        m.brdf = o.material;
                     }
                 }
             }
@@ -123,7 +124,7 @@ pub(super) fn run_script(
                 "fps": state.fps,
                 "timings_ms": timings.get(),
                 "builds": counters.get(|c| &c.builds),
-                "uploads": counters.get(|c| &c.uploads),
+                "image_bytes_uploaded": counters.get(|c| &c.image_bytes_uploaded),
                 "lighting_passes": counters.get(|c| &c.lighting_passes),
                 "overlay_passes": counters.get(|c| &c.overlay_passes),
                 "probe": state.pixel.as_ref().map(|(d, g, gpu)| serde_json::json!({

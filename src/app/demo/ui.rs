@@ -31,18 +31,28 @@ fn cross_texture(ctx: &egui::Context, map: &CubeMap) -> egui::TextureHandle {
 #[allow(clippy::too_many_arguments)]
 pub(super) fn panel(
     mut contexts: EguiContexts,
-    mut settings: ResMut<EnvisSettings>,
+    mut cams: Query<
+        (
+            &mut EnvironmentSampling,
+            &mut EnvisEnvironment,
+            &mut bevy::camera::Exposure,
+        ),
+        With<DemoCamera>,
+    >,
     mut stream: ResMut<EnvMapStream>,
     mut state: ResMut<DemoState>,
     frame: Res<EnvFrame>,
     timings: Res<EnvisTimings>,
     counters: Res<EnvisCounters>,
     mut objects: Query<&mut SceneObject>,
-    mut materials: ResMut<Assets<StandardMaterial>>,
+    mut materials: ResMut<Assets<EnvisMaterial>>,
     windows: Query<&Window, With<PrimaryWindow>>,
     diagnostics: Res<bevy::diagnostic::DiagnosticsStore>,
 ) -> Result {
     let ctx = contexts.ctx_mut()?.clone();
+    let Ok((mut settings, mut env, mut exposure)) = cams.single_mut() else {
+        return Ok(());
+    };
     if state
         .cross
         .as_ref()
@@ -52,15 +62,17 @@ pub(super) fn panel(
     }
     egui::Window::new("envis").anchor(egui::Align2::RIGHT_TOP, [-8.0, 8.0]).default_width(320.0).show(&ctx, |ui| {
         egui::ScrollArea::vertical().show(ui, |ui| {
-            ui.collapsing("Environment", |ui| environment_ui(ui, &mut stream, &mut settings, &mut state));
+            ui.collapsing("Environment", |ui| environment_ui(ui, &mut stream, &mut env, &mut state));
+            if ui.add(egui::Slider::new(&mut state.exposure, 0.01..=8.0).logarithmic(true).text("exposure")).changed() {
+                *exposure = exposure_multiplier(state.exposure);
+            }
             egui::CollapsingHeader::new("Sampling").default_open(true).show(ui, |ui| sampling_ui(ui, &mut settings));
             ui.collapsing("Materials", |ui| {
                 for mut o in &mut objects {
                     if material_ui(ui, &o.name.clone(), &mut o.material) {
                         if let Some(mut m) = materials.get_mut(&o.handle) {
-                            *m = o.material.standard();
+                            m.brdf = o.material;
                         }
-                        settings.scene_revision += 1;
                     }
                 }
             });
@@ -70,9 +82,9 @@ pub(super) fn panel(
                 ui.label(format!("distribution build: GPU {}; light pool: GPU {}; upload + record: CPU {}", f(t.build_gpu_ms), f(t.pool_gpu_ms), f(t.build_cpu_ms)));
                 ui.label(format!("lighting (G-buffer -> MIS): GPU {}, CPU {}", f(t.lighting_gpu_ms), f(t.lighting_cpu_ms)));
                 let px = windows.single().map(|w| (w.physical_width() * w.physical_height()) as f64).unwrap_or(0.0);
-                let budget = (settings.sampling.light_samples + settings.sampling.brdf_samples) as f64;
+                let budget = settings.budget() as f64;
                 ui.label(format!("{:.1} FPS, sample budget {:.1} M samples/s", state.fps, px * budget * state.fps as f64 / 1e6));
-                ui.label(format!("builds {}, uploads {}, lighting passes {}", counters.get(|c| &c.builds), counters.get(|c| &c.uploads), counters.get(|c| &c.lighting_passes)));
+                ui.label(format!("builds {}, image bytes uploaded {}, lighting passes {}", counters.get(|c| &c.builds), counters.get(|c| &c.image_bytes_uploaded), counters.get(|c| &c.lighting_passes)));
                 ui.label("overlays run inside the lighting pass (no pass of their own)");
                 // Bevy's passes: the prepass writes the G-buffer.
                 let mut bevy_passes: Vec<(String, f64)> = diagnostics
@@ -92,7 +104,7 @@ pub(super) fn panel(
             }
         });
     });
-    let budget = settings.sampling.light_samples + settings.sampling.brdf_samples;
+    let budget = settings.budget() as usize;
     if let Some(legend) = settings.overlay.legend(budget) {
         egui::Window::new(format!("overlay: {}", settings.overlay.name()))
             .anchor(egui::Align2::CENTER_BOTTOM, [0.0, -8.0])
@@ -146,7 +158,7 @@ fn legend_ui(ui: &mut egui::Ui, legend: &crate::app::OverlayLegend) {
 fn environment_ui(
     ui: &mut egui::Ui,
     stream: &mut EnvMapStream,
-    settings: &mut EnvisSettings,
+    env: &mut EnvisEnvironment,
     state: &mut DemoState,
 ) {
     let s = &mut stream.stream;
@@ -166,13 +178,8 @@ fn environment_ui(
     {
         s.set_sky_hours(h);
     }
-    ui.add(
-        egui::Slider::new(&mut settings.exposure, 0.01..=8.0)
-            .logarithmic(true)
-            .text("exposure"),
-    );
     ui.checkbox(
-        &mut settings.show_sky,
+        &mut env.show_background,
         "show the environment behind objects",
     );
     let mut face = state.face_size;
@@ -212,8 +219,9 @@ fn environment_ui(
     ));
 }
 
-fn sampling_ui(ui: &mut egui::Ui, settings: &mut EnvisSettings) {
-    let s = &mut settings.sampling;
+fn sampling_ui(ui: &mut egui::Ui, settings: &mut EnvironmentSampling) {
+    let mut core = settings.settings();
+    let s = &mut core;
     ui.add(egui::Slider::new(&mut s.light_samples, 0..=256).text("N_L light samples"));
     ui.add(egui::Slider::new(&mut s.brdf_samples, 0..=256).text("N_B BRDF samples"));
     if s.light_samples + s.brdf_samples == 0 {
@@ -245,13 +253,13 @@ fn sampling_ui(ui: &mut egui::Ui, settings: &mut EnvisSettings) {
         &mut s.material_budget,
         "material budget (diffuse: light only, mirror: BRDF only)",
     );
-    let frame = settings.frame;
-    ui.horizontal(|ui| {
-        ui.checkbox(&mut settings.accumulate, "accumulate over frames");
-        if settings.accumulate {
-            ui.label(format!("{} frames", frame + 1));
-        }
-    });
+    if core != settings.settings() {
+        settings.set_settings(&core);
+    }
+    ui.checkbox(
+        &mut settings.accumulate,
+        "accumulate over frames (restarts when anything changes)",
+    );
     ui.horizontal(|ui| {
         ui.label("overlay [O]");
         egui::ComboBox::from_id_salt("overlay")
@@ -265,15 +273,15 @@ fn sampling_ui(ui: &mut egui::Ui, settings: &mut EnvisSettings) {
 }
 
 /// Returns true when the material changed.
-fn material_ui(ui: &mut egui::Ui, name: &str, m: &mut EnvisMaterial) -> bool {
+fn material_ui(ui: &mut egui::Ui, name: &str, m: &mut EnvisBrdf) -> bool {
     let before = *m;
     ui.horizontal(|ui| {
         ui.label(name);
         let (albedo, alpha, exponent, specular) = match *m {
-            EnvisMaterial::Lambert { albedo } => (albedo, 0.2, 150.0, 0.0),
-            EnvisMaterial::Phong { albedo, exponent } => (albedo, 0.2, exponent, 1.0),
-            EnvisMaterial::Ggx { albedo, alpha } => (albedo, alpha, 150.0, 1.0),
-            EnvisMaterial::Mix {
+            EnvisBrdf::Lambert { albedo } => (albedo, 0.2, 150.0, 0.0),
+            EnvisBrdf::Phong { albedo, exponent } => (albedo, 0.2, exponent, 1.0),
+            EnvisBrdf::Ggx { albedo, alpha } => (albedo, alpha, 150.0, 1.0),
+            EnvisBrdf::Mix {
                 albedo,
                 specular,
                 alpha,
@@ -281,18 +289,18 @@ fn material_ui(ui: &mut egui::Ui, name: &str, m: &mut EnvisMaterial) -> bool {
         };
         egui::ComboBox::from_id_salt(name)
             .selected_text(match m {
-                EnvisMaterial::Lambert { .. } => "diffuse",
-                EnvisMaterial::Phong { .. } => "phong",
-                EnvisMaterial::Ggx { .. } => "ggx",
-                EnvisMaterial::Mix { .. } => "mix",
+                EnvisBrdf::Lambert { .. } => "diffuse",
+                EnvisBrdf::Phong { .. } => "phong",
+                EnvisBrdf::Ggx { .. } => "ggx",
+                EnvisBrdf::Mix { .. } => "mix",
             })
             .show_ui(ui, |ui| {
-                ui.selectable_value(m, EnvisMaterial::Lambert { albedo }, "diffuse");
-                ui.selectable_value(m, EnvisMaterial::Phong { albedo, exponent }, "phong");
-                ui.selectable_value(m, EnvisMaterial::Ggx { albedo, alpha }, "ggx");
+                ui.selectable_value(m, EnvisBrdf::Lambert { albedo }, "diffuse");
+                ui.selectable_value(m, EnvisBrdf::Phong { albedo, exponent }, "phong");
+                ui.selectable_value(m, EnvisBrdf::Ggx { albedo, alpha }, "ggx");
                 ui.selectable_value(
                     m,
-                    EnvisMaterial::Mix {
+                    EnvisBrdf::Mix {
                         albedo,
                         specular: specular.max(0.3),
                         alpha,
@@ -302,21 +310,21 @@ fn material_ui(ui: &mut egui::Ui, name: &str, m: &mut EnvisMaterial) -> bool {
             });
     });
     match m {
-        EnvisMaterial::Phong { exponent, .. } => {
+        EnvisBrdf::Phong { exponent, .. } => {
             ui.add(
                 egui::Slider::new(exponent, 0.0..=10000.0)
                     .logarithmic(true)
                     .text("exponent"),
             );
         }
-        EnvisMaterial::Ggx { alpha, .. } => {
+        EnvisBrdf::Ggx { alpha, .. } => {
             ui.add(
                 egui::Slider::new(alpha, 0.001..=1.0)
                     .logarithmic(true)
                     .text("alpha"),
             );
         }
-        EnvisMaterial::Mix {
+        EnvisBrdf::Mix {
             alpha, specular, ..
         } => {
             ui.add(
@@ -326,12 +334,12 @@ fn material_ui(ui: &mut egui::Ui, name: &str, m: &mut EnvisMaterial) -> bool {
             );
             ui.add(egui::Slider::new(specular, 0.0..=1.0).text("specular"));
         }
-        EnvisMaterial::Lambert { .. } => {}
+        EnvisBrdf::Lambert { .. } => {}
     }
     *m != before
 }
 
-fn debug_ui(ui: &mut egui::Ui, settings: &mut EnvisSettings, state: &mut DemoState) {
+fn debug_ui(ui: &mut egui::Ui, settings: &mut EnvironmentSampling, state: &mut DemoState) {
     ui.checkbox(&mut state.debug, "show the probed pixel's samples [D]");
     let Some((d, g, gpu)) = &state.pixel else {
         ui.label("right-click a pixel of an object");

@@ -1,0 +1,14 @@
+//! What a Bevy user imports: `use envis::prelude::*;` (feature `app`).
+//!
+//! - [`EnvisPlugin`]: add it next to `DefaultPlugins`.
+//! - [`EnvironmentSampling`] and [`EnvisEnvironment`]: the two camera components.
+//! - [`EnvisMaterial`] / [`EnvisBrdf`]: envis's own deferred material (plain `StandardMaterial`
+//!   meshes are lit too).
+//! - The sampling vocabulary: [`Strategy`], [`Counts`], [`Heuristic`], [`Overlay`].
+
+pub use crate::app::{
+    EnvironmentSampling, EnvisBrdf, EnvisEnvironment, EnvisMaterial, EnvisPlugin, Overlay,
+    exposure_multiplier,
+};
+pub use crate::render::Strategy;
+pub use crate::sampling::{Counts, Heuristic};

@@ -1,0 +1,457 @@
+//! The public plugin API on a user's kind of scene, through `envis::prelude` only (plus the
+//! headless harness): `StandardMaterial` meshes, Bevy's sun and its shadows, split screen, and
+//! `Image` environments changed on the CPU or written on the GPU.
+
+use super::bevy_app::on_sphere;
+use super::{gpu, rel};
+use bevy::asset::RenderAssetUsages;
+use bevy::camera::{RenderTarget, Viewport, visibility::RenderLayers};
+use bevy::core_pipeline::tonemapping::Tonemapping;
+use bevy::pbr::DefaultOpaqueRendererMethod;
+use bevy::prelude::*;
+use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat, TextureUsages};
+use envis::app::headless::{HeadlessApp, radiance_camera, sphere_view};
+use envis::app::standard_material_decoded;
+use envis::envmap::luminance;
+use envis::prelude::*;
+
+/// A `2w x w` lat-long `Rgba32Float` image with `f(direction)` in every texel.
+fn latlong_image(w: u32, f: impl Fn(Vec3) -> Vec3) -> (Image, envis::envmap::Image) {
+    let (width, height) = (2 * w, w);
+    let mut cpu = envis::envmap::Image::new(width as usize, height as usize);
+    for y in 0..height {
+        for x in 0..width {
+            let (u, v) = (
+                (x as f32 + 0.5) / width as f32,
+                (y as f32 + 0.5) / height as f32,
+            );
+            cpu.data[(y * width + x) as usize] = f(envis::envmap::latlong_to_dir(u, v));
+        }
+    }
+    let bytes: Vec<u8> = cpu
+        .data
+        .iter()
+        .flat_map(|c| [c.x, c.y, c.z, 1.0])
+        .flat_map(f32::to_ne_bytes)
+        .collect();
+    let img = Image::new(
+        Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        },
+        TextureDimension::D2,
+        bytes,
+        TextureFormat::Rgba32Float,
+        RenderAssetUsages::RENDER_WORLD,
+    );
+    (img, cpu)
+}
+
+/// An app whose StandardMaterials render deferred (the one line of set-up `docs/bevy.md` asks
+/// for), with the unit sphere in `material`.
+fn standard_sphere_app(material: StandardMaterial) -> HeadlessApp {
+    let mut h = HeadlessApp::new();
+    h.app
+        .insert_resource(DefaultOpaqueRendererMethod::deferred());
+    let mesh = h.add::<Mesh>(Sphere::new(1.0).mesh().ico(7).expect("icosphere"));
+    let mat = h.add::<StandardMaterial>(material);
+    h.app
+        .world_mut()
+        .spawn((Mesh3d(mesh), MeshMaterial3d(mat), Transform::IDENTITY));
+    h
+}
+
+/// Spawn the sphere view's camera lit by `image` into a new `size^2` target.
+fn sphere_camera(
+    h: &mut HeadlessApp,
+    image: Handle<Image>,
+    sampling: EnvironmentSampling,
+    size: u32,
+) -> Handle<Image> {
+    let target = h.float_target(size, size);
+    let (projection, transform) = sphere_view();
+    h.app.world_mut().spawn(radiance_camera(
+        target.clone(),
+        projection,
+        transform,
+        sampling,
+        EnvisEnvironment::new(image),
+    ));
+    target
+}
+
+fn sphere_mean(img: &[Vec3], size: u32) -> f64 {
+    let inside = on_sphere(size);
+    let idx: Vec<usize> = (0..img.len()).filter(|&i| inside(i)).collect();
+    idx.iter().map(|&i| luminance(img[i]) as f64).sum::<f64>() / idx.len() as f64
+}
+
+/// White furnace on a plain StandardMaterial: white, fully rough, non-metallic, reflectance 0
+/// (no specular lobe at all: Bevy's f90 is 0) under a constant map L comes out as L.
+#[test]
+fn bevy_standard_material_furnace() {
+    let Some(_) = gpu() else { return };
+    let l = 0.7;
+    let mut h = standard_sphere_app(StandardMaterial {
+        base_color: Color::WHITE,
+        perceptual_roughness: 1.0,
+        metallic: 0.0,
+        reflectance: 0.0,
+        ..default()
+    });
+    let (env, _) = latlong_image(16, |_| Vec3::splat(l));
+    let env = h.add::<Image>(env);
+    let target = sphere_camera(&mut h, env, EnvironmentSampling::default(), 48);
+    let img = h.capture(&target).unwrap();
+    let mean = sphere_mean(&img, 48);
+    assert!(rel(mean, l as f64) < 0.02, "furnace: mean {mean}, want {l}");
+}
+
+/// A StandardMaterial sphere under a sky image (from an `Image` asset, resampled on the GPU)
+/// matches the CPU renderer on the resample's CPU twin with the decoded material: the mean
+/// within 2%, 90% of the pixels within 10%.
+#[test]
+fn bevy_standard_material_matches_cpu() {
+    let Some(_) = gpu() else { return };
+    let (size, face) = (48u32, 16u32);
+    let material = StandardMaterial {
+        base_color: Color::linear_rgb(0.7, 0.5, 0.3),
+        perceptual_roughness: 0.5,
+        metallic: 0.3,
+        reflectance: 0.5,
+        ..default()
+    };
+    let mut h = standard_sphere_app(material.clone());
+    let (env, cpu_env) = latlong_image(64, |d| envis::envmap::sky::sky_radiance(d, 15.0));
+    let env = h.add::<Image>(env);
+    let sampling = EnvironmentSampling {
+        face_size: face,
+        seed: 3,
+        ..default()
+    };
+    let target = sphere_camera(&mut h, env, sampling.clone(), size);
+    let img = h.capture(&target).unwrap();
+    let cube = envis::envmap::resample::SourceImage::new_latlong(cpu_env).to_cube(face as usize);
+    let gbuf = envis::render::sphere_gbuffer(
+        size as usize,
+        size as usize,
+        standard_material_decoded(&material),
+    );
+    let cpu = envis::render::render(
+        &cube,
+        &gbuf,
+        size as usize,
+        size as usize,
+        &sampling.settings(),
+    )
+    .unwrap()
+    .image
+    .data;
+    let (mb, mc) = (sphere_mean(&img, size), sphere_mean(&cpu, size));
+    assert!(
+        rel(mb, mc) < 0.02,
+        "mean over the sphere: bevy {mb}, cpu {mc}"
+    );
+    let inside = on_sphere(size);
+    let idx: Vec<usize> = (0..img.len()).filter(|&i| inside(i)).collect();
+    let close = idx
+        .iter()
+        .filter(|&&i| {
+            (luminance(img[i]) - luminance(cpu[i])).abs() <= 0.1 * luminance(cpu[i]).max(1e-3)
+        })
+        .count();
+    assert!(
+        close * 10 >= idx.len() * 9,
+        "only {close} of {} pixels within 10% of the CPU render",
+        idx.len()
+    );
+}
+
+/// Bevy's own lights stay: a sun (with shadows, and an occluder casting one on the sphere) adds
+/// the same light with envis as without it. Sun + environment - environment alone = sun alone,
+/// to the G-buffer's quantisation.
+#[test]
+fn bevy_keeps_the_sun_and_its_shadow() {
+    let Some(_) = gpu() else { return };
+    let size = 48;
+    let render = |sun: bool, envis: bool| {
+        let mut h = standard_sphere_app(StandardMaterial {
+            base_color: Color::linear_rgb(0.8, 0.8, 0.8),
+            perceptual_roughness: 0.6,
+            ..default()
+        });
+        if sun {
+            h.app.world_mut().spawn((
+                DirectionalLight {
+                    illuminance: 2.0,
+                    shadow_maps_enabled: true,
+                    ..default()
+                },
+                Transform::from_xyz(1.0, 2.0, 3.0).looking_at(Vec3::ZERO, Vec3::Y),
+            ));
+            // A small occluder between the sun and the sphere.
+            let cube = h.add::<Mesh>(Cuboid::new(0.4, 0.4, 0.4));
+            let black = h.add::<StandardMaterial>(StandardMaterial::from(Color::BLACK));
+            h.app.world_mut().spawn((
+                Mesh3d(cube),
+                MeshMaterial3d(black),
+                Transform::from_xyz(0.6, 1.2, 1.8),
+            ));
+        }
+        let (env, _) = latlong_image(16, |d| Vec3::splat(0.3 + 0.2 * d.y));
+        let env = h.add::<Image>(env);
+        let target = if envis {
+            sphere_camera(&mut h, env, EnvironmentSampling::default(), size)
+        } else {
+            // The same camera without envis: Bevy's deferred lighting alone.
+            let target = h.float_target(size, size);
+            let (projection, transform) = sphere_view();
+            h.app.world_mut().spawn((
+                Camera3d::default(),
+                Camera {
+                    clear_color: ClearColorConfig::Custom(Color::BLACK),
+                    ..default()
+                },
+                projection,
+                transform,
+                RenderTarget::from(target.clone()),
+                Tonemapping::None,
+                exposure_multiplier(1.0),
+                bevy::core_pipeline::prepass::DepthPrepass,
+                bevy::core_pipeline::prepass::DeferredPrepass,
+                bevy::camera::Hdr,
+                Msaa::Off,
+            ));
+            target
+        };
+        h.capture(&target).unwrap()
+    };
+    let sun = render(true, false);
+    let both = render(true, true);
+    let env = render(false, true);
+    let inside = on_sphere(size);
+    let (mut worst, mut lit, mut shadowed) = (0.0f32, 0, 0);
+    for i in (0..sun.len()).filter(|&i| inside(i)) {
+        let d = (both[i] - env[i] - sun[i]).abs().max_element();
+        worst = worst.max(d / sun[i].max_element().max(0.05));
+        lit += (sun[i].x > 0.05) as usize;
+        shadowed += (sun[i].x < 1e-4 && env[i].x > 0.01) as usize;
+    }
+    assert!(
+        lit > 100 && shadowed > 10,
+        "the scene has no sunlit ({lit}) or shadowed ({shadowed}) pixels"
+    );
+    assert!(
+        worst < 1e-2,
+        "sun + env - env differs from the sun alone by {worst}"
+    );
+}
+
+/// Split screen: two cameras with different settings share one target; each paints only its
+/// own viewport, and each half equals that camera rendered alone.
+#[test]
+fn bevy_split_screen() {
+    let Some(_) = gpu() else { return };
+    let size = 32u32;
+    let settings = [
+        EnvironmentSampling {
+            seed: 1,
+            ..default()
+        },
+        EnvironmentSampling {
+            strategy: Strategy::Brdf,
+            light_samples: 8,
+            brdf_samples: 8,
+            seed: 2,
+            ..default()
+        },
+    ];
+    let render = |which: &[usize]| {
+        let mut h = standard_sphere_app(StandardMaterial {
+            base_color: Color::linear_rgb(0.6, 0.6, 0.6),
+            perceptual_roughness: 0.4,
+            ..default()
+        });
+        let (env, _) = latlong_image(32, |d| envis::envmap::sky::sky_radiance(d, 10.0));
+        let env = h.add::<Image>(env);
+        let target = h.float_target(2 * size, size);
+        // Bevy clears the parts of a target outside every viewport with the global colour.
+        h.app.insert_resource(ClearColor(Color::BLACK));
+        for &k in which {
+            let (projection, transform) = sphere_view();
+            h.app
+                .world_mut()
+                .spawn(radiance_camera(
+                    target.clone(),
+                    projection,
+                    transform,
+                    settings[k].clone(),
+                    EnvisEnvironment::new(env.clone()),
+                ))
+                .insert(Camera {
+                    order: k as isize,
+                    viewport: Some(Viewport {
+                        physical_position: UVec2::new(k as u32 * size, 0),
+                        physical_size: UVec2::new(size, size),
+                        ..default()
+                    }),
+                    clear_color: ClearColorConfig::Custom(Color::BLACK),
+                    ..default()
+                });
+        }
+        h.capture(&target).unwrap()
+    };
+    let both = render(&[0, 1]);
+    let halves = [render(&[0]), render(&[1])];
+    for (k, alone) in halves.iter().enumerate() {
+        let mut worst = 0.0f32;
+        for y in 0..size {
+            for x in 0..size {
+                let i = (y * 2 * size + k as u32 * size + x) as usize;
+                worst = worst.max((both[i] - alone[i]).abs().max_element());
+            }
+        }
+        assert!(
+            worst <= 1e-5,
+            "half {k}: split screen differs from the camera alone by {worst}"
+        );
+        let other = 1 - k;
+        let painted = (0..size * size).any(|j| {
+            let i = ((j / size) * 2 * size + other as u32 * size + j % size) as usize;
+            alone[i] != Vec3::ZERO
+        });
+        assert!(!painted, "camera {k} alone painted outside its viewport");
+    }
+}
+
+/// An `Image` asset modified on the CPU is rebuilt exactly once, and the lighting follows it.
+#[test]
+fn bevy_modified_image_rebuilds_once() {
+    let Some(_) = gpu() else { return };
+    let mut h = standard_sphere_app(StandardMaterial {
+        base_color: Color::WHITE,
+        perceptual_roughness: 1.0,
+        reflectance: 0.0,
+        ..default()
+    });
+    let (env, _) = latlong_image(8, |_| Vec3::splat(0.5));
+    let bytes = env.data.as_ref().map_or(0, |d| d.len()) as u64;
+    let env = h.add::<Image>(env);
+    let target = sphere_camera(&mut h, env.clone(), EnvironmentSampling::default(), 32);
+    let before = sphere_mean(&h.capture(&target).unwrap(), 32);
+    for _ in 0..5 {
+        h.update();
+    }
+    let c = h.counters();
+    assert_eq!(c.get(|c| &c.builds), 1, "a static image: {:?}", c.0);
+    let (brighter, _) = latlong_image(8, |_| Vec3::splat(1.5));
+    *h.app
+        .world_mut()
+        .resource_mut::<Assets<Image>>()
+        .get_mut(&env)
+        .unwrap() = brighter;
+    for _ in 0..5 {
+        h.update();
+    }
+    let after = sphere_mean(&h.capture(&target).unwrap(), 32);
+    let c = h.counters();
+    assert_eq!(
+        c.get(|c| &c.builds),
+        2,
+        "one modification, one rebuild: {:?}",
+        c.0
+    );
+    assert_eq!(c.get(|c| &c.image_bytes_uploaded), 2 * bytes);
+    assert!(
+        rel(before, 0.5) < 0.02 && rel(after, 1.5) < 0.02,
+        "{before} -> {after}"
+    );
+}
+
+/// The clear colour of the camera that renders the environment image (set per frame).
+#[derive(Resource)]
+struct SkyColor(f32);
+
+fn paint_sky(color: Res<SkyColor>, mut cams: Query<&mut Camera, With<RenderLayers>>) {
+    for mut c in &mut cams {
+        c.clear_color = ClearColorConfig::Custom(Color::linear_rgb(color.0, color.0, color.0));
+    }
+}
+
+/// An environment written on the GPU every frame (here: a camera rendering into it) with
+/// `dynamic: true` is rebuilt every frame with no bytes uploaded from the CPU, and the lighting
+/// follows it.
+#[test]
+fn bevy_gpu_written_image_rebuilds_every_frame() {
+    let Some(_) = gpu() else { return };
+    let mut h = standard_sphere_app(StandardMaterial {
+        base_color: Color::WHITE,
+        perceptual_roughness: 1.0,
+        reflectance: 0.0,
+        ..default()
+    });
+    let mut sky = Image::new_uninit(
+        Extent3d {
+            width: 32,
+            height: 16,
+            depth_or_array_layers: 1,
+        },
+        TextureDimension::D2,
+        TextureFormat::Rgba16Float,
+        RenderAssetUsages::RENDER_WORLD,
+    );
+    sky.texture_descriptor.usage |=
+        TextureUsages::RENDER_ATTACHMENT | TextureUsages::TEXTURE_BINDING;
+    let sky = h.add::<Image>(sky);
+    // A camera that sees nothing (an empty render layer) and clears the image to SkyColor.
+    h.app
+        .insert_resource(SkyColor(0.25))
+        .add_systems(Update, paint_sky);
+    h.app.world_mut().spawn((
+        Camera3d::default(),
+        Camera {
+            order: -1,
+            ..default()
+        },
+        RenderTarget::from(sky.clone()),
+        RenderLayers::layer(1),
+        bevy::camera::Hdr,
+        Tonemapping::None,
+        exposure_multiplier(1.0),
+    ));
+    let target = h.float_target(32, 32);
+    let (projection, transform) = sphere_view();
+    h.app.world_mut().spawn(radiance_camera(
+        target.clone(),
+        projection,
+        transform,
+        EnvironmentSampling::default(),
+        EnvisEnvironment {
+            dynamic: true,
+            ..EnvisEnvironment::new(sky)
+        },
+    ));
+    let first = sphere_mean(&h.capture(&target).unwrap(), 32);
+    let c0 = h.counters().get(|c| &c.builds);
+    for _ in 0..10 {
+        h.update();
+    }
+    let c = h.counters();
+    assert_eq!(
+        c.get(|c| &c.builds),
+        c0 + 10,
+        "one build per frame: {:?}",
+        c.0
+    );
+    assert_eq!(c.get(|c| &c.image_bytes_uploaded), 0, "{:?}", c.0);
+    h.app.world_mut().resource_mut::<SkyColor>().0 = 1.0;
+    for _ in 0..3 {
+        h.update();
+    }
+    let later = sphere_mean(&h.capture(&target).unwrap(), 32);
+    assert!(
+        rel(first, 0.25) < 0.02 && rel(later, 1.0) < 0.02,
+        "the lighting did not follow the GPU-written sky: {first} -> {later}"
+    );
+}
