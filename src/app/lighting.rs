@@ -205,6 +205,7 @@ pub struct MisLightingPlugin;
 impl Plugin for MisLightingPlugin {
     fn build(&self, app: &mut App) {
         super::share_resources(app);
+        app.add_systems(PostUpdate, super::coverage::warn_forward_meshes);
         let Some(render_app) = app.get_sub_app_mut(RenderApp) else {
             return;
         };

@@ -31,6 +31,7 @@
 //! bytes uploaded), which is how tests prove that work is skipped when nothing changed.
 
 pub mod components;
+pub mod coverage;
 #[cfg(feature = "demo")]
 pub mod demo;
 pub mod headless;
@@ -200,6 +201,9 @@ pub struct Counters {
     pub image_bytes_uploaded: AtomicU64,
     /// GPU sampler (re)allocations (face size or pool size changed).
     pub allocations: AtomicU64,
+    /// Distributions alive in the render world after the last frame (a gauge, not a count):
+    /// those no camera uses are dropped.
+    pub live_distributions: AtomicU64,
     /// Lighting passes recorded (one per camera per frame).
     pub lighting_passes: AtomicU64,
     /// Lighting passes that ran an overlay (the overlay is a branch of the lighting pass: with

@@ -307,6 +307,10 @@ pub fn prepare_samplers(
             .insert(ViewSampling { key, frame, seed });
     }
     samplers.slots.retain(|k, _| used.contains(k));
+    counters.0.live_distributions.store(
+        samplers.slots.len() as u64,
+        std::sync::atomic::Ordering::Relaxed,
+    );
     samplers.accumulation.retain(|e, _| live_views.contains(e));
 }
 

@@ -170,7 +170,8 @@ fn bevy_standard_material_matches_cpu() {
 
 /// Bevy's own lights stay: a sun (with shadows, and an occluder casting one on the sphere) adds
 /// the same light with envis as without it. Sun + environment - environment alone = sun alone,
-/// to the G-buffer's quantisation.
+/// to the G-buffer's quantisation. Removing envis from the camera gives it back to Bevy's
+/// lighting alone and frees the camera's distribution.
 #[test]
 fn bevy_keeps_the_sun_and_its_shadow() {
     let Some(_) = gpu() else { return };
@@ -225,11 +226,12 @@ fn bevy_keeps_the_sun_and_its_shadow() {
             ));
             target
         };
-        h.capture(&target).unwrap()
+        let img = h.capture(&target).unwrap();
+        (img, h, target)
     };
-    let sun = render(true, false);
-    let both = render(true, true);
-    let env = render(false, true);
+    let (sun, _, _) = render(true, false);
+    let (both, mut h, target) = render(true, true);
+    let (env, _, _) = render(false, true);
     let inside = on_sphere(size);
     let (mut worst, mut lit, mut shadowed) = (0.0f32, 0, 0);
     for i in (0..sun.len()).filter(|&i| inside(i)) {
@@ -245,6 +247,31 @@ fn bevy_keeps_the_sun_and_its_shadow() {
     assert!(
         worst < 1e-2,
         "sun + env - env differs from the sun alone by {worst}"
+    );
+    let world = h.app.world_mut();
+    let cam = world
+        .query_filtered::<Entity, With<EnvironmentSampling>>()
+        .single(world)
+        .unwrap();
+    world
+        .entity_mut(cam)
+        .remove::<(EnvironmentSampling, EnvisEnvironment)>();
+    let removed = h.capture(&target).unwrap();
+    let diff = removed
+        .iter()
+        .zip(&sun)
+        .map(|(a, b)| (*a - *b).abs().max_element())
+        .fold(0.0, f32::max);
+    assert!(
+        diff <= 1e-5,
+        "without envis the camera differs from Bevy's own lighting by {diff}"
+    );
+    let c = h.counters();
+    assert_eq!(
+        c.get(|c| &c.live_distributions),
+        0,
+        "the removed camera's distribution was kept: {:?}",
+        c.0
     );
 }
 
