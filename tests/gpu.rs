@@ -683,6 +683,10 @@ mod bevy_app;
 #[path = "gpu/bevy_plugin.rs"]
 mod bevy_plugin;
 
+#[cfg(feature = "app")]
+#[path = "gpu/examples.rs"]
+mod examples;
+
 fn read_exr_mean(path: &Path) -> f64 {
     let img = envis::envmap::load::read_exr(path).unwrap();
     mean_lum(&img.data)

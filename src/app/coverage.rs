@@ -10,35 +10,54 @@ use bevy::material::OpaqueRendererMethod;
 use bevy::pbr::DefaultOpaqueRendererMethod;
 use bevy::prelude::*;
 
-/// Count the opaque `StandardMaterial` meshes that render forward while an envis camera exists,
-/// and warn once, with the one line that fixes it.
+/// Count the opaque `StandardMaterial` meshes that render forward while an envis camera exists
+/// (warning once, with the one line that fixes it), and the transparent ones (which envis never
+/// lights).
 pub fn warn_forward_meshes(
     cameras: Query<(), With<EnvironmentSampling>>,
     meshes: Query<&MeshMaterial3d<StandardMaterial>>,
+    added: Query<(), Added<MeshMaterial3d<StandardMaterial>>>,
+    mut events: MessageReader<AssetEvent<StandardMaterial>>,
     materials: Res<Assets<StandardMaterial>>,
     default_method: Option<Res<DefaultOpaqueRendererMethod>>,
-    mut warned: Local<bool>,
+    mut warned: Local<(bool, bool)>,
+    counters: Res<super::EnvisCounters>,
 ) {
-    if *warned || cameras.is_empty() {
+    // Look again only when meshes or materials came or changed (glTF scenes load late).
+    let changed = !added.is_empty() | (events.read().count() > 0);
+    if !changed || cameras.is_empty() {
         return;
     }
     // The resource has no getter nor PartialEq in Bevy 0.19: read its Debug form.
     let default_forward = default_method.is_none_or(|m| !format!("{:?}", *m).contains("Deferred"));
-    let forward = meshes
-        .iter()
-        .filter_map(|m| materials.get(&m.0))
-        .filter(|m| matches!(m.alpha_mode, AlphaMode::Opaque | AlphaMode::Mask(_)))
-        .filter(|m| match m.opaque_render_method {
+    let (mut forward, mut blended) = (0u64, 0u64);
+    for m in meshes.iter().filter_map(|m| materials.get(&m.0)) {
+        if !matches!(m.alpha_mode, AlphaMode::Opaque | AlphaMode::Mask(_)) {
+            blended += 1;
+        } else if match m.opaque_render_method {
             OpaqueRendererMethod::Forward => true,
             OpaqueRendererMethod::Deferred => false,
             OpaqueRendererMethod::Auto => default_forward,
-        })
-        .count();
-    if forward > 0 {
+        } {
+            forward += 1;
+        }
+    }
+    use std::sync::atomic::Ordering::Relaxed;
+    counters.0.forward_meshes.store(forward, Relaxed);
+    counters.0.transparent_meshes.store(blended, Relaxed);
+    if forward > 0 && !warned.0 {
         warn!(
             "envis: {forward} opaque StandardMaterial mesh(es) render forward, so envis cannot light \
              them; add `app.insert_resource(DefaultOpaqueRendererMethod::deferred())` (docs/bevy.md)"
         );
-        *warned = true;
+        warned.0 = true;
+    }
+    if blended > 0 && !warned.1 {
+        warn!(
+            "envis: {blended} transparent StandardMaterial mesh(es) (alpha blend) are drawn forward, \
+             after the envis pass: Bevy's lights reach them, the envis environment does not \
+             (docs/bevy.md)"
+        );
+        warned.1 = true;
     }
 }

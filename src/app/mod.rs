@@ -204,6 +204,10 @@ pub struct Counters {
     /// Distributions alive in the render world after the last frame (a gauge, not a count):
     /// those no camera uses are dropped.
     pub live_distributions: AtomicU64,
+    /// Opaque `StandardMaterial` meshes that render forward (envis cannot light them) and
+    /// transparent ones, at the last look ([`coverage::warn_forward_meshes`]; gauges).
+    pub forward_meshes: AtomicU64,
+    pub transparent_meshes: AtomicU64,
     /// Lighting passes recorded (one per camera per frame).
     pub lighting_passes: AtomicU64,
     /// Lighting passes that ran an overlay (the overlay is a branch of the lighting pass: with

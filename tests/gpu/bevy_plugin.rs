@@ -352,6 +352,46 @@ fn bevy_split_screen() {
     }
 }
 
+/// Meshes envis cannot light are reported: an opaque StandardMaterial left forward (no
+/// `DefaultOpaqueRendererMethod::deferred()`), and a transparent one; the deferred one is lit.
+#[test]
+fn bevy_reports_meshes_it_cannot_light() {
+    let Some(_) = gpu() else { return };
+    let mut h = HeadlessApp::new();
+    let mesh = h.add::<Mesh>(Sphere::new(0.5).mesh().ico(3).expect("icosphere"));
+    for (x, m) in [
+        (-1.0, StandardMaterial::default()),
+        (
+            0.0,
+            StandardMaterial {
+                alpha_mode: AlphaMode::Blend,
+                ..default()
+            },
+        ),
+        (
+            1.0,
+            StandardMaterial {
+                opaque_render_method: bevy::material::OpaqueRendererMethod::Deferred,
+                ..default()
+            },
+        ),
+    ] {
+        let m = h.add::<StandardMaterial>(m);
+        h.app.world_mut().spawn((
+            Mesh3d(mesh.clone()),
+            MeshMaterial3d(m),
+            Transform::from_xyz(x, 0.0, 0.0),
+        ));
+    }
+    let (env, _) = latlong_image(8, |_| Vec3::ONE);
+    let env = h.add::<Image>(env);
+    let target = sphere_camera(&mut h, env, EnvironmentSampling::default(), 16);
+    let _ = h.capture(&target).unwrap();
+    let c = h.counters();
+    assert_eq!(c.get(|c| &c.forward_meshes), 1, "{:?}", c.0);
+    assert_eq!(c.get(|c| &c.transparent_meshes), 1, "{:?}", c.0);
+}
+
 /// An `Image` asset modified on the CPU is rebuilt exactly once, and the lighting follows it.
 #[test]
 fn bevy_modified_image_rebuilds_once() {
