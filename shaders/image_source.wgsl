@@ -51,7 +51,22 @@ fn cube_bilinear(src: texture_2d_array<f32>, d: vec3<f32>) -> vec3<f32> {
     return top * (1.0 - fy) + bot * fy;
 }
 
-// Radiance of the source image in direction d (environment space).
+// The source texel direction d falls in, unfiltered: the radiance of light and BRDF samples
+// (SourceImage::radiance_nearest). Filtering would spread a small sun into neighbouring texels of
+// low density: still unbiased, but heavy-tailed.
+fn source_nearest(src: texture_2d_array<f32>, kind: u32, d: vec3<f32>) -> vec3<f32> {
+    let dims = vec2<i32>(textureDimensions(src));
+    if (kind == SOURCE_CUBE) {
+        let hit = dir_to_texel(vec3(d.x, d.y, -d.z), u32(dims.x));
+        return source_texel(src, i32(hit.col), i32(hit.row), i32(hit.face));
+    }
+    let uv = dir_to_latlong(d);
+    let x = min(i32(uv.x * f32(dims.x)), dims.x - 1);
+    let y = min(i32(uv.y * f32(dims.y)), dims.y - 1);
+    return source_texel(src, x, y, 0);
+}
+
+// Radiance of the source image in direction d (environment space), filtered: the background.
 fn source_radiance(src: texture_2d_array<f32>, kind: u32, d: vec3<f32>) -> vec3<f32> {
     if (kind == SOURCE_CUBE) {
         return cube_bilinear(src, d);

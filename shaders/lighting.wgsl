@@ -52,6 +52,12 @@ struct LightingView {
 // The environment image itself (image_source.wgsl), for the background.
 @group(0) @binding(11) var source: texture_2d_array<f32>;
 
+// Sample radiance comes from the full-resolution image (the texel a direction falls in); the
+// texel table gives only densities (render::FrameData::fine is the CPU twin).
+fn env_radiance(d: vec3<f32>, coarse: vec3<f32>) -> vec3<f32> {
+    return source_nearest(source, u32(lv.accumulate.z), d);
+}
+
 const PBR_LIGHTING_PASS_ID: u32 = 1u;
 // app::material::ENVIS_LIGHTING_PASS_ID.
 const ENVIS_LIGHTING_PASS_ID: u32 = 231u;

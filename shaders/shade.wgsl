@@ -1,7 +1,9 @@
 // envis — per-pixel face-weighted MIS shading (twin of render::shade_pixel). Needs common.wgsl and
 // sampling.wgsl before it, and a module that declares the resources `shade` reads (the frame's
-// texel table `texels`, the light `pool`, `face_energy`, and the uniform `sp`): shade_compute.wgsl
-// (headless backend, tests) or lighting.wgsl (the Bevy deferred lighting pass). All of them are
+// texel table `texels`, the light `pool`, `face_energy`, and the uniform `sp`) and
+// `env_radiance(d, coarse)`, the radiance in direction d given the texel table's value there
+// (render::FrameData::radiance): shade_compute.wgsl (headless backend, tests: the table's value)
+// or lighting.wgsl (the Bevy lighting pass: the full-resolution image). All of them are
 // written by distribution.wgsl on the GPU; nothing is read back to the CPU.
 
 struct ShadeParams {
@@ -109,7 +111,7 @@ fn shade_counts(px: GPixel, pixel_index: u32, counts: u32) -> Shaded {
                 n_b = nb_f * brdf_pdf(mat, ol, il);
             }
             let hit = dir_to_texel(gs.xyz, size);
-            let radiance = texels[(hit.face * size + hit.row) * size + hit.col].xyz;
+            let radiance = env_radiance(gs.xyz, texels[(hit.face * size + hit.row) * size + hit.col].xyz);
             sum += brdf_eval(mat, ol, il) * radiance * (cosv * mis_weight_over_density(sp.mis, f32(nl) * gs.w, n_b));
         }
     } else if (sp.strategy != STRATEGY_BRDF) {
@@ -151,7 +153,7 @@ fn shade_counts(px: GPixel, pixel_index: u32, counts: u32) -> Shaded {
                 if (nb > 0u) {
                     n_b = nb_f * brdf_pdf(mat, ol, il);
                 }
-                sum += brdf_eval(mat, ol, il) * pool[2u * s + 1u].xyz * (weight * cosv * mis_weight_over_density(sp.mis, n_l, n_b));
+                sum += brdf_eval(mat, ol, il) * env_radiance(dp.xyz, pool[2u * s + 1u].xyz) * (weight * cosv * mis_weight_over_density(sp.mis, n_l, n_b));
             }
         }
     }
@@ -177,7 +179,7 @@ fn shade_counts(px: GPixel, pixel_index: u32, counts: u32) -> Shaded {
         } else if (sp.strategy == STRATEGY_GLOBAL) {
             n_l = f32(nl) * global_pdf(size, d);
         }
-        sum += brdf_eval(mat, ol, il) * t.xyz * (il.z * mis_weight_over_density(sp.mis, nb_f * bs.w, n_l));
+        sum += brdf_eval(mat, ol, il) * env_radiance(d, t.xyz) * (il.z * mis_weight_over_density(sp.mis, nb_f * bs.w, n_l));
     }
     res.color = sum;
     return res;

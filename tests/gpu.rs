@@ -130,6 +130,7 @@ fn gpu_resample(ctx: &GpuContext, texture: &wgpu::Texture, width: u32, n: usize)
         layout,
         width,
         &s,
+        None,
     );
     ctx.wait(ctx.queue.submit([enc.finish()])).unwrap();
     ctx.wait(s.run(ctx, 1)).unwrap();

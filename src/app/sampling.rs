@@ -104,6 +104,7 @@ pub struct ViewSampling {
 pub struct EnvSamplers {
     pub slots: HashMap<SamplerKey, SamplerSlot>,
     resampler: Option<ImageResampler>,
+    resample_timer: Option<AsyncTimer>,
     timer: Option<AsyncTimer>,
     pool_timer: Option<AsyncTimer>,
     /// Per view: what its accumulation key was and how many frames it has averaged.
@@ -154,6 +155,7 @@ fn init_samplers(
 ) {
     let device = device.wgpu_device();
     samplers.resampler = Some(ImageResampler::new(device));
+    samplers.resample_timer = AsyncTimer::new(device, &queue, "envis resample timer");
     samplers.timer = AsyncTimer::new(device, &queue, "envis build timer");
     samplers.pool_timer = AsyncTimer::new(device, &queue, "envis pool timer");
 }
@@ -212,7 +214,8 @@ pub fn prepare_samplers(
 ) {
     let samplers = &mut *samplers;
     for (t, f) in [
-        (&samplers.timer, build_ms as fn(&mut _, f64)),
+        (&samplers.resample_timer, resample_ms as fn(&mut _, f64)),
+        (&samplers.timer, build_ms),
         (&samplers.pool_timer, pool_ms),
     ] {
         if let Some(ms) = t.as_ref().and_then(|t| t.poll()) {
@@ -314,6 +317,14 @@ pub fn prepare_samplers(
     samplers.accumulation.retain(|e, _| live_views.contains(e));
 }
 
+/// The timer, when it can take a measurement and none was taken yet this frame.
+fn ready(t: &Option<AsyncTimer>, taken: bool) -> Option<&AsyncTimer> {
+    t.as_ref().filter(|t| t.ready() && !taken)
+}
+
+fn resample_ms(p: &mut super::PassTimes, ms: f64) {
+    p.resample_gpu_ms = Some(ms);
+}
 fn build_ms(p: &mut super::PassTimes, ms: f64) {
     p.build_gpu_ms = Some(ms);
 }
@@ -428,6 +439,13 @@ pub fn build_distributions(
     let mut any = false;
     for slot in samplers.slots.values_mut().filter(|s| s.dirty) {
         let enc = ctx.command_encoder();
+        // Time the first build of the frame (timers are read back asynchronously).
+        let (resample_timer, timer, pool_timer) = (
+            ready(&samplers.resample_timer, timed),
+            ready(&samplers.timer, timed),
+            ready(&samplers.pool_timer, timed),
+        );
+        timed = true;
         resampler.encode(
             &device,
             enc,
@@ -435,23 +453,14 @@ pub fn build_distributions(
             slot.layout,
             slot.width,
             &slot.sampler,
+            resample_timer.map(|t| t.compute_writes()),
         );
-        // Time the first build of the frame (timers are read back asynchronously).
-        let (timer, pool_timer) = if timed {
-            (None, None)
-        } else {
-            timed = true;
-            (
-                samplers.timer.as_ref().filter(|t| t.ready()),
-                samplers.pool_timer.as_ref().filter(|t| t.ready()),
-            )
-        };
         slot.sampler.encode_with(
             enc,
             timer.map(|t| t.compute_writes()),
             pool_timer.map(|t| t.compute_writes()),
         );
-        for t in [timer, pool_timer].into_iter().flatten() {
+        for t in [resample_timer, timer, pool_timer].into_iter().flatten() {
             t.resolve(enc);
         }
         slot.dirty = false;

@@ -9,11 +9,13 @@ use std::sync::{Arc, Mutex};
 /// Milliseconds per pass (the latest value; `None` until measured or without timestamps).
 #[derive(Clone, Copy, Debug, Default, serde::Serialize)]
 pub struct PassTimes {
+    /// The environment image resampled into the distribution's cube texels: GPU time.
+    pub resample_gpu_ms: Option<f64>,
     /// Distribution build (CDFs, face energies, pdf table): GPU time.
     pub build_gpu_ms: Option<f64>,
     /// Light-sample pool: GPU time.
     pub pool_gpu_ms: Option<f64>,
-    /// CPU time to upload the frame and record the build + pool.
+    /// CPU time to record the resample, build and pool.
     pub build_cpu_ms: Option<f64>,
     /// Lighting pass (all envis cameras of the last frame): GPU time, CPU time to record.
     pub lighting_gpu_ms: Option<f64>,

@@ -147,6 +147,11 @@ pub fn latlong_integral(img: &Image) -> glam::DVec3 {
     s
 }
 
+/// Most sub-points per axis of [`SourceLayout::subpoints`]: enough for two per source texel up to
+/// a lat-long 64 x `n` texels wide (4096 for faces of 64). Beyond, a source texel can fall
+/// between sub-points; its coarse texel may then miss it (see `docs/bevy.md`).
+pub const MAX_SUBPOINTS: u32 = 32;
+
 /// How a GPU environment image is laid out (see `shaders/image_source.wgsl`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SourceLayout {
@@ -177,7 +182,8 @@ impl SourceLayout {
 
     /// Sub-points per axis that the GPU resample takes per target texel for a source whose
     /// layers are `width` texels wide and a target face of `n`: about two per source texel along
-    /// each axis (a face spans a quarter of a lat-long row, or a whole cube layer), 2 to 16.
+    /// each axis (a face spans a quarter of a lat-long row, or a whole cube layer), 2 to
+    /// [`MAX_SUBPOINTS`].
     /// A cube image of exactly the target's size is copied texel for texel (one sub-point at each
     /// texel centre, where the bilinear lookup is exact).
     pub fn subpoints(self, width: u32, n: u32) -> u32 {
@@ -188,7 +194,7 @@ impl SourceLayout {
             SourceLayout::LatLong => width as f32 / 4.0,
             SourceLayout::Cube => width as f32,
         };
-        ((2.0 * span / n.max(1) as f32).ceil() as u32).clamp(2, 16)
+        ((2.0 * span / n.max(1) as f32).ceil() as u32).clamp(2, MAX_SUBPOINTS)
     }
 }
 
@@ -231,6 +237,22 @@ impl SourceImage {
         match self {
             SourceImage::LatLong(img) => latlong_bilinear(img, d),
             SourceImage::Cube(c) => cube_bilinear(c, Vec3::new(d.x, d.y, -d.z)),
+        }
+    }
+
+    /// The radiance of the texel direction `d` falls in (no filtering): what the Bevy pass gives
+    /// light and BRDF samples (twin of `source_nearest` in `shaders/image_source.wgsl`). Point
+    /// sampling keeps each sample's radiance inside the texel whose density drew it; a filtered
+    /// lookup would spread a small sun into neighbours of low density (unbiased, but heavy-tailed).
+    pub fn radiance_nearest(&self, d: Vec3) -> Vec3 {
+        match self {
+            SourceImage::LatLong(img) => {
+                let (u, v) = dir_to_latlong(d);
+                let x = ((u * img.width as f32) as usize).min(img.width - 1);
+                let y = ((v * img.height as f32) as usize).min(img.height - 1);
+                img.get(x, y)
+            }
+            SourceImage::Cube(c) => c.lookup(Vec3::new(d.x, d.y, -d.z)),
         }
     }
 

@@ -74,6 +74,7 @@ impl ImageResampler {
         layout: SourceLayout,
         width: u32,
         sampler: &EnvSampler,
+        timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) {
         let n = sampler.n as u32;
         let params = ResampleParams {
@@ -112,7 +113,7 @@ impl ImageResampler {
         });
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("envis resample"),
-            timestamp_writes: None,
+            timestamp_writes,
         });
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &bind, &[]);

@@ -12,9 +12,18 @@ use crate::sampling::{
 };
 use glam::{Vec2, Vec3};
 
+/// Radiance of the environment at full resolution, by direction (see [`FrameData::fine`]).
+pub type FineRadiance<'a> = &'a (dyn Fn(Vec3) -> Vec3 + Sync);
+
 /// Everything built once per environment frame.
 pub struct FrameData<'a> {
     pub map: &'a CubeMap,
+    /// Where radiance is read when the distribution (`map`) is a coarser copy of the environment:
+    /// light samples, global samples and BRDF samples then take their radiance from here, their
+    /// densities still from `map`. Unbiased as long as every direction with radiance here has a
+    /// positive density in `map` (a coarse texel built from its fine texels is positive wherever
+    /// one of them is), or is reached by the BRDF samples. `None`: radiance is `map`'s.
+    pub fine: Option<FineRadiance<'a>>,
     pub dist: CubeDistribution,
     pub energies: [f64; 6],
     pub pool: LightPool,
@@ -46,11 +55,27 @@ impl<'a> FrameData<'a> {
             .collect();
         FrameData {
             map,
+            fine: None,
             dist,
             energies,
             pool,
             global,
             texels,
+        }
+    }
+
+    /// Read radiance from `fine` instead of `map` (the Bevy pass reads the full-resolution image).
+    pub fn with_fine(mut self, fine: FineRadiance<'a>) -> Self {
+        self.fine = Some(fine);
+        self
+    }
+
+    /// The radiance in direction `d`, given `map`'s value there.
+    #[inline(always)]
+    pub fn radiance(&self, d: Vec3, coarse: Vec3) -> Vec3 {
+        match self.fine {
+            Some(f) => f(d),
+            None => coarse,
         }
     }
 }
@@ -237,7 +262,8 @@ fn light_pool_samples<B: LocalBsdf>(
                 continue;
             }
             let weight = if k + 1 == c.taken { c.last_weight } else { 1.0 };
-            px.light_sample(ls.dir, || ls.radiance, weight, c.density * ls.pdf, sum, st);
+            let radiance = || px.fd.radiance(ls.dir, ls.radiance);
+            px.light_sample(ls.dir, radiance, weight, c.density * ls.pdf, sum, st);
         }
     }
     density
@@ -276,7 +302,14 @@ fn global_samples<B: LocalBsdf>(px: &Pixel<B>, rng: &mut Rng, sum: &mut Vec3, st
         let u = Vec2::new(rng.next_f32(), rng.next_f32());
         let Some((d, p)) = g.sample(u) else { continue };
         // Weight 1: 1 * cos is cos exactly, so this is the plain one-sample estimate.
-        px.light_sample(d, || fd.map.lookup(d), 1.0, nl as f32 * p, sum, st);
+        px.light_sample(
+            d,
+            || fd.radiance(d, fd.map.lookup(d)),
+            1.0,
+            nl as f32 * p,
+            sum,
+            st,
+        );
     }
 }
 
@@ -332,8 +365,9 @@ fn brdf_samples<B: LocalBsdf>(
                 _ => 0.0,
             };
             let il = smp.dir(k);
+            let d = Vec3::new(hit.x[k], hit.y[k], hit.z[k]);
             *sum += mat.eval_local(ol, il)
-                * t.truncate()
+                * fd.radiance(d, t.truncate())
                 * (il.z * mis::weight_over_density(s.mis, nb_f * p, n_l));
         }
     }

@@ -43,10 +43,24 @@ pub fn render(
     height: usize,
     s: &Settings,
 ) -> Result<Rendered> {
+    render_fine(map, None, gbuf, width, height, s)
+}
+
+/// [`render`] with radiance read from `fine` (the full-resolution environment) while `map` gives
+/// the sampling densities: the CPU twin of the Bevy pass ([`FrameData::fine`]).
+pub fn render_fine(
+    map: &CubeMap,
+    fine: Option<estimator::FineRadiance<'_>>,
+    gbuf: &[Option<GPixel>],
+    width: usize,
+    height: usize,
+    s: &Settings,
+) -> Result<Rendered> {
     s.validate()?;
     assert_eq!(gbuf.len(), width * height);
     let t0 = std::time::Instant::now();
-    let fd = FrameData::prepare(map, s);
+    let mut fd = FrameData::prepare(map, s);
+    fd.fine = fine;
     let build_ms = t0.elapsed().as_secs_f64() * 1e3;
     let t1 = std::time::Instant::now();
     let out: Vec<(Vec3, Option<PixelStats>)> = gbuf

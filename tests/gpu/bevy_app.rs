@@ -90,10 +90,23 @@ fn bevy_frame_matches_cpu_renderer() {
             .unwrap();
         }
         let gbuf = sphere_gbuffer(size as usize, size as usize, mat.decoded());
-        let cpu = render(&map, &gbuf, size as usize, size as usize, &sampling)
-            .unwrap()
-            .image
-            .data;
+        // The pass reads sample radiance from the stream's image (the texel a direction falls
+        // in), densities from the table resampled from it.
+        let source = envis::envmap::resample::SourceImage::new_cube(
+            envis::envmap::resample::bevy_cube_layers(&map),
+        );
+        let fine = |d: Vec3| source.radiance_nearest(d);
+        let cpu = envis::render::render_fine(
+            &map,
+            Some(&fine),
+            &gbuf,
+            size as usize,
+            size as usize,
+            &sampling,
+        )
+        .unwrap()
+        .image
+        .data;
         let inside = on_sphere(size);
         let idx: Vec<usize> = (0..img.len()).filter(|&i| inside(i)).collect();
         let mean = |v: &[Vec3]| {
@@ -121,9 +134,6 @@ fn bevy_frame_matches_cpu_renderer() {
         );
         // The background: an orthographic camera looking down -Z sees the image in direction -Z
         // everywhere (filtered from the stream's cube image, as its CPU twin reads it).
-        let source = envis::envmap::resample::SourceImage::new_cube(
-            envis::envmap::resample::bevy_cube_layers(&map),
-        );
         let sky = source.radiance(-Vec3::Z);
         let corner = img[0];
         assert!(
@@ -179,6 +189,7 @@ fn bevy_builds_only_when_the_frame_changes() {
     if ctx.timestamps {
         assert!(
             t.build_gpu_ms.is_some_and(|x| x >= 0.0)
+                && t.resample_gpu_ms.is_some_and(|x| x >= 0.0)
                 && t.pool_gpu_ms.is_some_and(|x| x >= 0.0)
                 && t.lighting_gpu_ms.is_some_and(|x| x >= 0.0),
             "{t:?}"

@@ -132,14 +132,18 @@ fn bevy_standard_material_matches_cpu() {
     };
     let target = sphere_camera(&mut h, env, sampling.clone(), size);
     let img = h.capture(&target).unwrap();
-    let cube = envis::envmap::resample::SourceImage::new_latlong(cpu_env).to_cube(face as usize);
+    // The pass reads densities from the resampled table and radiance from the image itself.
+    let source = envis::envmap::resample::SourceImage::new_latlong(cpu_env);
+    let cube = source.to_cube(face as usize);
+    let fine = |d: Vec3| source.radiance_nearest(d);
     let gbuf = envis::render::sphere_gbuffer(
         size as usize,
         size as usize,
         standard_material_decoded(&material),
     );
-    let cpu = envis::render::render(
+    let cpu = envis::render::render_fine(
         &cube,
+        Some(&fine),
         &gbuf,
         size as usize,
         size as usize,

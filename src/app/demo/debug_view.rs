@@ -3,6 +3,7 @@
 //! them on the sky.
 
 use super::*;
+use crate::envmap::resample::{SourceImage, bevy_cube_layers};
 
 /// Recompute the CPU twin's view of the probed pixel when the probe, the frame or the settings change.
 pub(super) fn update_debug_view(
@@ -24,7 +25,12 @@ pub(super) fn update_debug_view(
     if state.key == Some(key) {
         return;
     }
-    let fd = FrameData::prepare(&frame.map, &s);
+    // As the GPU: densities from the image resampled to the distribution's face size, radiance
+    // from the image itself.
+    let source = SourceImage::new_cube(bevy_cube_layers(&frame.map));
+    let coarse = source.to_cube(sampling.face_size as usize);
+    let fine = |d: Vec3| source.radiance_nearest(d);
+    let fd = FrameData::prepare(&coarse, &s).with_fine(&fine);
     let d = debug_pixel(&fd, &s, &p.gpixel, p.pixel_index);
     state.pixel = Some((d, p.gpixel, p.estimate));
     state.key = Some(key);

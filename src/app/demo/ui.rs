@@ -79,7 +79,7 @@ pub(super) fn panel(
             egui::CollapsingHeader::new("Timings").default_open(true).show(ui, |ui| {
                 let t = timings.get();
                 let f = |x: Option<f64>| x.map_or("n/a".to_string(), |v| format!("{v:.3} ms"));
-                ui.label(format!("distribution build: GPU {}; light pool: GPU {}; upload + record: CPU {}", f(t.build_gpu_ms), f(t.pool_gpu_ms), f(t.build_cpu_ms)));
+                ui.label(format!("resample: GPU {}; distribution build: GPU {}; light pool: GPU {}; record: CPU {}", f(t.resample_gpu_ms), f(t.build_gpu_ms), f(t.pool_gpu_ms), f(t.build_cpu_ms)));
                 ui.label(format!("lighting (G-buffer -> MIS): GPU {}, CPU {}", f(t.lighting_gpu_ms), f(t.lighting_cpu_ms)));
                 let px = windows.single().map(|w| (w.physical_width() * w.physical_height()) as f64).unwrap_or(0.0);
                 let budget = settings.budget() as f64;
