@@ -123,15 +123,12 @@ fn gpu_resample(ctx: &GpuContext, texture: &wgpu::Texture, width: u32, n: usize)
     let s = EnvSampler::new(ctx, n, 4).unwrap();
     let view = envis::gpu::resample::source_view(texture);
     let mut enc = ctx.device.create_command_encoder(&Default::default());
-    envis::gpu::ImageResampler::new(&ctx.device).encode(
-        &ctx.device,
-        &mut enc,
-        &view,
+    let source = envis::gpu::resample::Source {
+        view: &view,
         layout,
         width,
-        &s,
-        None,
-    );
+    };
+    envis::gpu::ImageResampler::new(&ctx.device).encode(&ctx.device, &mut enc, source, &s, None);
     ctx.wait(ctx.queue.submit([enc.finish()])).unwrap();
     ctx.wait(s.run(ctx, 1)).unwrap();
     s.read_tables(ctx).unwrap().to_map()

@@ -13,6 +13,10 @@ use bevy::prelude::*;
 /// Count the opaque `StandardMaterial` meshes that render forward while an envis camera exists
 /// (warning once, with the one line that fixes it), and the transparent ones (which envis never
 /// lights).
+#[allow(
+    clippy::too_many_arguments,
+    reason = "a Bevy system's parameters are the data it touches"
+)]
 pub fn warn_forward_meshes(
     cameras: Query<(), With<EnvironmentSampling>>,
     meshes: Query<&MeshMaterial3d<StandardMaterial>>,

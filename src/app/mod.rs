@@ -1,7 +1,8 @@
 //! The Bevy layer: [`EnvisPlugin`] and two camera components give a Bevy app unbiased,
 //! per-frame importance-sampled environment lighting (`docs/bevy.md`):
 //!
-//! ```no_run
+//! ```ignore
+//! // The same set-up, compiled and run headless by the tests: examples/gltf_scene.rs.
 //! use bevy::prelude::*;
 //! use envis::prelude::*;
 //!
@@ -12,9 +13,7 @@
 //!         EnvisEnvironment { intensity: 0.5, ..EnvisEnvironment::new(assets.load("sky.exr")) },
 //!     ));
 //! }
-//! # fn main() {
-//! # App::new().add_plugins((DefaultPlugins, EnvisPlugin)).add_systems(Startup, setup).run();
-//! # }
+//! App::new().add_plugins((DefaultPlugins, EnvisPlugin)).add_systems(Startup, setup).run();
 //! ```
 //!
 //! One plugin per capability, all added by [`EnvisPlugin`]:

@@ -386,39 +386,33 @@ fn slot_for<'a>(
     queue: &RenderQueue,
     counters: &EnvisCounters,
 ) -> Option<&'a mut SamplerSlot> {
-    if !samplers.slots.contains_key(&key) {
-        match EnvSampler::with_device(
-            device.wgpu_device(),
-            queue,
-            key.face_size,
-            key.pool_per_face,
-            false,
-        ) {
-            Ok(sampler) => {
-                counters.bump(|c: &Counters| &c.allocations);
-                samplers.slots.insert(
-                    key,
-                    SamplerSlot {
-                        sampler,
-                        source: source_view(&gpu.texture),
-                        layout,
-                        width: gpu.texture_descriptor.size.width,
-                        built: None,
-                        seed: None,
-                        dirty: true,
-                        generation: 0,
-                    },
-                );
+    use std::collections::hash_map::Entry;
+    let vacant = match samplers.slots.entry(key) {
+        Entry::Occupied(e) => return Some(e.into_mut()),
+        Entry::Vacant(v) => v,
+    };
+    let (n, m) = (key.face_size, key.pool_per_face);
+    match EnvSampler::with_device(device.wgpu_device(), queue, n, m, false) {
+        Ok(sampler) => {
+            counters.bump(|c: &Counters| &c.allocations);
+            Some(vacant.insert(SamplerSlot {
+                sampler,
+                source: source_view(&gpu.texture),
+                layout,
+                width: gpu.texture_descriptor.size.width,
+                built: None,
+                seed: None,
+                dirty: true,
+                generation: 0,
+            }))
+        }
+        Err(e) => {
+            if samplers.refused.insert(key.image) {
+                error!("envis: {e}");
             }
-            Err(e) => {
-                if samplers.refused.insert(key.image) {
-                    error!("envis: {e}");
-                }
-                return None;
-            }
+            None
         }
     }
-    samplers.slots.get_mut(&key)
 }
 
 /// Record every pending build (resample, distribution, pool) into this frame's command stream,
@@ -446,12 +440,15 @@ pub fn build_distributions(
             ready(&samplers.pool_timer, timed),
         );
         timed = true;
+        let source = crate::gpu::resample::Source {
+            view: &slot.source,
+            layout: slot.layout,
+            width: slot.width,
+        };
         resampler.encode(
             &device,
             enc,
-            &slot.source,
-            slot.layout,
-            slot.width,
+            source,
             &slot.sampler,
             resample_timer.map(|t| t.compute_writes()),
         );

@@ -16,6 +16,16 @@ struct ResampleParams {
     _pad: u32,
 }
 
+/// An environment texture as the resample reads it.
+#[derive(Clone, Copy)]
+pub struct Source<'a> {
+    /// A view from [`source_view`].
+    pub view: &'a wgpu::TextureView,
+    pub layout: SourceLayout,
+    /// Width of one layer in texels.
+    pub width: u32,
+}
+
 /// The resample pipeline (one per device).
 pub struct ImageResampler {
     layout: wgpu::BindGroupLayout,
@@ -63,24 +73,21 @@ impl ImageResampler {
         ImageResampler { layout, pipeline }
     }
 
-    /// Record the resample of `source` (a view from [`source_view`]) into `sampler`'s texel table.
-    /// `width` is the width of one layer of the source. The caller then records the build
-    /// ([`EnvSampler::encode_with`]), which reads the table in the same command stream.
+    /// Record the resample of `source` into `sampler`'s texel table. The caller then records the
+    /// build ([`EnvSampler::encode_with`]), which reads the table in the same command stream.
     pub fn encode(
         &self,
         device: &wgpu::Device,
         enc: &mut wgpu::CommandEncoder,
-        source: &wgpu::TextureView,
-        layout: SourceLayout,
-        width: u32,
+        source: Source<'_>,
         sampler: &EnvSampler,
         timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) {
         let n = sampler.n as u32;
         let params = ResampleParams {
             n,
-            s: layout.subpoints(width, n),
-            kind: match layout {
+            s: source.layout.subpoints(source.width, n),
+            kind: match source.layout {
                 SourceLayout::LatLong => 0,
                 SourceLayout::Cube => 1,
             },
@@ -99,7 +106,7 @@ impl ImageResampler {
             entries: &[
                 wgpu::BindGroupEntry {
                     binding: 0,
-                    resource: wgpu::BindingResource::TextureView(source),
+                    resource: wgpu::BindingResource::TextureView(source.view),
                 },
                 wgpu::BindGroupEntry {
                     binding: 1,

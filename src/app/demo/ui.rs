@@ -69,10 +69,10 @@ pub(super) fn panel(
             egui::CollapsingHeader::new("Sampling").default_open(true).show(ui, |ui| sampling_ui(ui, &mut settings));
             ui.collapsing("Materials", |ui| {
                 for mut o in &mut objects {
-                    if material_ui(ui, &o.name.clone(), &mut o.material) {
-                        if let Some(mut m) = materials.get_mut(&o.handle) {
-                            m.brdf = o.material;
-                        }
+                    if material_ui(ui, &o.name.clone(), &mut o.material)
+                        && let Some(mut m) = materials.get_mut(&o.handle)
+                    {
+                        m.brdf = o.material;
                     }
                 }
             });
