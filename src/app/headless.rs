@@ -167,6 +167,15 @@ pub fn radiance_camera(
     sampling: EnvironmentSampling,
     env: EnvisEnvironment,
 ) -> impl Bundle {
+    (radiance_view(target, projection, transform), sampling, env)
+}
+
+/// [`radiance_camera`] without envis.
+pub fn radiance_view(
+    target: Handle<Image>,
+    projection: Projection,
+    transform: Transform,
+) -> impl Bundle {
     (
         Camera3d::default(),
         Camera {
@@ -178,8 +187,6 @@ pub fn radiance_camera(
         RenderTarget::from(target),
         Tonemapping::None,
         exposure_multiplier(1.0),
-        sampling,
-        env,
     )
 }
 

@@ -72,7 +72,7 @@ pub fn run(opts: DemoOptions) -> AppExit {
         EnvisPlugin,
         EnvMapStreamPlugin {
             source: opts.source.clone(),
-            face_size: opts.face_size,
+            face_size: stream_face_size(opts.face_size),
         },
     ))
     .add_plugins(EguiPlugin::default())
@@ -141,6 +141,13 @@ pub struct DemoState {
     exposure: f32,
     /// The sampling settings the camera starts with.
     sampling: Settings,
+}
+
+/// The stream's face size for a distribution of `face` texels per face: the picture (the sky,
+/// mirror reflections) comes from the stream's image at this resolution, the densities from the
+/// distribution; 4x, up to 512.
+pub fn stream_face_size(face: usize) -> usize {
+    (4 * face).clamp(face, 512)
 }
 
 /// The demo's camera (the one the panel, the keys and the script edit).

@@ -63,6 +63,9 @@ pub(super) fn panel(
     egui::Window::new("envis").anchor(egui::Align2::RIGHT_TOP, [-8.0, 8.0]).default_width(320.0).show(&ctx, |ui| {
         egui::ScrollArea::vertical().show(ui, |ui| {
             ui.collapsing("Environment", |ui| environment_ui(ui, &mut stream, &mut env, &mut state));
+            if settings.face_size != state.face_size as u32 {
+                settings.face_size = state.face_size as u32;
+            }
             if ui.add(egui::Slider::new(&mut state.exposure, 0.01..=8.0).logarithmic(true).text("exposure")).changed() {
                 *exposure = exposure_multiplier(state.exposure);
             }
@@ -186,7 +189,7 @@ fn environment_ui(
     ui.add(
         egui::Slider::new(&mut face, 8..=1024)
             .logarithmic(true)
-            .text("face size"),
+            .text("distribution face size"),
     );
     ui.horizontal(|ui| {
         ui.label("source");
@@ -204,7 +207,7 @@ fn environment_ui(
             };
             match src {
                 Ok(src) => {
-                    if stream.switch(src, face) {
+                    if stream.switch(src, stream_face_size(face)) {
                         state.face_size = face;
                     }
                 }
