@@ -95,6 +95,10 @@ struct SceneArgs {
     /// GGX roughness alpha.
     #[arg(long, default_value_t = 0.2)]
     alpha: f32,
+    /// Shadow rays for every light and BRDF sample (CPU): `auto` (default, or the scene file's
+    /// `visibility`) casts them when some object can shadow a visible point.
+    #[arg(long, value_enum)]
+    visibility: Option<envis::visibility::Visibility>,
 }
 
 #[derive(Clone, Copy, ValueEnum)]

@@ -880,6 +880,26 @@ fn unbiased_checks_fine(
     reference: &[DVec3],
 ) -> Vec<MeanCheck> {
     let gbuf = sphere_gbuffer(size, size, mat);
+    let extras = envis::render::Extras {
+        fine,
+        ..Default::default()
+    };
+    unbiased_checks_with(map, extras, &gbuf, s, k, size, reference)
+}
+
+/// The unbiasedness checks of `k` seeds of any `size x size` G-buffer, with [`Extras`]: the mean
+/// luminance of the image and of its four quadrants against `reference`.
+///
+/// [`Extras`]: envis::render::Extras
+fn unbiased_checks_with(
+    map: &CubeMap,
+    extras: envis::render::Extras<'_>,
+    gbuf: &[Option<GPixel>],
+    s: Settings,
+    k: u32,
+    size: usize,
+    reference: &[DVec3],
+) -> Vec<MeanCheck> {
     type Region = (String, Box<dyn Fn(usize, usize) -> bool>);
     let regions: Vec<Region> = vec![
         ("image".into(), Box::new(|_, _| true)),
@@ -915,10 +935,10 @@ fn unbiased_checks_fine(
     };
     let mut per_seed: Vec<Vec<f64>> = vec![Vec::new(); regions.len()];
     for seed in 0..k {
-        let out = envis::render::render_fine(
+        let out = envis::render::render_with(
             map,
-            fine,
-            &gbuf,
+            extras,
+            gbuf,
             size,
             size,
             &Settings {
@@ -1873,6 +1893,9 @@ fn cli_contract() {
 
 #[path = "core/stream.rs"]
 mod stream;
+
+#[path = "core/visibility.rs"]
+mod visibility;
 
 /// The sample-debug view classifies the pool exactly as the estimator uses it: as many green
 /// (used, positive cosine) and yellow (used, non-positive) samples as `shade_pixel` counts, the

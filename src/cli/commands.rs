@@ -22,18 +22,35 @@ pub fn render(r: RenderArgs) -> Result<()> {
         material_budget: r.material_budget,
     };
     settings.validate()?;
-    let (env, gbuf, _, scene) = setup(&r.scene)?;
+    let su = setup(&r.scene)?;
+    let (env, gbuf) = (&su.env, &su.gbuf);
     // A scene file supplies the sampling settings too.
-    let settings = scene.as_ref().map_or(settings, |sc| sc.settings);
+    let settings = su.scene.as_ref().map_or(settings, |sc| sc.settings);
     let size = r.scene.size;
+    let (mut shadows, mut why) = su.shadows(r.scene.visibility);
+    if shadows && !matches!(r.backend, BackendArg::Cpu) {
+        eprintln!("envis: the GPU backends cast no shadow rays yet: rendering without ({why})");
+        (shadows, why) = (
+            false,
+            "off (the GPU backends cast no shadow rays yet)".into(),
+        );
+    }
+    let occluders = su.occluders();
     let (mut out, extra) = match r.backend {
-        BackendArg::Cpu => (
-            render::render(&env.cube, &gbuf, size, size, &settings)?,
-            serde_json::json!({ "backend": "cpu" }),
-        ),
-        BackendArg::Wgpu => render_wgpu(&env.cube, &gbuf, size, &settings)?,
-        BackendArg::Gpu => render_bevy(&r.scene, &settings, scene.as_ref())?,
+        BackendArg::Cpu => {
+            let extras = render::Extras {
+                shadows: shadows.then_some((&occluders as _, su.points.as_slice())),
+                ..Default::default()
+            };
+            (
+                render::render_with(&env.cube, extras, gbuf, size, size, &settings)?,
+                serde_json::json!({ "backend": "cpu" }),
+            )
+        }
+        BackendArg::Wgpu => render_wgpu(&env.cube, gbuf, size, &settings)?,
+        BackendArg::Gpu => render_bevy(&r.scene, &settings, su.scene.as_ref())?,
     };
+    out.stats.visibility = why;
     // What the loader clamped, plus anything the GPU's own sanitise pass found.
     out.stats.clamped_texels.add(env.report);
     output::write_exr(&r.out, &out.image)?;
@@ -57,10 +74,14 @@ pub fn reference(r: ReferenceArgs) -> Result<()> {
     if !(r.refine.is_finite() && r.refine > 0.0) {
         return Err(Error::invalid("--refine must be > 0"));
     }
-    let (env, gbuf, mat, _) = setup(&r.scene)?;
+    let su = setup(&r.scene)?;
+    let (env, gbuf, mat) = (&su.env, &su.gbuf, su.material);
+    let (shadows, why) = su.shadows(r.scene.visibility);
+    let occluders = su.occluders();
+    let shadows = shadows.then_some((&occluders as _, su.points.as_slice()));
     let t = std::time::Instant::now();
-    let (img, _) =
-        reference::reference_image(&env.cube, &gbuf, r.scene.size, r.scene.size, r.refine);
+    let size = r.scene.size;
+    let (img, _) = reference::reference_image_with(&env.cube, gbuf, shadows, size, size, r.refine);
     let ms = t.elapsed().as_secs_f64() * 1e3;
     output::write_exr(&r.out, &img)?;
     if let Some(p) = &r.png {
@@ -70,7 +91,7 @@ pub fn reference(r: ReferenceArgs) -> Result<()> {
         let k = reference::subdivision(r.scene.size, &mat, r.refine);
         output::write_json(
             p,
-            &serde_json::json!({ "reference_ms": ms, "subtexel_points_per_axis": k, "clamped_texels": env.report }),
+            &serde_json::json!({ "reference_ms": ms, "subtexel_points_per_axis": k, "clamped_texels": env.report, "visibility": why }),
         )?;
     }
     Ok(())

@@ -6,6 +6,7 @@ use envis::envmap::load::{EnvSource, LoadedEnv, load_env};
 use envis::error::{Error, Result};
 use envis::render;
 use envis::sampling::Material;
+use envis::visibility::Visibility;
 
 pub fn material(a: &SceneArgs) -> Result<Material> {
     if !(a.albedo.is_finite() && a.albedo >= 0.0) {
@@ -37,16 +38,47 @@ pub fn material(a: &SceneArgs) -> Result<Material> {
     })
 }
 
+/// What [`setup`] returns.
+pub struct Setup {
+    pub env: LoadedEnv,
+    pub gbuf: Vec<Option<render::GPixel>>,
+    /// Each pixel's surface point (where its shadow rays leave from).
+    pub points: Vec<glam::Vec3>,
+    /// The material of the sphere (or of the scene's first object).
+    pub material: Material,
+    pub scene: Option<envis::scene::Scene>,
+}
+
+/// The unit sphere of the `sphere` scene, for its shadow rays (it cannot shadow itself).
+const UNIT_SPHERE: envis::scene::Shape = envis::scene::Shape::Sphere {
+    center: glam::Vec3::ZERO,
+    radius: 1.0,
+};
+
+impl Setup {
+    /// Whether to cast shadow rays (`--visibility`, else the scene file's, else `auto`) and why.
+    pub fn shadows(&self, mode: Option<Visibility>) -> (bool, String) {
+        match &self.scene {
+            Some(sc) => sc.shadows(mode),
+            None => match mode.unwrap_or_default() {
+                Visibility::Auto => envis::scene::shadows::auto_rule(&[&UNIT_SPHERE]),
+                Visibility::On => (true, "on (asked for)".into()),
+                Visibility::Off => (false, "off (asked for)".into()),
+            },
+        }
+    }
+
+    /// The shapes that block shadow rays.
+    pub fn occluders(&self) -> envis::scene::shadows::Occluders<'_> {
+        match &self.scene {
+            Some(sc) => sc.occluders(),
+            None => envis::scene::shadows::Occluders(vec![&UNIT_SPHERE]),
+        }
+    }
+}
+
 /// The environment, G-buffer and material of `--scene`: `sphere` (with the command-line
 /// environment and material), or a TOML scene file, which supplies everything but the size.
-/// What [`setup`] returns: the environment, the G-buffer, the material and the scene file.
-pub type Setup = (
-    LoadedEnv,
-    Vec<Option<render::GPixel>>,
-    Material,
-    Option<envis::scene::Scene>,
-);
-
 pub fn setup(a: &SceneArgs) -> Result<Setup> {
     if a.size == 0 || a.size > 16384 {
         return Err(Error::invalid(format!(
@@ -67,8 +99,14 @@ pub fn setup(a: &SceneArgs) -> Result<Setup> {
         if env.report.total() > 0 {
             eprintln!("envis: {}: {}", sc.environment, env.report);
         }
-        let gbuf = sc.gbuffer(a.size, a.size);
-        return Ok((env, gbuf, sc.objects[0].material, Some(sc)));
+        let (gbuf, points) = sc.gbuffer_points(a.size, a.size);
+        return Ok(Setup {
+            env,
+            gbuf,
+            points,
+            material: sc.objects[0].material,
+            scene: Some(sc),
+        });
     }
     let mat = material(a)?;
     let src: EnvSource = a.env.parse()?;
@@ -76,7 +114,19 @@ pub fn setup(a: &SceneArgs) -> Result<Setup> {
     if env.report.total() > 0 {
         eprintln!("envis: {}: {}", a.env, env.report);
     }
-    Ok((env, render::sphere_gbuffer(a.size, a.size, mat), mat, None))
+    let gbuf = render::sphere_gbuffer(a.size, a.size, mat);
+    // On the unit sphere at the origin a point is its normal.
+    let points = gbuf
+        .iter()
+        .map(|p| p.as_ref().map_or(glam::Vec3::ZERO, |p| p.n))
+        .collect();
+    Ok(Setup {
+        env,
+        gbuf,
+        points,
+        material: mat,
+        scene: None,
+    })
 }
 
 pub fn check_exr_path(p: &std::path::Path) -> Result<()> {

@@ -167,6 +167,8 @@ impl<'c> GpuRenderer<'c> {
                     green: q[1],
                     yellow: q[2],
                     brdf: q[3],
+                    // The WGSL stages cast no shadow rays (yet).
+                    ..PixelStats::default()
                 })
             })
             .collect();

@@ -24,6 +24,9 @@ pub struct FrameData<'a> {
     /// positive density in `map` (a coarse texel built from its fine texels is positive wherever
     /// one of them is), or is reached by the BRDF samples. `None`: radiance is `map`'s.
     pub fine: Option<FineRadiance<'a>>,
+    /// The scene's shadow rays: a light or BRDF sample it blocks contributes nothing. `None`:
+    /// nothing occludes (no rays are cast).
+    pub occluder: Option<&'a dyn crate::visibility::Occluder>,
     pub dist: CubeDistribution,
     pub energies: [f64; 6],
     pub pool: LightPool,
@@ -56,6 +59,7 @@ impl<'a> FrameData<'a> {
         FrameData {
             map,
             fine: None,
+            occluder: None,
             dist,
             energies,
             pool,
@@ -92,12 +96,24 @@ pub fn shade_pixel(
     px: &GPixel,
     pixel_index: u32,
 ) -> (Vec3, PixelStats) {
+    shade_pixel_at(fd, s, px, None, pixel_index)
+}
+
+/// [`shade_pixel`] for a pixel whose surface point is `at`: with `fd.occluder`, every light and
+/// BRDF sample above the horizon casts a shadow ray from there.
+pub fn shade_pixel_at(
+    fd: &FrameData,
+    s: &Settings,
+    px: &GPixel,
+    at: Option<Vec3>,
+    pixel_index: u32,
+) -> (Vec3, PixelStats) {
     #[cfg(target_arch = "x86_64")]
     if simd::enabled() {
         // SAFETY: the CPU supports the features `shade_pixel_avx2` is compiled for.
-        return unsafe { simd::shade_pixel_avx2(fd, s, px, pixel_index) };
+        return unsafe { simd::shade_pixel_avx2(fd, s, px, at, pixel_index) };
     }
-    shade_pixel_portable(fd, s, px, pixel_index)
+    shade_pixel_portable(fd, s, px, at, pixel_index)
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -118,9 +134,10 @@ mod simd {
         fd: &FrameData,
         s: &Settings,
         px: &GPixel,
+        at: Option<Vec3>,
         pixel_index: u32,
     ) -> (Vec3, PixelStats) {
-        shade_pixel_portable(fd, s, px, pixel_index)
+        shade_pixel_portable(fd, s, px, at, pixel_index)
     }
 }
 
@@ -130,18 +147,25 @@ fn shade_pixel_portable(
     fd: &FrameData,
     s: &Settings,
     px: &GPixel,
+    at: Option<Vec3>,
     pixel_index: u32,
 ) -> (Vec3, PixelStats) {
     let Some((n, o)) = shading_directions(px) else {
         return (Vec3::ZERO, PixelStats::default());
     };
+    let material = &px.material;
+    // Shadow rays only where there is an occluder and a point to cast them from.
+    let shadow = fd.occluder.zip(at);
     // A diffuse-only pixel runs the same code compiled for `Lambert` (no lobe dispatch per
     // sample); the results are bit-identical to the general `Material` path.
-    match px.material.as_lambert() {
-        Some(lambert) => shade_with(fd, s, &px.material, &lambert, n, o, pixel_index),
-        None => shade_with(fd, s, &px.material, &px.material, n, o, pixel_index),
+    match material.as_lambert() {
+        Some(lambert) => shade_with(fd, s, material, &lambert, (n, o, shadow), pixel_index),
+        None => shade_with(fd, s, material, material, (n, o, shadow), pixel_index),
     }
 }
+
+/// A shadow-casting scene and the point its rays leave from.
+type Shadow<'a> = Option<(&'a dyn crate::visibility::Occluder, Vec3)>;
 
 /// What the sample loops of one visible pixel share.
 struct Pixel<'a, B> {
@@ -155,6 +179,7 @@ struct Pixel<'a, B> {
     /// N_L and N_B for this pixel.
     nl: usize,
     nb: usize,
+    shadow: Shadow<'a>,
 }
 
 impl<B: LocalBsdf> Pixel<'_, B> {
@@ -176,6 +201,10 @@ impl<B: LocalBsdf> Pixel<'_, B> {
             st.yellow += 1;
             return;
         }
+        if self.blocked(dir, st) {
+            st.blocked += 1;
+            return;
+        }
         st.green += 1;
         let il = self.frame.to_local(dir);
         let n_b = if self.nb > 0 {
@@ -189,6 +218,18 @@ impl<B: LocalBsdf> Pixel<'_, B> {
     }
 }
 
+impl<B> Pixel<'_, B> {
+    /// Whether the scene blocks direction `dir` (a shadow ray, counted; never with no occluder).
+    #[inline(always)]
+    fn blocked(&self, dir: Vec3, st: &mut PixelStats) -> bool {
+        let Some((occ, p)) = self.shadow else {
+            return false;
+        };
+        st.shadow_rays += 1;
+        occ.occluded(p, self.n, dir)
+    }
+}
+
 /// [`shade_pixel`] for a visible pixel (unit `n`, `o`, `<n, o> > 0`) with BRDF `bsdf` (the
 /// pixel's `material`, or a specialised view of it). The light samples (from the pool, or from
 /// the global distribution), then the BRDF samples, combined by MIS: the sections of
@@ -199,8 +240,7 @@ fn shade_with<B: LocalBsdf>(
     s: &Settings,
     material: &crate::sampling::Material,
     bsdf: &B,
-    n: Vec3,
-    o: Vec3,
+    (n, o, shadow): (Vec3, Vec3, Shadow),
     pixel_index: u32,
 ) -> (Vec3, PixelStats) {
     let frame = Frame::new(n);
@@ -214,6 +254,7 @@ fn shade_with<B: LocalBsdf>(
         ol: frame.to_local(o),
         nl,
         nb,
+        shadow,
     };
     let mut st = PixelStats::default();
     let mut rng = Rng::new(s.seed, pixel_index);
@@ -366,6 +407,9 @@ fn brdf_samples<B: LocalBsdf>(
             };
             let il = smp.dir(k);
             let d = Vec3::new(hit.x[k], hit.y[k], hit.z[k]);
+            if px.blocked(d, st) {
+                continue;
+            }
             *sum += mat.eval_local(ol, il)
                 * fd.radiance(d, t.truncate())
                 * (il.z * mis::weight_over_density(s.mis, nb_f * p, n_l));

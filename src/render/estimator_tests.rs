@@ -37,8 +37,9 @@ fn lambert_path_is_bit_identical() {
                 let Some(px) = px else { continue };
                 let (n, o) = (px.n.normalize(), px.o.normalize());
                 let lambert = px.material.as_lambert().unwrap();
-                let (a, sa) = shade_with(&fd, &s, &px.material, &lambert, n, o, i as u32);
-                let (b, sb) = shade_with(&fd, &s, &px.material, &px.material, n, o, i as u32);
+                let (a, sa) = shade_with(&fd, &s, &px.material, &lambert, (n, o, None), i as u32);
+                let (b, sb) =
+                    shade_with(&fd, &s, &px.material, &px.material, (n, o, None), i as u32);
                 assert_eq!(
                     a.to_array().map(f32::to_bits),
                     b.to_array().map(f32::to_bits),
@@ -95,10 +96,10 @@ fn simd_copy_is_bit_identical() {
                 let Some(px) = px else { continue };
                 // SAFETY: the CPU has AVX2 + FMA (checked above).
                 #[cfg(target_arch = "x86_64")]
-                let (a, _) = unsafe { simd::shade_pixel_avx2(&fd, &s, px, i as u32) };
+                let (a, _) = unsafe { simd::shade_pixel_avx2(&fd, &s, px, None, i as u32) };
                 #[cfg(not(target_arch = "x86_64"))]
                 let (a, _) = shade_pixel(&fd, &s, px, i as u32);
-                let (b, _) = shade_pixel_portable(&fd, &s, px, i as u32);
+                let (b, _) = shade_pixel_portable(&fd, &s, px, None, i as u32);
                 assert_eq!(
                     a.to_array().map(f32::to_bits),
                     b.to_array().map(f32::to_bits),

@@ -43,14 +43,23 @@ pub fn render(
     height: usize,
     s: &Settings,
 ) -> Result<Rendered> {
-    render_fine(map, None, gbuf, width, height, s)
+    render_with(map, Extras::default(), gbuf, width, height, s)
 }
 
-/// [`render`] with radiance read from `fine` (the full-resolution environment) while `map` gives
-/// the sampling densities: the CPU twin of the Bevy pass ([`FrameData::fine`]).
-pub fn render_fine(
+/// What a frame can add to the map and the G-buffer.
+#[derive(Clone, Copy, Default)]
+pub struct Extras<'a> {
+    /// Radiance from the full-resolution environment while `map` gives the sampling densities:
+    /// the CPU twin of the Bevy pass ([`FrameData::fine`]).
+    pub fine: Option<estimator::FineRadiance<'a>>,
+    /// Shadow rays: the scene, and each pixel's surface point (laid out as the G-buffer).
+    pub shadows: Option<(&'a dyn crate::visibility::Occluder, &'a [Vec3])>,
+}
+
+/// [`render`] with [`Extras`].
+pub fn render_with(
     map: &CubeMap,
-    fine: Option<estimator::FineRadiance<'_>>,
+    extras: Extras<'_>,
     gbuf: &[Option<GPixel>],
     width: usize,
     height: usize,
@@ -58,9 +67,18 @@ pub fn render_fine(
 ) -> Result<Rendered> {
     s.validate()?;
     assert_eq!(gbuf.len(), width * height);
+    if let Some((_, points)) = extras.shadows {
+        assert_eq!(
+            points.len(),
+            gbuf.len(),
+            "one surface point per G-buffer pixel"
+        );
+    }
     let t0 = std::time::Instant::now();
     let mut fd = FrameData::prepare(map, s);
-    fd.fine = fine;
+    fd.fine = extras.fine;
+    fd.occluder = extras.shadows.map(|(o, _)| o);
+    let points = extras.shadows.map(|(_, p)| p);
     let build_ms = t0.elapsed().as_secs_f64() * 1e3;
     let t1 = std::time::Instant::now();
     let out: Vec<(Vec3, Option<PixelStats>)> = gbuf
@@ -68,7 +86,8 @@ pub fn render_fine(
         .enumerate()
         .map(|(i, px)| match px {
             Some(p) => {
-                let (c, st) = shade_pixel(&fd, s, p, i as u32);
+                let at = points.map(|pts| pts[i]);
+                let (c, st) = estimator::shade_pixel_at(&fd, s, p, at, i as u32);
                 (c, Some(st))
             }
             None => (Vec3::ZERO, None),

@@ -214,6 +214,17 @@ pub fn reference_pixel(map: &CubeMap, px: &GPixel, refine: f64) -> DVec3 {
 /// [`reference_pixel`] with tables built once for the image (`q.k` must be this pixel's
 /// [`subdivision`]).
 pub fn reference_pixel_with(map: &CubeMap, px: &GPixel, q: &Quadrature) -> DVec3 {
+    reference_pixel_visible(map, px, q, |_| true)
+}
+
+/// [`reference_pixel_with`] with visibility: every quadrature node above the horizon counts only
+/// when `visible(direction)` (a shadow ray per node).
+pub fn reference_pixel_visible(
+    map: &CubeMap,
+    px: &GPixel,
+    q: &Quadrature,
+    visible: impl Fn(DVec3) -> bool,
+) -> DVec3 {
     let n = px.n.as_dvec3().normalize_or_zero();
     let o = px.o.as_dvec3().normalize_or_zero();
     if n == DVec3::ZERO || o == DVec3::ZERO || n.dot(o) <= 0.0 {
@@ -244,7 +255,7 @@ pub fn reference_pixel_with(map: &CubeMap, px: &GPixel, q: &Quadrature) -> DVec3
                 let mut acc = DVec3::ZERO;
                 let mut add = |d: DVec3, w: f64| {
                     let ct = n.dot(d);
-                    if ct > 0.0 {
+                    if ct > 0.0 && visible(d) {
                         acc += brdf.eval(d) * (ct * w);
                     }
                 };
@@ -282,6 +293,20 @@ pub fn reference_image(
     height: usize,
     refine: f64,
 ) -> (Image, Vec<DVec3>) {
+    reference_image_with(map, gbuf, None, width, height, refine)
+}
+
+/// [`reference_image`] with visibility: the scene's `occluder`, and each pixel's surface point
+/// (laid out as the G-buffer). One shadow ray per quadrature node: the visibility boundary is
+/// resolved to the sub-texel grid, so compare two `refine`s to bound the quadrature error.
+pub fn reference_image_with(
+    map: &CubeMap,
+    gbuf: &[Option<GPixel>],
+    shadows: Option<(&dyn crate::visibility::Occluder, &[glam::Vec3])>,
+    width: usize,
+    height: usize,
+    refine: f64,
+) -> (Image, Vec<DVec3>) {
     // One table per sub-texel resolution in use (one per material).
     let mut tables: std::collections::HashMap<usize, Quadrature> = Default::default();
     for p in gbuf.iter().flatten() {
@@ -292,9 +317,16 @@ pub fn reference_image(
     }
     let px: Vec<DVec3> = gbuf
         .par_iter()
-        .map(|p| {
+        .enumerate()
+        .map(|(i, p)| {
             p.as_ref().map_or(DVec3::ZERO, |p| {
-                reference_pixel_with(map, p, &tables[&subdivision(map.size, &p.material, refine)])
+                let q = &tables[&subdivision(map.size, &p.material, refine)];
+                match shadows {
+                    None => reference_pixel_with(map, p, q),
+                    Some((occ, points)) => reference_pixel_visible(map, p, q, |d| {
+                        !occ.occluded(points[i], p.n.normalize_or_zero(), d.as_vec3())
+                    }),
+                }
             })
         })
         .collect();

@@ -8,17 +8,23 @@ use super::Settings;
 pub struct PixelStats {
     /// Light samples available to the pixel (6 M for the pool, N_L for `global`).
     pub available: u32,
-    /// Light samples used with a positive cosine.
+    /// Light samples used with a positive cosine (and not blocked).
     pub green: u32,
     /// Light samples used with a non-positive cosine (wasted).
     pub yellow: u32,
+    /// Light samples used with a positive cosine but blocked by the scene (the debug view's blue).
+    pub blocked: u32,
     /// BRDF samples drawn.
     pub brdf: u32,
+    /// Shadow rays cast (light and BRDF samples), 0 with visibility off.
+    pub shadow_rays: u32,
 }
 
 impl PixelStats {
+    /// Light samples the face weights discarded.
     pub fn red(&self) -> u32 {
-        self.available.saturating_sub(self.green + self.yellow)
+        self.available
+            .saturating_sub(self.green + self.yellow + self.blocked)
     }
 }
 
@@ -54,8 +60,14 @@ pub struct RenderStats {
     pub green: f64,
     /// ... used with a non-positive cosine.
     pub yellow: f64,
+    /// ... used with a positive cosine but blocked by the scene.
+    pub blocked: f64,
     /// Mean over shaded pixels of yellow / (green + yellow).
     pub wasted: f64,
+    /// Shadow rays: `on` or `off`, and why (`--visibility`, the `auto` rule).
+    pub visibility: String,
+    /// Shadow rays cast over all pixels (0 with visibility off).
+    pub shadow_rays: u64,
     /// NaN / Inf / negative texels clamped when loading the map.
     pub clamped_texels: crate::envmap::SanitizeReport,
 }
@@ -83,15 +95,18 @@ impl RenderStats {
     /// (`None` = no geometry); `shade_ms` must be set.
     pub fn accumulate(&mut self, per_pixel: &[Option<PixelStats>]) {
         let (mut red, mut green, mut yellow, mut wasted) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+        let mut blocked = 0.0f64;
         for st in per_pixel.iter().flatten() {
             self.shaded_pixels += 1;
-            self.samples_evaluated += (st.green + st.yellow + st.brdf) as u64;
+            self.samples_evaluated += (st.green + st.yellow + st.blocked + st.brdf) as u64;
             self.brdf_samples_drawn += st.brdf as u64;
+            self.shadow_rays += st.shadow_rays as u64;
             if st.available > 0 {
                 let a = st.available as f64;
                 red += st.red() as f64 / a;
                 green += st.green as f64 / a;
                 yellow += st.yellow as f64 / a;
+                blocked += st.blocked as f64 / a;
             }
             if st.green + st.yellow > 0 {
                 wasted += st.yellow as f64 / (st.green + st.yellow) as f64;
@@ -100,6 +115,7 @@ impl RenderStats {
         let np = self.shaded_pixels.max(1) as f64;
         (self.red, self.green, self.yellow, self.wasted) =
             (red / np, green / np, yellow / np, wasted / np);
+        self.blocked = blocked / np;
         self.samples_per_second = self.samples_evaluated as f64 / (self.shade_ms / 1e3).max(1e-9);
     }
 }

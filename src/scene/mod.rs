@@ -28,6 +28,7 @@
 //! spheres and planes analytically, tori and glTF meshes as triangles.
 
 mod glb;
+pub mod shadows;
 
 use crate::error::{Error, Result};
 use crate::render::{GPixel, Settings, Strategy};
@@ -96,6 +97,8 @@ pub struct SamplingSpec {
     pub pool: Option<usize>,
     pub pixel_offset: Option<bool>,
     pub material_budget: Option<bool>,
+    /// Shadow rays: `auto` (default), `on` or `off` (`--visibility` overrides it).
+    pub visibility: Option<crate::visibility::Visibility>,
 }
 
 #[derive(Clone, Debug, Deserialize)]
@@ -126,10 +129,17 @@ pub struct ObjectSpec {
     #[serde(default = "one")]
     pub scale: f32,
     pub material: MaterialSpec,
+    /// Whether the object blocks shadow rays (default true).
+    #[serde(default = "yes")]
+    pub cast_shadows: bool,
 }
 
 fn one() -> f32 {
     1.0
+}
+
+fn yes() -> bool {
+    true
 }
 
 #[derive(Clone, Debug, Deserialize)]
@@ -344,6 +354,12 @@ impl Scene {
 
     /// The scene's G-buffer seen by its camera (perspective), `width x height`, row-major.
     pub fn gbuffer(&self, width: usize, height: usize) -> Vec<Option<GPixel>> {
+        self.gbuffer_points(width, height).0
+    }
+
+    /// [`Self::gbuffer`] and each pixel's surface point (the origin of its shadow rays; the
+    /// camera's position where there is no geometry).
+    pub fn gbuffer_points(&self, width: usize, height: usize) -> (Vec<Option<GPixel>>, Vec<Vec3>) {
         use rayon::prelude::*;
         let c = &self.file.camera;
         let eye = Vec3::from(c.position);
@@ -359,23 +375,34 @@ impl Scene {
                 let ndc_x = (2.0 * x / width as f32 - 1.0) * t * aspect;
                 let ndc_y = (1.0 - 2.0 * y / height as f32) * t;
                 let d = (fwd + right * ndc_x + up * ndc_y).normalize();
-                self.trace(eye, d).map(|(n, m)| GPixel {
-                    n,
-                    o: -d,
-                    material: m,
-                })
+                match self.trace_hit(eye, d) {
+                    Some((t, n, m)) => {
+                        let px = GPixel {
+                            n,
+                            o: -d,
+                            material: m,
+                        };
+                        (Some(px), eye + d * t)
+                    }
+                    None => (None, eye),
+                }
             })
-            .collect()
+            .unzip()
     }
 
     /// Closest hit along the ray: shading normal (facing the ray) and material.
     pub fn trace(&self, o: Vec3, d: Vec3) -> Option<(Vec3, Material)> {
+        self.trace_hit(o, d).map(|(_, n, m)| (n, m))
+    }
+
+    /// [`Self::trace`] with the hit distance.
+    pub fn trace_hit(&self, o: Vec3, d: Vec3) -> Option<(f32, Vec3, Material)> {
         let mut best = f32::INFINITY;
         let mut hit = None;
         for obj in &self.objects {
             if let Some((t, n)) = obj.shape.intersect(o, d, best) {
                 best = t;
-                hit = Some((if n.dot(d) > 0.0 { -n } else { n }, obj.material));
+                hit = Some((t, if n.dot(d) > 0.0 { -n } else { n }, obj.material));
             }
         }
         hit

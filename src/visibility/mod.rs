@@ -1,6 +1,6 @@
 //! Visibility: ray casts against the scene's geometry through bounding volume hierarchies built
-//! with `obvhs`. Today: one BVH per triangle mesh ([`MeshBvh`]), used by the CPU G-buffer's ray
-//! cast; the shadow rays of issue 13 (two-level instances, the WGSL twin) build on it.
+//! with `obvhs`: one BVH per triangle mesh ([`MeshBvh`]), used by the CPU G-buffer's ray cast and
+//! by the shadow rays of the estimator ([`Occluder`]).
 //!
 //! `obvhs` works in glam 0.33 (its range is 0.33–0.34) while envis (with Bevy) uses glam 0.32: vectors cross the boundary
 //! as plain `[f32; 3]` arrays, here and nowhere else.
@@ -8,3 +8,53 @@
 mod mesh_bvh;
 
 pub use mesh_bvh::{MeshBvh, TriangleHit, ray_triangle};
+
+use glam::Vec3;
+
+/// Answers the estimator's one question about the scene: is direction `d` blocked, seen from
+/// the surface point `p` with shading normal `n`? A sample the answer blocks contributes nothing;
+/// its density is unchanged, so the estimate stays unbiased for the integrand with visibility.
+pub trait Occluder: Sync {
+    fn occluded(&self, p: Vec3, n: Vec3, d: Vec3) -> bool;
+}
+
+/// Whether shadow rays are cast (`--visibility`, a scene file's `[sampling] visibility`).
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    Default,
+    PartialEq,
+    Eq,
+    serde::Serialize,
+    serde::Deserialize,
+    clap::ValueEnum,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum Visibility {
+    /// On when some object can shadow a visible point: two or more shadow-casting objects, or
+    /// one that is not known to be convex; off for a lone convex object.
+    #[default]
+    Auto,
+    On,
+    Off,
+}
+crate::vocab::display_as_value_enum!(Visibility);
+
+/// How far a shadow ray starts from its surface, along the normal: relative to the point's
+/// distance from the origin (f32 positions carry about 1e-7 of it in error), with a floor.
+/// Large enough that no surface shadows itself (no acne), small enough that a ray leaving a
+/// plane next to a resting sphere's contact point still hits the sphere (no leak); both are
+/// tested.
+#[inline]
+pub fn ray_offset(p: Vec3) -> f32 {
+    1e-4 * p.abs().max_element().max(1.0)
+}
+
+/// The origin of a shadow ray from `p` (normal `n`) towards `d`: pushed off the surface on the
+/// side `d` leaves by.
+#[inline]
+pub fn shadow_origin(p: Vec3, n: Vec3, d: Vec3) -> Vec3 {
+    let side = if n.dot(d) >= 0.0 { 1.0 } else { -1.0 };
+    p + n * (side * ray_offset(p))
+}

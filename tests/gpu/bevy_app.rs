@@ -125,9 +125,12 @@ fn bevy_frame_matches_cpu_renderer() {
             envis::envmap::resample::bevy_cube_layers(&map),
         );
         let fine = |d: Vec3| source.radiance_nearest(d);
-        let cpu = envis::render::render_fine(
+        let cpu = envis::render::render_with(
             &map,
-            Some(&fine),
+            envis::render::Extras {
+                fine: Some(&fine),
+                ..Default::default()
+            },
             &gbuf,
             size as usize,
             size as usize,

@@ -147,9 +147,12 @@ fn bevy_standard_material_matches_cpu() {
         size as usize,
         standard_material_decoded(&material),
     );
-    let cpu = envis::render::render_fine(
+    let cpu = envis::render::render_with(
         &cube,
-        Some(&fine),
+        envis::render::Extras {
+            fine: Some(&fine),
+            ..Default::default()
+        },
         &gbuf,
         size as usize,
         size as usize,
