@@ -2060,6 +2060,12 @@ fn mesh_bvh_matches_brute_force() {
                 }
                 _ => panic!("{name}: BVH {a:?} vs brute force {b:?} for ray {o} {d}"),
             }
+            // The shadow-ray query (any hit) agrees with the closest hit.
+            assert_eq!(
+                mesh.occluded(o, d, f32::MAX),
+                b.is_some(),
+                "{name}: any-hit"
+            );
         }
         assert!(hits > n / 4, "{name}: only {hits} of {n} rays hit");
         assert!(

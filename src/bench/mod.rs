@@ -25,6 +25,7 @@ pub mod flicker;
 pub mod flip;
 #[cfg(feature = "gpu")]
 pub mod gpu;
+pub mod visibility;
 
 use crate::envmap::{CubeMap, load::load_env, luminance};
 use crate::error::{Error, Result};
@@ -53,6 +54,8 @@ pub enum Suite {
     Gpu,
     /// Static diffuse vs dynamic glossy frame cost on the scene files (feature `gpu`).
     Scene,
+    /// Shadow rays on the CPU: frame cost with and without, rays per second, BVH builds.
+    Visibility,
 }
 crate::vocab::display_as_value_enum!(Suite);
 
@@ -116,6 +119,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         Suite::Accuracy => accuracy_suite(a, dir),
         Suite::Flicker => flicker::run(a, &dir),
         Suite::Popping => popping(a, dir),
+        Suite::Visibility => visibility::run(a, dir),
         #[cfg(feature = "gpu")]
         Suite::Gpu => gpu::run(a, dir),
         #[cfg(feature = "gpu")]

@@ -539,6 +539,14 @@ impl TriMesh {
         Some((h.t, self.normal_at(h.triangle, h.u, h.v)))
     }
 
+    /// Whether anything meets the ray with `1e-4 < t < t_max` (any hit, through the BVH).
+    pub fn occluded(&self, o: Vec3, d: Vec3, t_max: f32) -> bool {
+        let bvh = self
+            .bvh
+            .get_or_init(|| crate::visibility::MeshBvh::build(&self.positions, &self.indices));
+        bvh.occluded(&self.positions, &self.indices, o, d, 1e-4, t_max)
+    }
+
     /// [`Self::intersect`] by testing every triangle in order (after a bounding-sphere test):
     /// the reference the BVH is tested against.
     pub fn intersect_brute(&self, o: Vec3, d: Vec3, t_max: f32) -> Option<(f32, Vec3)> {

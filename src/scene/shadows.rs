@@ -12,9 +12,10 @@ pub struct Occluders<'a>(pub Vec<&'a Shape>);
 impl Occluder for Occluders<'_> {
     fn occluded(&self, p: Vec3, n: Vec3, d: Vec3) -> bool {
         let o = shadow_origin(p, n, d);
-        self.0
-            .iter()
-            .any(|s| s.intersect(o, d, f32::INFINITY).is_some())
+        self.0.iter().any(|s| match s {
+            Shape::Mesh(m) => m.occluded(o, d, f32::INFINITY),
+            _ => s.intersect(o, d, f32::INFINITY).is_some(),
+        })
     }
 }
 
@@ -28,14 +29,16 @@ impl Shape {
 
 impl Scene {
     /// The objects that cast shadows.
+    /// Analytic shapes come first: they are cheaper than a mesh's BVH and end most blocked rays.
     pub fn occluders(&self) -> Occluders<'_> {
-        Occluders(
-            self.objects
-                .iter()
-                .filter(|o| o.spec.cast_shadows)
-                .map(|o| &o.shape)
-                .collect(),
-        )
+        let mut shapes: Vec<&Shape> = self
+            .objects
+            .iter()
+            .filter(|o| o.spec.cast_shadows)
+            .map(|o| &o.shape)
+            .collect();
+        shapes.sort_by_key(|s| matches!(s, Shape::Mesh(_)));
+        Occluders(shapes)
     }
 
     /// Whether to cast shadow rays under `mode` (`None`: the scene file's `visibility`, else

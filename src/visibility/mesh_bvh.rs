@@ -88,6 +88,33 @@ impl MeshBvh {
     }
 }
 
+impl MeshBvh {
+    /// Whether any triangle meets the ray with `t` in `(t_min, t_max)`: a shadow ray, which
+    /// stops at the first hit instead of looking for the closest.
+    pub fn occluded(
+        &self,
+        p: &[Vec3],
+        tris: &[[u32; 3]],
+        o: Vec3,
+        d: Vec3,
+        t_min: f32,
+        t_max: f32,
+    ) -> bool {
+        if tris.is_empty() {
+            return false;
+        }
+        let ray = Ray::new(ovec(o), ovec(d), t_min, t_max);
+        !self.bvh.ray_traverse_miss(ray, |ray, slot| {
+            let i = self.bvh.primitive_indices[slot] as usize;
+            let [a, b, c] = tris[i].map(|k| p[k as usize]);
+            match ray_triangle(o, d, a, b, c) {
+                Some((t, _, _)) if t > t_min && t < ray.tmax => t,
+                _ => f32::INFINITY,
+            }
+        })
+    }
+}
+
 /// Möller–Trumbore: `(t, u, v)` where the ray meets triangle `(a, b, c)`, any `t`.
 #[inline]
 pub fn ray_triangle(o: Vec3, d: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Option<(f32, f32, f32)> {

@@ -212,3 +212,24 @@ fn cli_visibility_stats() {
     assert_eq!(sphere_auto["shadow_rays"].as_u64(), Some(0));
     assert!(a == b, "the sphere scene changed with visibility off");
 }
+
+/// `envis bench --suite visibility --quick`: both scenes timed with and without shadow rays
+/// (rays counted only with), and the three BVH builds.
+#[test]
+fn bench_visibility_smoke() {
+    let dir = std::env::temp_dir().join(format!("envis-bench-vis-{}", std::process::id()));
+    let js = bench_json(&dir, &["visibility", "--quick"], "bench-visibility.json");
+    let scenes = js["scenes"].as_array().unwrap();
+    assert_eq!(scenes.len(), 2);
+    for s in scenes {
+        assert!(s["shadow_rays_per_frame"].as_u64().unwrap() > 0, "{s}");
+        assert!(s["on_ms"].as_f64().unwrap() > 0.0 && s["off_ms"].as_f64().unwrap() > 0.0);
+        assert!(
+            s["visibility_auto"].as_str().unwrap().starts_with("on"),
+            "{s}"
+        );
+    }
+    let builds = js["bvh_builds"].as_array().unwrap();
+    assert_eq!(builds.len(), 3);
+    assert_eq!(builds[2]["triangles"].as_u64(), Some(100 * 5648));
+}
