@@ -12,6 +12,7 @@ pub mod resample;
 pub mod sampler;
 pub mod shaders;
 pub mod shading;
+pub mod visibility;
 
 pub use context::GpuContext;
 pub use resample::ImageResampler;

@@ -14,6 +14,8 @@ pub const SHADE_COMPUTE: &str = include_str!("../../shaders/shade_compute.wgsl")
 pub const LIGHTING: &str = include_str!("../../shaders/lighting.wgsl");
 pub const IMAGE_SOURCE: &str = include_str!("../../shaders/image_source.wgsl");
 pub const RESAMPLE: &str = include_str!("../../shaders/resample.wgsl");
+pub const VISIBILITY: &str = include_str!("../../shaders/visibility.wgsl");
+pub const TRACE_RAYS: &str = include_str!("../../shaders/trace_rays.wgsl");
 
 /// Distribution build + pool module.
 pub fn distribution_source() -> String {
@@ -23,6 +25,11 @@ pub fn distribution_source() -> String {
 /// The resample stage (an environment texture -> the cube texel table).
 pub fn resample_source() -> String {
     [COMMON, IMAGE_SOURCE, RESAMPLE].concat()
+}
+
+/// A batch of shadow rays through a flattened BVH.
+pub fn trace_rays_source() -> String {
+    [VISIBILITY, TRACE_RAYS].concat()
 }
 
 /// Per-pixel shading module (compute entry point `shade_gbuffer`).

@@ -20,7 +20,7 @@ pub struct TriangleHit {
 /// The BVH of one mesh (its triangles as given: positions `p`, index triples `tris`).
 #[derive(Clone)]
 pub struct MeshBvh {
-    bvh: Bvh2,
+    pub(super) bvh: Bvh2,
 }
 
 impl std::fmt::Debug for MeshBvh {

@@ -5,8 +5,10 @@
 //! `obvhs` works in glam 0.33 (its range is 0.33–0.34) while envis (with Bevy) uses glam 0.32: vectors cross the boundary
 //! as plain `[f32; 3]` arrays, here and nowhere else.
 
+mod flat_bvh;
 mod mesh_bvh;
 
+pub use flat_bvh::{FlatBvh, FlatNode, STACK_SIZE};
 pub use mesh_bvh::{MeshBvh, TriangleHit, ray_triangle};
 
 use glam::Vec3;

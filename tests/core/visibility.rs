@@ -233,3 +233,21 @@ fn bench_visibility_smoke() {
     assert_eq!(builds.len(), 3);
     assert_eq!(builds[2]["triangles"].as_u64(), Some(100 * 5648));
 }
+
+/// The flattened BVH's traversal (the WGSL's CPU twin) answers exactly as obvhs's own.
+#[test]
+fn flat_bvh_matches_obvhs_traversal() {
+    let (mesh, rays) = support::bunny_on_plane_rays();
+    let bvh = envis::visibility::MeshBvh::build(&mesh.positions, &mesh.indices);
+    let flat = bvh.flatten(&mesh.positions, &mesh.indices).unwrap();
+    let mut blocked = 0;
+    for (o, d) in rays {
+        let want = bvh.occluded(&mesh.positions, &mesh.indices, o, d, 1e-4, f32::MAX);
+        assert_eq!(flat.occluded(o, d, 1e-4, f32::MAX), want, "ray {o} {d}");
+        blocked += want as usize;
+    }
+    assert!(
+        blocked > 2_000 && blocked < 18_000,
+        "{blocked} of 20000 rays blocked"
+    );
+}

@@ -79,3 +79,50 @@ pub fn read_json(path: &Path) -> serde_json::Value {
     let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     serde_json::from_slice(&bytes).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
+
+/// The bunny on a plane as one triangle soup (the geometry the GPU traces), and 20,000 rays:
+/// half from a sphere around it towards its box, half shadow rays leaving the plane upwards.
+pub fn bunny_on_plane_rays() -> (envis::scene::TriMesh, Vec<(glam::Vec3, glam::Vec3)>) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut mesh = envis::scene::load_glb(&root.join("assets/models/bunny_plain.glb")).unwrap();
+    let (lo, hi) = mesh.positions.iter().fold(
+        (glam::Vec3::splat(f32::MAX), glam::Vec3::splat(f32::MIN)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    );
+    let (centre, extent) = (0.5 * (lo + hi), (hi - lo).max_element());
+    let base = mesh.positions.len() as u32;
+    for (x, z) in [(-2.0, -2.0), (2.0, -2.0), (2.0, 2.0), (-2.0, 2.0)] {
+        mesh.positions.push(glam::Vec3::new(
+            centre.x + x * extent,
+            lo.y,
+            centre.z + z * extent,
+        ));
+    }
+    mesh.indices.push([base, base + 2, base + 1]);
+    mesh.indices.push([base, base + 3, base + 2]);
+    let mut r = envis::sampling::rng::Rng::new(29, 3);
+    let mut rays = Vec::new();
+    for _ in 0..10_000 {
+        let o = centre + {
+            let z = 1.0 - 2.0 * r.next_f32();
+            let phi = std::f32::consts::TAU * r.next_f32();
+            let s = (1.0 - z * z).max(0.0).sqrt();
+            glam::Vec3::new(s * phi.cos(), s * phi.sin(), z)
+        } * 2.0
+            * extent;
+        let target = lo + (hi - lo) * glam::Vec3::new(r.next_f32(), r.next_f32(), r.next_f32());
+        rays.push((o, (target - o).normalize()));
+    }
+    for _ in 0..10_000 {
+        let (u, v) = (r.next_f32() - 0.5, r.next_f32() - 0.5);
+        let p = glam::Vec3::new(centre.x + u * extent, lo.y, centre.z + v * extent);
+        let d = envis::sampling::warp::Frame::new(glam::Vec3::Y).to_world(
+            envis::sampling::warp::sample_cosine_hemisphere(glam::Vec2::new(
+                r.next_f32(),
+                r.next_f32(),
+            )),
+        );
+        rays.push((p + glam::Vec3::Y * envis::visibility::ray_offset(p), d));
+    }
+    (mesh, rays)
+}

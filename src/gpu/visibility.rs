@@ -1,0 +1,138 @@
+//! Shadow rays on the GPU (`shaders/visibility.wgsl`): a flattened BVH ([`FlatBvh`]) in storage
+//! buffers and a compute pass that traces a batch of rays. Its CPU twin is
+//! [`FlatBvh::occluded`]; `tests/gpu.rs` compares them ray by ray. The lighting passes will call
+//! the same `bvh_occluded`.
+
+use super::{GpuContext, compute_pipeline, shaders};
+use crate::error::Result;
+use crate::visibility::FlatBvh;
+use glam::Vec3;
+use wgpu::util::DeviceExt;
+
+/// One shadow ray: from `o`, along `d`, hits counted with `t` in `(t_min, t_max)`.
+#[derive(Clone, Copy, Debug)]
+pub struct ShadowRay {
+    pub o: Vec3,
+    pub d: Vec3,
+    pub t_min: f32,
+    pub t_max: f32,
+}
+
+/// The BVH on the device and the ray-batch pipeline.
+pub struct GpuBvh {
+    nodes: wgpu::Buffer,
+    triangles: wgpu::Buffer,
+    node_count: u32,
+    layout: wgpu::BindGroupLayout,
+    pipeline: wgpu::ComputePipeline,
+}
+
+fn storage_init(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
+    // A binding may not be empty nor shorter than one element (48 bytes for a triangle): a BVH
+    // with no nodes binds zeros.
+    let zeros = [0u8; 48];
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents: if bytes.is_empty() { &zeros } else { bytes },
+        usage: wgpu::BufferUsages::STORAGE,
+    })
+}
+
+impl GpuBvh {
+    pub fn new(ctx: &GpuContext, bvh: &FlatBvh) -> Self {
+        let device = &ctx.device;
+        let nodes = storage_init(device, "envis bvh nodes", bytemuck::cast_slice(&bvh.nodes));
+        let triangles = storage_init(
+            device,
+            "envis bvh triangles",
+            bytemuck::cast_slice(&bvh.triangles),
+        );
+        use wgpu::{BindingType as B, BufferBindingType as BB};
+        let entry = |binding: u32, ty: BB| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: B::Buffer {
+                ty,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let read = BB::Storage { read_only: true };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("envis trace rays"),
+            entries: &[
+                entry(0, read),
+                entry(1, read),
+                entry(2, read),
+                entry(3, BB::Storage { read_only: false }),
+                entry(4, BB::Uniform),
+            ],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("envis trace rays"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let module = shaders::module(
+            device,
+            "envis trace_rays.wgsl",
+            &shaders::trace_rays_source(),
+        );
+        let pipeline = compute_pipeline(device, &pipeline_layout, &module, "trace_rays");
+        GpuBvh {
+            nodes,
+            triangles,
+            node_count: bvh.nodes.len() as u32,
+            layout,
+            pipeline,
+        }
+    }
+
+    /// Trace `rays`; `true` where a ray is blocked.
+    pub fn trace(&self, ctx: &GpuContext, rays: &[ShadowRay]) -> Result<Vec<bool>> {
+        let device = &ctx.device;
+        let packed: Vec<[f32; 8]> = rays
+            .iter()
+            .map(|r| [r.o.x, r.o.y, r.o.z, r.t_min, r.d.x, r.d.y, r.d.z, r.t_max])
+            .collect();
+        let rays_buf = storage_init(device, "envis rays", bytemuck::cast_slice(&packed));
+        let size = (4 * rays.len()).max(16) as u64;
+        let out = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("envis blocked"),
+            size,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let counts = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("envis ray counts"),
+            contents: bytemuck::cast_slice(&[self.node_count, rays.len() as u32, 0, 0]),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("envis trace rays"),
+            layout: &self.layout,
+            entries: &[
+                (0, &self.nodes),
+                (1, &self.triangles),
+                (2, &rays_buf),
+                (3, &out),
+                (4, &counts),
+            ]
+            .map(|(binding, b)| wgpu::BindGroupEntry {
+                binding,
+                resource: b.as_entire_binding(),
+            }),
+        });
+        let mut enc = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.dispatch_workgroups((rays.len() as u32).div_ceil(64).max(1), 1, 1);
+        }
+        ctx.wait(ctx.queue.submit([enc.finish()]))?;
+        let flags: Vec<u32> = ctx.read(&out, 0, rays.len())?;
+        Ok(flags.into_iter().map(|f| f != 0).collect())
+    }
+}
