@@ -58,6 +58,11 @@ fn env_radiance(d: vec3<f32>, coarse: vec3<f32>) -> vec3<f32> {
     return source_nearest(source, u32(lv.accumulate.z), d);
 }
 
+// No shadow rays in the Bevy pass yet (docs/visibility.md).
+fn sample_blocked(px: GPixel, pixel_index: u32, d: vec3<f32>) -> bool {
+    return false;
+}
+
 const PBR_LIGHTING_PASS_ID: u32 = 1u;
 // app::material::ENVIS_LIGHTING_PASS_ID.
 const ENVIS_LIGHTING_PASS_ID: u32 = 231u;

@@ -2,8 +2,10 @@
 // sampling.wgsl before it, and a module that declares the resources `shade` reads (the frame's
 // texel table `texels`, the light `pool`, `face_energy`, and the uniform `sp`) and
 // `env_radiance(d, coarse)`, the radiance in direction d given the texel table's value there
-// (render::FrameData::radiance): shade_compute.wgsl (headless backend, tests: the table's value)
-// or lighting.wgsl (the Bevy lighting pass: the full-resolution image). All of them are
+// (render::FrameData::radiance), and `sample_blocked(px, pixel_index, d)`, whether a shadow ray
+// from the pixel's surface point is blocked (render::estimator's `Pixel::blocked`):
+// shade_compute.wgsl (headless backend, tests: the table's value; shadow rays through a BVH) or
+// lighting.wgsl (the Bevy lighting pass: the full-resolution image; no shadow rays yet). All of them are
 // written by distribution.wgsl on the GPU; nothing is read back to the CPU.
 
 struct ShadeParams {
@@ -22,7 +24,8 @@ struct ShadeParams {
     pixel_count: u32,
     // 1: each pixel's material chooses the split of nl + nb (render::budget_for).
     material_budget: u32,
-    _pad1: u32,
+    // Nodes of the shadow-ray BVH (visibility.wgsl); 0: no shadow rays.
+    bvh_nodes: u32,
 }
 
 // render::budget_for: diffuse -> all light samples; near-mirror with no diffuse part -> all BRDF.
@@ -104,6 +107,9 @@ fn shade_counts(px: GPixel, pixel_index: u32, counts: u32) -> Shaded {
                 res.stats.z += 1u;
                 continue;
             }
+            if (sample_blocked(px, pixel_index, gs.xyz)) {
+                continue;
+            }
             res.stats.y += 1u;
             let il = to_local(fr, gs.xyz);
             var n_b = 0.0;
@@ -145,6 +151,9 @@ fn shade_counts(px: GPixel, pixel_index: u32, counts: u32) -> Shaded {
                     res.stats.z += 1u;
                     continue;
                 }
+                if (sample_blocked(px, pixel_index, dp.xyz)) {
+                    continue;
+                }
                 res.stats.y += 1u;
                 let weight = select(1.0, c.last_weight, k + 1u == c.taken);
                 let il = to_local(fr, dp.xyz);
@@ -170,6 +179,9 @@ fn shade_counts(px: GPixel, pixel_index: u32, counts: u32) -> Shaded {
         }
         let il = bs.xyz;
         let d = to_world(fr, il);
+        if (sample_blocked(px, pixel_index, d)) {
+            continue;
+        }
         let hit = dir_to_texel(d, size);
         let t = texels[(hit.face * size + hit.row) * size + hit.col];
         let q = 1.0 + hit.a * hit.a + hit.b * hit.b;

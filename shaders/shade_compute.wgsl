@@ -12,6 +12,11 @@
 @group(0) @binding(6) var<uniform> sp: ShadeParams;
 // The `global` distribution (global_layout.wgsl); a dummy unless the strategy is global.
 @group(0) @binding(7) var<storage, read> cdfs: array<f32>;
+// Shadow rays (visibility.wgsl): the BVH, and each pixel's surface point (xyz); bound to
+// placeholders when sp.bvh_nodes is 0.
+@group(0) @binding(8) var<storage, read> bvh_nodes: array<BvhNode>;
+@group(0) @binding(9) var<storage, read> bvh_triangles: array<array<vec4<f32>, 3>>;
+@group(0) @binding(10) var<storage, read> points: array<vec4<f32>>;
 
 @compute @workgroup_size(64)
 fn shade_gbuffer(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
@@ -28,6 +33,23 @@ fn shade_gbuffer(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_wor
     let r = shade(px, i);
     out_color[i] = vec4(r.color, 1.0);
     out_stats[i] = r.stats;
+}
+
+// visibility::ray_offset / shadow_origin: off the surface, on the side d leaves by.
+fn shadow_origin(p: vec3<f32>, n: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
+    let a = abs(p);
+    let offset = 1e-4 * max(max(max(a.x, a.y), a.z), 1.0);
+    return p + n * select(-offset, offset, dot(n, d) >= 0.0);
+}
+
+// A shadow ray through the BVH (the CPU's FlatBvh as render::FrameData::occluder): t_min 1e-4,
+// unbounded.
+fn sample_blocked(px: GPixel, pixel_index: u32, d: vec3<f32>) -> bool {
+    if (sp.bvh_nodes == 0u) {
+        return false;
+    }
+    let o = shadow_origin(points[pixel_index].xyz, normalize_or_zero(px.n.xyz), d);
+    return bvh_occluded(o, d, 1e-4, 3.4028235e38, sp.bvh_nodes);
 }
 
 // The headless backend reads radiance from the texel table itself.

@@ -985,29 +985,7 @@ fn fine_radiance_with_coarse_densities_is_unbiased() {
     let fine = envis::envmap::sky::sky_cube(32, 15.0);
     let coarse = box_downsample(&fine, 4);
     let lookup = |d: Vec3| fine.lookup(d);
-    let base = Settings {
-        light_samples: 4,
-        brdf_samples: 4,
-        ..Default::default()
-    };
-    let configs = [
-        ("paper", base),
-        (
-            "paper light-only",
-            Settings {
-                brdf_samples: 0,
-                light_samples: 8,
-                ..base
-            },
-        ),
-        (
-            "global",
-            Settings {
-                strategy: Strategy::Global,
-                ..base
-            },
-        ),
-    ];
+    let (base, configs) = few_sample_configs();
     let mut test = UnbiasedTest::new("fine_radiance_with_coarse_densities_is_unbiased");
     for (mname, mat) in [
         ("diffuse", Material::diffuse(0.8)),
@@ -1035,6 +1013,35 @@ fn fine_radiance_with_coarse_densities_is_unbiased() {
         coarse_only.iter().any(|c| c.z() > 5.0),
         "reading the coarse radiance should be detectably biased here"
     );
+}
+
+/// Four light + four BRDF samples, and the three configurations the fine-radiance and shadow
+/// tests check: the method, light samples alone, and the `global` baseline.
+fn few_sample_configs() -> (Settings, [(&'static str, Settings); 3]) {
+    let base = Settings {
+        light_samples: 4,
+        brdf_samples: 4,
+        ..Default::default()
+    };
+    let configs = [
+        ("paper", base),
+        (
+            "paper light-only",
+            Settings {
+                brdf_samples: 0,
+                light_samples: 8,
+                ..base
+            },
+        ),
+        (
+            "global",
+            Settings {
+                strategy: Strategy::Global,
+                ..base
+            },
+        ),
+    ];
+    (base, configs)
 }
 
 /// Each texel of the result is the mean of the `k x k` texels it covers.

@@ -34,7 +34,16 @@ pub fn trace_rays_source() -> String {
 
 /// Per-pixel shading module (compute entry point `shade_gbuffer`).
 pub fn shade_source() -> String {
-    [COMMON, SAMPLING, CDF, GLOBAL_LAYOUT, SHADE, SHADE_COMPUTE].concat()
+    [
+        COMMON,
+        SAMPLING,
+        CDF,
+        GLOBAL_LAYOUT,
+        SHADE,
+        VISIBILITY,
+        SHADE_COMPUTE,
+    ]
+    .concat()
 }
 
 /// Compile a module, turning a WGSL error into a readable panic (a shader that does not compile

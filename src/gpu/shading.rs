@@ -53,7 +53,8 @@ pub struct ShadeParams {
     pub pixel_offset: u32,
     pub pixel_count: u32,
     pub material_budget: u32,
-    pub _pad: u32,
+    /// Nodes of the shadow-ray BVH; 0: no shadow rays.
+    pub bvh_nodes: u32,
 }
 
 impl ShadeParams {
@@ -77,7 +78,7 @@ impl ShadeParams {
             pixel_offset: s.pixel_offset as u32,
             pixel_count: pixel_count as u32,
             material_budget: s.material_budget as u32,
-            _pad: 0,
+            bvh_nodes: 0,
         }
     }
 }
@@ -136,6 +137,7 @@ pub struct Shader {
     pipeline: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
     params: wgpu::Buffer,
+    placeholder: wgpu::Buffer,
     timer: Option<PassTimer>,
 }
 
@@ -176,6 +178,9 @@ impl Shader {
                 e(5, rw),
                 e(6, wgpu::BufferBindingType::Uniform),
                 e(7, ro),
+                e(8, ro),
+                e(9, ro),
+                e(10, ro),
             ],
         });
         let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -191,10 +196,19 @@ impl Shader {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
+        // Bound in place of the shadow-ray BVH and points when there are none (a binding may not
+        // be shorter than one element: 48 bytes for a triangle).
+        let placeholder = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("envis no shadow rays"),
+            size: 48,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
         Shader {
             pipeline,
             layout,
             params,
+            placeholder,
             timer: timestamps.then(|| PassTimer::new(device, "envis shade timer")),
         }
     }
@@ -206,6 +220,19 @@ impl Shader {
         sampler: &EnvSampler,
         pixels: &[GpuGPixel],
         s: &Settings,
+    ) -> Result<ShadeJob> {
+        self.shade_with_shadows(ctx, sampler, pixels, s, None)
+    }
+
+    /// [`Self::shade`] with shadow rays through `bvh` from each pixel's surface point `points`
+    /// (the GPU twin of `render::render_with` with [`crate::render::Extras::shadows`]).
+    pub fn shade_with_shadows(
+        &self,
+        ctx: &GpuContext,
+        sampler: &EnvSampler,
+        pixels: &[GpuGPixel],
+        s: &Settings,
+        shadows: Option<(&super::visibility::GpuBvh, &[glam::Vec3])>,
     ) -> Result<ShadeJob> {
         let count = pixels.len();
         let limits = ctx.device.limits();
@@ -226,11 +253,21 @@ impl Shader {
         let stats = mk("envis pixel stats", count as u64 * 16, su);
         ctx.queue
             .write_buffer(&gbuf, 0, bytemuck::cast_slice(pixels));
-        ctx.queue.write_buffer(
-            &self.params,
-            0,
-            bytemuck::bytes_of(&ShadeParams::new(s, sampler.n, sampler.m, count)),
-        );
+        let mut params = ShadeParams::new(s, sampler.n, sampler.m, count);
+        let points = shadows.map(|(bvh, p)| {
+            assert_eq!(p.len(), count, "one surface point per pixel");
+            params.bvh_nodes = bvh.node_count;
+            let v: Vec<[f32; 4]> = p.iter().map(|p| p.extend(0.0).to_array()).collect();
+            let b = mk("envis surface points", count as u64 * 16, su);
+            ctx.queue.write_buffer(&b, 0, bytemuck::cast_slice(&v));
+            b
+        });
+        let (nodes, triangles, points) = match (shadows, &points) {
+            (Some((bvh, _)), Some(p)) => (&bvh.nodes, &bvh.triangles, p),
+            _ => (&self.placeholder, &self.placeholder, &self.placeholder),
+        };
+        ctx.queue
+            .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("envis shade bind group"),
             layout: &self.layout,
@@ -270,6 +307,18 @@ impl Shader {
                 wgpu::BindGroupEntry {
                     binding: 7,
                     resource: sampler.gdist.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 8,
+                    resource: nodes.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 9,
+                    resource: triangles.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 10,
+                    resource: points.as_entire_binding(),
                 },
             ],
         });

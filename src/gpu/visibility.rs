@@ -20,9 +20,9 @@ pub struct ShadowRay {
 
 /// The BVH on the device and the ray-batch pipeline.
 pub struct GpuBvh {
-    nodes: wgpu::Buffer,
-    triangles: wgpu::Buffer,
-    node_count: u32,
+    pub(crate) nodes: wgpu::Buffer,
+    pub(crate) triangles: wgpu::Buffer,
+    pub(crate) node_count: u32,
     layout: wgpu::BindGroupLayout,
     pipeline: wgpu::ComputePipeline,
 }

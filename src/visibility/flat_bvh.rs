@@ -114,3 +114,11 @@ fn slab(n: &FlatNode, o: Vec3, inv: Vec3, t_max: f32) -> bool {
     let (near, far) = (t1.min(t2).max_element(), t1.max(t2).min_element());
     far >= near && far >= 0.0 && near < t_max
 }
+
+/// A flattened BVH as the scene's occluder: the CPU twin of the GPU's shadow rays (the same
+/// origin offset, `t_min` 1e-4, no `t_max`).
+impl super::Occluder for FlatBvh {
+    fn occluded(&self, p: Vec3, n: Vec3, d: Vec3) -> bool {
+        self.occluded(super::shadow_origin(p, n, d), d, 1e-4, f32::MAX)
+    }
+}

@@ -37,29 +37,7 @@ const CAMERA: &str = "position = [0.0, 3.2, 3.2]\ntarget = [0.0, 0.5, 0.0]\nfov 
 fn shadows_are_unbiased() {
     let (size, k) = (12usize, 160u32);
     let map = load_env(&EnvSource::Sky { hours: 15.0 }, 8).unwrap().cube;
-    let base = Settings {
-        light_samples: 4,
-        brdf_samples: 4,
-        ..Default::default()
-    };
-    let configs = [
-        ("paper", base),
-        (
-            "paper light-only",
-            Settings {
-                brdf_samples: 0,
-                light_samples: 8,
-                ..base
-            },
-        ),
-        (
-            "global",
-            Settings {
-                strategy: Strategy::Global,
-                ..base
-            },
-        ),
-    ];
+    let (_, configs) = few_sample_configs();
     let mut test = UnbiasedTest::new("shadows_are_unbiased");
     for (sname, objects) in [
         ("sphere on a plane", format!("{SPHERE}\n{PLANE}")),

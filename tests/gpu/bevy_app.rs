@@ -45,6 +45,25 @@ pub(crate) fn assert_matches_cpu(name: &str, img: &[Vec3], cpu: &[Vec3], size: u
     );
 }
 
+/// The CPU twin of a Bevy frame: densities from `map`, sample radiance from `fine` (the image).
+pub(crate) fn cpu_render_fine(
+    map: &CubeMap,
+    fine: &(dyn Fn(Vec3) -> Vec3 + Sync),
+    gbuf: &[Option<GPixel>],
+    size: u32,
+    s: &Settings,
+) -> Vec<Vec3> {
+    let extras = envis::render::Extras {
+        fine: Some(fine),
+        ..Default::default()
+    };
+    let size = size as usize;
+    envis::render::render_with(map, extras, gbuf, size, size, s)
+        .unwrap()
+        .image
+        .data
+}
+
 pub(crate) fn on_sphere(size: u32) -> impl Fn(usize) -> bool {
     move |i| {
         let (x, y) = ((i as u32 % size) as f32, (i as u32 / size) as f32);
@@ -125,20 +144,7 @@ fn bevy_frame_matches_cpu_renderer() {
             envis::envmap::resample::bevy_cube_layers(&map),
         );
         let fine = |d: Vec3| source.radiance_nearest(d);
-        let cpu = envis::render::render_with(
-            &map,
-            envis::render::Extras {
-                fine: Some(&fine),
-                ..Default::default()
-            },
-            &gbuf,
-            size as usize,
-            size as usize,
-            &sampling,
-        )
-        .unwrap()
-        .image
-        .data;
+        let cpu = cpu_render_fine(&map, &fine, &gbuf, size, &sampling);
         assert_matches_cpu(name, &img, &cpu, size);
         // The background: an orthographic camera looking down -Z sees the image in direction -Z
         // everywhere (filtered from the stream's cube image, as its CPU twin reads it).

@@ -2,7 +2,7 @@
 //! headless harness): `StandardMaterial` meshes, Bevy's sun and its shadows, split screen, and
 //! `Image` environments changed on the CPU or written on the GPU.
 
-use super::bevy_app::{assert_matches_cpu, on_sphere};
+use super::bevy_app::{assert_matches_cpu, cpu_render_fine, on_sphere};
 use super::{gpu, rel};
 use bevy::asset::RenderAssetUsages;
 use bevy::camera::{RenderTarget, Viewport, visibility::RenderLayers};
@@ -147,20 +147,7 @@ fn bevy_standard_material_matches_cpu() {
         size as usize,
         standard_material_decoded(&material),
     );
-    let cpu = envis::render::render_with(
-        &cube,
-        envis::render::Extras {
-            fine: Some(&fine),
-            ..Default::default()
-        },
-        &gbuf,
-        size as usize,
-        size as usize,
-        &sampling.settings(),
-    )
-    .unwrap()
-    .image
-    .data;
+    let cpu = cpu_render_fine(&cube, &fine, &gbuf, size, &sampling.settings());
     assert_matches_cpu("standard material", &img, &cpu, size);
 }
 
