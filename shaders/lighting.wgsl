@@ -30,7 +30,7 @@ struct LightingView {
     // (negative: none).
     options: vec4<f32>,
     // x: 1 to average frames; y: frames averaged before this one (0 restarts the mean); z: source
-    // layout (SOURCE_LATLONG / SOURCE_CUBE).
+    // layout (SOURCE_LATLONG / SOURCE_CUBE); w: nodes of the shadow BVH (0: no shadow rays).
     accumulate: vec4<f32>,
 }
 
@@ -41,8 +41,9 @@ struct LightingView {
 @group(0) @binding(4) var<storage, read> face_energy: array<f32>;
 @group(0) @binding(5) var<uniform> sp: ShadeParams;
 @group(0) @binding(6) var<uniform> lv: LightingView;
-// The probed pixel, for the sample-debug view: n, o, kd, ks (as GPixel), estimate, (x, y, index, 1).
-@group(0) @binding(7) var<storage, read_write> probe: array<vec4<f32>, 6>;
+// The probed pixel, for the sample-debug view: n, o, kd, ks (as GPixel), estimate, (x, y, index,
+// 1), (world position, 1 when shadow rays were cast).
+@group(0) @binding(7) var<storage, read_write> probe: array<vec4<f32>, 7>;
 // Running mean of the accumulated frames, one per viewport pixel (bound only when accumulating).
 @group(0) @binding(8) var<storage, read_write> accum: array<vec4<f32>>;
 // The `global` distribution (global_layout.wgsl); a dummy unless the strategy is global.
@@ -51,6 +52,9 @@ struct LightingView {
 @group(0) @binding(10) var pass_ids: texture_2d<u32>;
 // The environment image itself (image_source.wgsl), for the background.
 @group(0) @binding(11) var source: texture_2d_array<f32>;
+// The scene's shadow-casting meshes as a BVH (visibility.wgsl; placeholders when off).
+@group(0) @binding(12) var<storage, read> bvh_nodes: array<BvhNode>;
+@group(0) @binding(13) var<storage, read> bvh_triangles: array<array<vec4<f32>, 3>>;
 
 // Sample radiance comes from the full-resolution image (the texel a direction falls in); the
 // texel table gives only densities (render::FrameData::fine is the CPU twin).
@@ -58,9 +62,21 @@ fn env_radiance(d: vec3<f32>, coarse: vec3<f32>) -> vec3<f32> {
     return source_nearest(source, u32(lv.accumulate.z), d);
 }
 
-// No shadow rays in the Bevy pass yet (docs/visibility.md).
+// The shading point in world space and the map's rotation back to world space, set by the
+// fragment before it shades (shade.wgsl's hooks take only the pixel and a direction).
+var<private> shadow_point: vec3<f32>;
+var<private> world_from_env: mat3x3<f32>;
+
+// A shadow ray through the scene's meshes (app::shadows), from the shading point; no rays when
+// the camera's shadows are off (node count 0). Directions arrive in the map's frame.
 fn sample_blocked(px: GPixel, pixel_index: u32, d: vec3<f32>) -> bool {
-    return false;
+    let nodes = u32(lv.accumulate.w);
+    if (nodes == 0u) {
+        return false;
+    }
+    let dw = world_from_env * d;
+    let o = shadow_origin(shadow_point, world_from_env * px.n.xyz, dw);
+    return bvh_occluded(o, dw, 1e-4, 3.4028235e38, nodes);
 }
 
 const PBR_LIGHTING_PASS_ID: u32 = 1u;
@@ -155,6 +171,8 @@ fn lighting(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
     }
     // Shade in the map's frame: rotating normal and view together leaves the BRDF unchanged.
     o = env * o;
+    shadow_point = world;
+    world_from_env = transpose(env);
     var px: GPixel;
     if (standard) {
         px = decode_standard(g, o);
@@ -172,6 +190,7 @@ fn lighting(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
         probe[3] = px.ks;
         probe[4] = vec4(r.color, 1.0);
         probe[5] = vec4(f32(local.x), f32(local.y), f32(pixel_index), 1.0);
+        probe[6] = vec4(world, select(0.0, 1.0, lv.accumulate.w > 0.0));
     }
     let overlay = u32(lv.options.y);
     if (overlay == 1u) {

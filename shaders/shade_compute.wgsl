@@ -35,13 +35,6 @@ fn shade_gbuffer(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_wor
     out_stats[i] = r.stats;
 }
 
-// visibility::ray_offset / shadow_origin: off the surface, on the side d leaves by.
-fn shadow_origin(p: vec3<f32>, n: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
-    let a = abs(p);
-    let offset = 1e-4 * max(max(max(a.x, a.y), a.z), 1.0);
-    return p + n * select(-offset, offset, dot(n, d) >= 0.0);
-}
-
 // A shadow ray through the BVH (the CPU's FlatBvh as render::FrameData::occluder): t_min 1e-4,
 // unbounded.
 fn sample_blocked(px: GPixel, pixel_index: u32, d: vec3<f32>) -> bool {

@@ -14,6 +14,13 @@ struct BvhNode {
 // flat_bvh::STACK_SIZE.
 const BVH_STACK_SIZE: u32 = 64u;
 
+// visibility::ray_offset / shadow_origin: off the surface, on the side d leaves by.
+fn shadow_origin(p: vec3<f32>, n: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
+    let a = abs(p);
+    let offset = 1e-4 * max(max(max(a.x, a.y), a.z), 1.0);
+    return p + n * select(-offset, offset, dot(n, d) >= 0.0);
+}
+
 // obvhs's safe_inverse.
 fn safe_inverse(x: f32) -> f32 {
     if (abs(x) <= 1.1920929e-7) {

@@ -51,6 +51,9 @@ pub struct EnvironmentSampling {
     /// Pixel (viewport coordinates) whose G-buffer texel and estimate are read back into
     /// [`super::EnvisProbe`] (the demo's sample-debug view).
     pub probe: Option<UVec2>,
+    /// Shadow rays against the scene's meshes for every light and BRDF sample: `auto` (on
+    /// when some mesh casts shadows), `on` or `off`. `NotShadowCaster` meshes cast none.
+    pub shadows: crate::visibility::Visibility,
 }
 
 impl Default for EnvironmentSampling {
@@ -69,6 +72,7 @@ impl Default for EnvironmentSampling {
             overlay: Overlay::None,
             face_size: 64,
             probe: None,
+            shadows: crate::visibility::Visibility::Auto,
         }
     }
 }

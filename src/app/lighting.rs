@@ -50,6 +50,8 @@ pub struct LightingPipelines {
     /// The probed pixel's record (6 vec4) and its readback.
     probe: wgpu::Buffer,
     probe_read: AsyncRead,
+    /// Bound in place of the shadow BVH when a camera casts no shadow rays.
+    no_shadows: wgpu::Buffer,
     /// The seed of the frame whose probe is being read back.
     probe_seed: Mutex<u32>,
     /// Per view: the running mean of the accumulated frames (one vec4 per pixel) and its size.
@@ -106,6 +108,8 @@ impl LightingPipelines {
                     },
                 ),
                 e(11, crate::gpu::resample::source_binding()),
+                e(12, buf(BB::Storage { read_only: true })),
+                e(13, buf(BB::Storage { read_only: true })),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -117,13 +121,20 @@ impl LightingPipelines {
         let timer = AsyncTimer::new(device, queue, "envis lighting timer");
         let probe = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("envis probe"),
-            size: 96,
+            size: 112,
             usage: wgpu::BufferUsages::STORAGE
                 | wgpu::BufferUsages::COPY_SRC
                 | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let probe_read = AsyncRead::new(device, "envis probe readback", 96);
+        let probe_read = AsyncRead::new(device, "envis probe readback", 112);
+        // Bound in place of the shadow BVH when there is none (one triangle's 48 bytes).
+        let no_shadows = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("envis no shadow geometry"),
+            size: 48,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
         LightingPipelines {
             layout,
             pipeline_layout,
@@ -132,6 +143,7 @@ impl LightingPipelines {
             timer,
             probe,
             probe_read,
+            no_shadows,
             probe_seed: Mutex::new(0),
             accum: Mutex::new(HashMap::new()),
         }
@@ -279,6 +291,7 @@ fn poll_lighting_readbacks(
                 estimate: v3(v[4]),
                 pixel_index: v[5][2] as u32,
                 seed: *pipes.probe_seed.lock().expect("probe seed"),
+                point: (v[6][3] == 1.0).then(|| v3(v[6])),
             };
             *probe.lock().expect("probe") = Some(r);
         }
@@ -300,6 +313,10 @@ fn mis_lighting(
     )>,
     pipes: Option<Res<LightingPipelines>>,
     samplers: Res<EnvSamplers>,
+    shadows: (
+        Option<Res<super::shadows::ShadowGeometry>>,
+        Option<Res<super::shadows::GpuShadowGeometry>>,
+    ),
     counters: Res<EnvisCounters>,
     timings: Res<EnvisTimings>,
     mut ctx: RenderContext,
@@ -328,7 +345,20 @@ fn mis_lighting(
     let vp = ev.viewport;
     s.seed = vs.seed;
     let params = ShadeParams::new(&s, sampler.n, sampler.m, (vp.z * vp.w) as usize);
-    let lv = lighting_view(ev, cam, sampling, env, vs, slot.layout);
+    let mut lv = lighting_view(ev, cam, sampling, env, vs, slot.layout);
+    // Shadow rays when the camera asks for them and the uploaded geometry is this frame's.
+    let geometry = match shadows {
+        (Some(g), Some(gpu)) if g.enabled(sampling.shadows) && gpu.generation == g.generation => {
+            lv.accumulate[3] = gpu.node_count as f32;
+            Some(gpu)
+        }
+        _ => None,
+    };
+    let (bvh_nodes, bvh_triangles) = geometry
+        .as_ref()
+        .map_or((&pipes.no_shadows, &pipes.no_shadows), |g| {
+            (&g.nodes, &g.triangles)
+        });
     let device = ctx.render_device().wgpu_device().clone();
     let accum = pipes.accumulation_buffer(&device, view_entity, sampling.accumulate, vp);
     let pipeline = pipes.pipeline(&device, target.main_texture_format());
@@ -362,6 +392,8 @@ fn mis_lighting(
         sampler.gdist.as_entire_binding(),
         R::TextureView(&ids.texture.default_view),
         R::TextureView(&slot.source),
+        bvh_nodes.as_entire_binding(),
+        bvh_triangles.as_entire_binding(),
     ];
     let entries: Vec<wgpu::BindGroupEntry> = resources
         .into_iter()

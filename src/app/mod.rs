@@ -38,6 +38,7 @@ pub mod lighting;
 pub mod material;
 pub mod sampling;
 pub mod scene_objects;
+pub mod shadows;
 pub mod stream;
 pub mod timing;
 
@@ -63,7 +64,12 @@ impl Plugin for EnvisPlugin {
     fn build(&self, app: &mut App) {
         app.register_type::<EnvironmentSampling>()
             .register_type::<EnvisEnvironment>()
-            .add_plugins((EnvisMaterialPlugin, EnvMapSamplingPlugin, MisLightingPlugin));
+            .add_plugins((
+                EnvisMaterialPlugin,
+                EnvMapSamplingPlugin,
+                shadows::EnvironmentShadowsPlugin,
+                MisLightingPlugin,
+            ));
     }
 }
 
@@ -184,6 +190,8 @@ pub struct ProbeResult {
     pub pixel_index: u32,
     /// The seed of the frame it was read in (per frame while accumulating).
     pub seed: u32,
+    /// Its world position when the pass cast shadow rays (the CPU twin then casts them too).
+    pub point: Option<Vec3>,
 }
 
 /// The latest probe result, shared by both worlds.
@@ -207,6 +215,8 @@ pub struct Counters {
     /// transparent ones, at the last look ([`coverage::warn_forward_meshes`]; gauges).
     pub forward_meshes: AtomicU64,
     pub transparent_meshes: AtomicU64,
+    /// Shadow-ray BVHs built from the scene's meshes (once for a static scene).
+    pub shadow_bvh_builds: AtomicU64,
     /// Lighting passes recorded (one per camera per frame).
     pub lighting_passes: AtomicU64,
     /// Lighting passes that ran an overlay (the overlay is a branch of the lighting pass: with

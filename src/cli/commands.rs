@@ -28,11 +28,11 @@ pub fn render(r: RenderArgs) -> Result<()> {
     let settings = su.scene.as_ref().map_or(settings, |sc| sc.settings);
     let size = r.scene.size;
     let (mut shadows, mut why) = su.shadows(r.scene.visibility);
-    if shadows && !matches!(r.backend, BackendArg::Cpu) {
-        eprintln!("envis: the GPU backends cast no shadow rays yet: rendering without ({why})");
+    if shadows && matches!(r.backend, BackendArg::Wgpu) {
+        eprintln!("envis: --backend wgpu casts no shadow rays yet: rendering without ({why})");
         (shadows, why) = (
             false,
-            "off (the GPU backends cast no shadow rays yet)".into(),
+            "off (--backend wgpu casts no shadow rays yet)".into(),
         );
     }
     let occluders = su.occluders();
@@ -48,7 +48,7 @@ pub fn render(r: RenderArgs) -> Result<()> {
             )
         }
         BackendArg::Wgpu => render_wgpu(&env.cube, gbuf, size, &settings)?,
-        BackendArg::Gpu => render_bevy(&r.scene, &settings, su.scene.as_ref())?,
+        BackendArg::Gpu => render_bevy(&r.scene, &settings, su.scene.as_ref(), shadows)?,
     };
     out.stats.visibility = why;
     // What the loader clamped, plus anything the GPU's own sanitise pass found.
@@ -153,13 +153,21 @@ fn render_bevy(
     a: &crate::SceneArgs,
     s: &Settings,
     scene: Option<&envis::scene::Scene>,
+    shadows: bool,
 ) -> Result<(render::Rendered, serde_json::Value)> {
     use envis::app::{EnvironmentSampling, EnvisBrdf, headless::HeadlessSphere};
     use envis::envmap::load::EnvSource;
+    use envis::visibility::Visibility;
     envis::gpu::context::check_adapter()?;
     use envis::stream::{EnvStream, StreamSource};
     let mut settings = EnvironmentSampling::default();
     settings.set_settings(s);
+    // Bevy traces the meshes it draws (a tessellated sphere included).
+    settings.shadows = if shadows {
+        Visibility::On
+    } else {
+        Visibility::Off
+    };
     if let Some(sc) = scene {
         let t0 = std::time::Instant::now();
         let mut app = HeadlessSphere::from_scene(sc, settings, a.size as u32)?;
@@ -219,6 +227,7 @@ fn render_bevy(
     _: &crate::SceneArgs,
     _: &Settings,
     _: Option<&envis::scene::Scene>,
+    _: bool,
 ) -> Result<(render::Rendered, serde_json::Value)> {
     Err(Error::invalid(
         "--backend gpu: this envis was built without the `app` feature (cargo build --features app)",

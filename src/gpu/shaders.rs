@@ -64,6 +64,7 @@ pub fn lighting_source() -> String {
         GLOBAL_LAYOUT,
         SHADE,
         IMAGE_SOURCE,
+        VISIBILITY,
         LIGHTING,
     ]
     .concat()

@@ -1,7 +1,8 @@
 //! The seed's sample-debug view on the CPU: how each pool sample serves one pixel (red:
-//! discarded by face weighting, green: used, yellow: used but below the horizon).
+//! discarded by face weighting, green: used, yellow: used but below the horizon, blue: used but
+//! blocked by the scene).
 
-use super::{FrameData, GPixel, Settings, Strategy, shade_pixel};
+use super::{FrameData, GPixel, Settings, Strategy};
 use crate::sampling::rng::Rng;
 use crate::sampling::{face_count, face_weights};
 use glam::Vec3;
@@ -15,6 +16,8 @@ pub enum SampleKind {
     Used,
     /// Yellow: taken, non-positive cosine (wasted).
     Wasted,
+    /// Blue: taken, positive cosine, but its shadow ray is blocked.
+    Blocked,
 }
 
 /// One pool sample as the pixel sees it.
@@ -39,7 +42,20 @@ pub struct PixelDebug {
 /// Classify every pool sample for pixel `px` exactly as [`shade_pixel`]'s light loop uses them
 /// (same face weights, counts, offset), for the `paper` and `light` strategies.
 pub fn debug_pixel(fd: &FrameData, s: &Settings, px: &GPixel, pixel_index: u32) -> PixelDebug {
-    let (estimate, _) = shade_pixel(fd, s, px, pixel_index);
+    debug_pixel_at(fd, s, px, None, pixel_index)
+}
+
+/// [`debug_pixel`] for a pixel whose surface point is `at`: with `fd.occluder`, used samples
+/// whose shadow ray is blocked are [`SampleKind::Blocked`] (as `shade_pixel_at` shades them).
+pub fn debug_pixel_at(
+    fd: &FrameData,
+    s: &Settings,
+    px: &GPixel,
+    at: Option<Vec3>,
+    pixel_index: u32,
+) -> PixelDebug {
+    let (estimate, _) = super::estimator::shade_pixel_at(fd, s, px, at, pixel_index);
+    let shadow = fd.occluder.zip(at);
     let n = px.n.normalize_or_zero();
     let m = fd.pool.per_face;
     let (nl, _) = s.budget(&px.material);
@@ -58,6 +74,8 @@ pub fn debug_pixel(fd: &FrameData, s: &Settings, px: &GPixel, pixel_index: u32) 
                 SampleKind::Discarded
             } else if n.dot(ls.dir) <= 0.0 {
                 SampleKind::Wasted
+            } else if shadow.is_some_and(|(occ, p)| occ.occluded(p, n, ls.dir)) {
+                SampleKind::Blocked
             } else {
                 SampleKind::Used
             };

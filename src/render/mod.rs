@@ -21,7 +21,7 @@ use crate::error::Result;
 use glam::Vec3;
 use rayon::prelude::*;
 
-pub use debug::{DebugSample, PixelDebug, SampleKind, debug_pixel};
+pub use debug::{DebugSample, PixelDebug, SampleKind, debug_pixel, debug_pixel_at};
 pub use estimator::{FrameData, shade_pixel};
 pub use scene::{GPixel, sphere_gbuffer};
 pub use settings::{

@@ -33,6 +33,9 @@ impl MeshBvh {
     /// The flat layout of this BVH over `tris` of vertices `p`, or why the GPU could not
     /// traverse it (deeper than [`STACK_SIZE`]).
     pub fn flatten(&self, p: &[Vec3], tris: &[[u32; 3]]) -> Result<FlatBvh, String> {
+        if self.bvh.nodes.is_empty() || tris.is_empty() {
+            return Ok(FlatBvh::default()); // nothing to trace (obvhs's depth needs a root)
+        }
         let depth = self.bvh.depth(0);
         if depth >= STACK_SIZE {
             return Err(format!(

@@ -33,6 +33,8 @@ pub trait Occluder: Sync {
     clap::ValueEnum,
 )]
 #[serde(rename_all = "lowercase")]
+// Reflected for the Bevy camera component (`app::EnvironmentSampling`); the core stays Bevy-free.
+#[cfg_attr(feature = "app", derive(bevy::reflect::Reflect))]
 pub enum Visibility {
     /// On when some object can shadow a visible point: two or more shadow-casting objects, or
     /// one that is not known to be convex; off for a lone convex object.

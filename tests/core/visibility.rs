@@ -228,4 +228,8 @@ fn flat_bvh_matches_obvhs_traversal() {
         blocked > 2_000 && blocked < 18_000,
         "{blocked} of 20000 rays blocked"
     );
+    // A scene with nothing to trace flattens to an empty BVH that blocks nothing (no panic).
+    let empty = envis::visibility::MeshBvh::build(&[], &[]);
+    let flat = empty.flatten(&[], &[]).unwrap();
+    assert!(flat.nodes.is_empty() && !flat.occluded(Vec3::ZERO, Vec3::Y, 0.0, f32::MAX));
 }

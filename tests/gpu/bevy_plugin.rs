@@ -174,15 +174,16 @@ fn bevy_keeps_the_sun_and_its_shadow() {
                 },
                 Transform::from_xyz(1.0, 2.0, 3.0).looking_at(Vec3::ZERO, Vec3::Y),
             ));
-            // A small occluder between the sun and the sphere.
-            let cube = h.add::<Mesh>(Cuboid::new(0.4, 0.4, 0.4));
-            let black = h.add::<StandardMaterial>(StandardMaterial::from(Color::BLACK));
-            h.app.world_mut().spawn((
-                Mesh3d(cube),
-                MeshMaterial3d(black),
-                Transform::from_xyz(0.6, 1.2, 1.8),
-            ));
         }
+        // A small occluder between the sun and the sphere (in every render: it shadows the
+        // environment too, the same with and without the sun).
+        let cube = h.add::<Mesh>(Cuboid::new(0.4, 0.4, 0.4));
+        let black = h.add::<StandardMaterial>(StandardMaterial::from(Color::BLACK));
+        h.app.world_mut().spawn((
+            Mesh3d(cube),
+            MeshMaterial3d(black),
+            Transform::from_xyz(0.6, 1.2, 1.8),
+        ));
         let (env, _) = latlong_image(16, |d| Vec3::splat(0.3 + 0.2 * d.y));
         let env = h.add::<Image>(env);
         let target = if envis {
@@ -484,5 +485,124 @@ fn bevy_gpu_written_image_rebuilds_every_frame() {
     assert!(
         rel(first, 0.25) < 0.02 && rel(later, 1.0) < 0.02,
         "the lighting did not follow the GPU-written sky: {first} -> {later}"
+    );
+}
+
+/// Environment shadows in the Bevy pass: a sphere resting on a plane, seen from straight above.
+/// With shadow rays the ground around the sphere darkens (the sphere hides part of the sky) and
+/// the ground far from it does not change; `NotShadowCaster` removes the shadow; a lone sphere
+/// does not shadow itself (its triangles are traced, so this checks the ray offsets); a static
+/// scene builds its BVH once.
+#[test]
+fn bevy_environment_shadows() {
+    let Some(_) = gpu() else { return };
+    let size = 48u32;
+    let render = |plane: bool, caster: bool, shadows: envis::visibility::Visibility| {
+        let mut h = standard_sphere_app(white_furnace_material());
+        let world = h.app.world_mut();
+        let sphere = world
+            .query_filtered::<Entity, With<Mesh3d>>()
+            .single(world)
+            .unwrap();
+        world
+            .entity_mut(sphere)
+            .insert(Transform::from_xyz(0.0, 1.0, 0.0));
+        if !caster {
+            world
+                .entity_mut(sphere)
+                .insert(bevy::light::NotShadowCaster);
+        }
+        if plane {
+            let mesh = h.add::<Mesh>(Plane3d::default().mesh().size(6.0, 6.0));
+            let mat = h.add::<StandardMaterial>(white_furnace_material());
+            h.app.world_mut().spawn((Mesh3d(mesh), MeshMaterial3d(mat)));
+        }
+        // A sky brighter overhead than at the horizon, a dark ground.
+        let (env, _) = latlong_image(16, |d| Vec3::splat((0.2 + d.y).max(0.05)));
+        let env = h.add::<Image>(env);
+        let target = h.float_target(size, size);
+        let projection = Projection::Orthographic(OrthographicProjection {
+            scaling_mode: bevy::camera::ScalingMode::Fixed {
+                width: 6.0,
+                height: 6.0,
+            },
+            ..OrthographicProjection::default_3d()
+        });
+        let transform = Transform::from_xyz(0.0, 5.0, 0.0).looking_at(Vec3::ZERO, Vec3::Z);
+        let sampling = EnvironmentSampling {
+            shadows,
+            light_samples: 64,
+            brdf_samples: 0,
+            ..default()
+        };
+        h.app.world_mut().spawn(radiance_camera(
+            target.clone(),
+            projection,
+            transform,
+            sampling,
+            EnvisEnvironment::new(env),
+        ));
+        let img = h.capture(&target).unwrap();
+        if let Ok(dir) = std::env::var("ENVIS_TEST_DUMP") {
+            let name = format!("bevy-shadows-plane{plane}-caster{caster}-{shadows}.png");
+            let im = envis::envmap::Image {
+                width: size as usize,
+                height: size as usize,
+                data: img.clone(),
+            };
+            envis::render::output::write_png(&std::path::Path::new(&dir).join(name), &im, 1.0)
+                .unwrap();
+        }
+        for _ in 0..5 {
+            h.update();
+        }
+        (img, h.counters())
+    };
+    use envis::visibility::Visibility::{Off, On};
+    // Mean luminance of the pixels whose ground distance from the contact point is in [r0, r1)
+    // (top-down view over [-3, 3]^2).
+    let ring = |img: &[Vec3], r0: f32, r1: f32| {
+        let px: Vec<f32> = (0..img.len())
+            .filter(|&i| {
+                let (x, y) = ((i as u32 % size) as f32, (i as u32 / size) as f32);
+                let c = |v: f32| -3.0 + 6.0 * (v + 0.5) / size as f32;
+                let r = c(x).hypot(c(y));
+                r >= r0 && r < r1
+            })
+            .map(|i| luminance(img[i]))
+            .collect();
+        px.iter().sum::<f32>() / px.len() as f32
+    };
+    let (off, _) = render(true, true, Off);
+    let (on, counters) = render(true, true, On);
+    let (near_off, near_on) = (ring(&off, 1.05, 1.4), ring(&on, 1.05, 1.4));
+    let (far_off, far_on) = (ring(&off, 2.4, 2.9), ring(&on, 2.4, 2.9));
+    assert!(
+        near_on < 0.85 * near_off,
+        "no contact shadow: {near_on} vs {near_off} without"
+    );
+    assert!(
+        (far_on - far_off).abs() < 0.03 * far_off,
+        "open ground changed: {far_on} vs {far_off}"
+    );
+    assert_eq!(
+        counters.get(|c| &c.shadow_bvh_builds),
+        1,
+        "{:?}",
+        counters.0
+    );
+    let (hidden, _) = render(true, false, On);
+    let near_hidden = ring(&hidden, 1.05, 1.4);
+    assert!(
+        (near_hidden - near_off).abs() < 0.03 * near_off,
+        "a NotShadowCaster sphere still shadows: {near_hidden} vs {near_off}"
+    );
+    // A lone sphere: the same image with and without shadow rays (no acne).
+    let (lone_off, _) = render(false, true, Off);
+    let (lone_on, _) = render(false, true, On);
+    let (a, b) = (ring(&lone_off, 0.0, 0.95), ring(&lone_on, 0.0, 0.95));
+    assert!(
+        (a - b).abs() < 0.01 * a,
+        "the lone sphere shadows itself: {b} vs {a}"
     );
 }

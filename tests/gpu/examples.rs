@@ -65,9 +65,18 @@ fn run(name: &str, example: fn(&mut App), cameras: u64) -> (Vec<Vec3>, EnvisCoun
         "the example's cameras were never lit by envis: {:?}",
         c.0
     );
+    // The examples tonemap (TonyMcMapface): its LUT may round a channel a hair below 0.
+    let bad: Vec<(usize, Vec3)> = img
+        .iter()
+        .copied()
+        .enumerate()
+        .filter(|(_, p)| !(p.is_finite() && p.min_element() >= -1e-5))
+        .collect();
     assert!(
-        img.iter().all(|p| p.is_finite() && p.min_element() >= 0.0),
-        "non-finite or negative pixels"
+        bad.is_empty(),
+        "{} non-finite or negative pixels, first {:?}",
+        bad.len(),
+        &bad[..bad.len().min(4)]
     );
     (img, c, h)
 }
@@ -109,14 +118,20 @@ fn example_dynamic_sky() {
     let Some(_) = gpu() else { return };
     let (img, c, mut h) = run("dynamic_sky", dynamic_sky::example, 1);
     assert_eq!(c.get(|c| &c.image_bytes_uploaded), 0, "{:?}", c.0);
-    let before = c.get(|c| &c.builds);
-    for _ in 0..5 {
+    // One build per frame: builds keep pace with lighting passes (both counted in the render
+    // world, which runs a frame behind the main world: read together, they may differ by one).
+    let (b0, l0) = (c.get(|c| &c.builds), c.get(|c| &c.lighting_passes));
+    for _ in 0..10 {
         h.update();
     }
-    assert_eq!(
-        h.counters().get(|c| &c.builds),
-        before + 5,
-        "one build per frame"
+    let c = h.counters();
+    let (db, dl) = (
+        c.get(|c| &c.builds) - b0,
+        c.get(|c| &c.lighting_passes) - l0,
+    );
+    assert!(
+        db >= 9 && db.abs_diff(dl) <= 1,
+        "{db} builds for {dl} lighting passes"
     );
     // The top row is sky (blue over red), the objects are lit.
     let top = img[(W / 2) as usize];

@@ -10,6 +10,7 @@ pub(super) fn update_debug_view(
     frame: Res<EnvFrame>,
     cams: Query<&EnvironmentSampling, With<DemoCamera>>,
     probe: Res<EnvisProbe>,
+    geometry: Res<crate::app::shadows::ShadowGeometry>,
     mut state: ResMut<DemoState>,
 ) {
     let Some(p) = *probe.lock().expect("probe") else {
@@ -21,7 +22,13 @@ pub(super) fn update_debug_view(
         seed: p.seed,
         ..sampling.settings()
     };
-    let key = (frame.generation, s, p.pixel_index, p.gpixel.n);
+    let key = (
+        frame.generation,
+        s,
+        p.pixel_index,
+        p.gpixel.n,
+        geometry.generation,
+    );
     if state.key == Some(key) {
         return;
     }
@@ -30,8 +37,13 @@ pub(super) fn update_debug_view(
     let source = SourceImage::new_cube(bevy_cube_layers(&frame.map));
     let coarse = source.to_cube(sampling.face_size as usize);
     let fine = |d: Vec3| source.radiance_nearest(d);
-    let fd = FrameData::prepare(&coarse, &s).with_fine(&fine);
-    let d = debug_pixel(&fd, &s, &p.gpixel, p.pixel_index);
+    let mut fd = FrameData::prepare(&coarse, &s).with_fine(&fine);
+    // The same shadow rays as the GPU, against the same meshes (the demo's map is unrotated, so
+    // its frame is the world's).
+    if p.point.is_some() {
+        fd.occluder = Some(&*geometry.bvh);
+    }
+    let d = crate::render::debug_pixel_at(&fd, &s, &p.gpixel, p.point, p.pixel_index);
     state.pixel = Some((d, p.gpixel, p.estimate));
     state.key = Some(key);
 }
@@ -57,6 +69,7 @@ pub(super) fn kind_color(k: SampleKind) -> Color {
         SampleKind::Discarded => Color::srgb(1.0, 0.0, 0.0),
         SampleKind::Used => Color::srgb(0.0, 1.0, 0.0),
         SampleKind::Wasted => Color::srgb(1.0, 1.0, 0.0),
+        SampleKind::Blocked => Color::srgb(0.2, 0.4, 1.0),
     }
 }
 
@@ -65,5 +78,6 @@ pub(super) fn egui_kind_color(k: SampleKind) -> egui::Color32 {
         SampleKind::Discarded => egui::Color32::from_rgb(255, 0, 0),
         SampleKind::Used => egui::Color32::from_rgb(0, 255, 0),
         SampleKind::Wasted => egui::Color32::from_rgb(255, 255, 0),
+        SampleKind::Blocked => egui::Color32::from_rgb(50, 100, 255),
     }
 }

@@ -15,7 +15,7 @@ use super::{
 };
 use crate::envmap::{CROSS_BLOCKS, CubeMap, dir_to_face_ab};
 use crate::prelude::{EnvironmentSampling, EnvisEnvironment, exposure_multiplier};
-use crate::render::{FrameData, PixelDebug, SampleKind, Settings, Strategy, debug_pixel};
+use crate::render::{FrameData, PixelDebug, SampleKind, Settings, Strategy};
 use crate::sampling::{Counts, Heuristic};
 use crate::stream::StreamSource;
 use bevy::core_pipeline::tonemapping::Tonemapping;
@@ -129,8 +129,9 @@ pub struct DemoState {
     pub debug: bool,
     /// The CPU twin's view of the probed pixel, with the key it was computed for.
     pub pixel: Option<(PixelDebug, crate::render::GPixel, Vec3)>,
-    /// What `pixel` was computed from: frame generation, settings (with the frame's seed), pixel.
-    key: Option<(u64, Settings, u32, Vec3)>,
+    /// What `pixel` was computed from: frame generation, settings (with the frame's seed), pixel,
+    /// normal and the shadow geometry's generation.
+    key: Option<(u64, Settings, u32, Vec3, u64)>,
     cross: Option<(u64, egui::TextureHandle)>,
     script: Option<PathBuf>,
     script_frame: u32,

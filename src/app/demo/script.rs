@@ -132,6 +132,7 @@ pub(super) fn run_script(
                     "red": d.samples.iter().filter(|s| s.kind == SampleKind::Discarded).count(),
                     "green": d.samples.iter().filter(|s| s.kind == SampleKind::Used).count(),
                     "yellow": d.samples.iter().filter(|s| s.kind == SampleKind::Wasted).count(),
+                    "blue": d.samples.iter().filter(|s| s.kind == SampleKind::Blocked).count(),
                 })),
             });
             // A report that cannot be written fails the scripted run, saying why.

@@ -264,6 +264,12 @@ fn sampling_ui(ui: &mut egui::Ui, settings: &mut EnvironmentSampling) {
         "accumulate over frames (restarts when anything changes)",
     );
     ui.horizontal(|ui| {
+        ui.label("environment shadows");
+        for &v in crate::visibility::Visibility::value_variants() {
+            ui.selectable_value(&mut settings.shadows, v, v.to_string());
+        }
+    });
+    ui.horizontal(|ui| {
         ui.label("overlay [O]");
         egui::ComboBox::from_id_salt("overlay")
             .selected_text(settings.overlay.name())
@@ -377,10 +383,11 @@ fn debug_ui(ui: &mut egui::Ui, settings: &mut EnvironmentSampling, state: &mut D
     });
     let count = |k| d.samples.iter().filter(|s| s.kind == k).count();
     ui.label(format!(
-        "red (discarded) {}, green (used, cos > 0) {}, yellow (used, cos <= 0) {}",
+        "red (discarded) {}, green (used, cos > 0) {}, yellow (used, cos <= 0) {}, blue (used, blocked) {}",
         count(SampleKind::Discarded),
         count(SampleKind::Used),
-        count(SampleKind::Wasted)
+        count(SampleKind::Wasted),
+        count(SampleKind::Blocked)
     ));
     if !state.debug {
         return;
