@@ -39,7 +39,7 @@ pub struct PixelDebug {
     pub estimate: Vec3,
 }
 
-/// Classify every pool sample for pixel `px` exactly as [`shade_pixel`]'s light loop uses them
+/// Classify every pool sample for pixel `px` exactly as [`shade_pixel`](super::shade_pixel)'s light loop uses them
 /// (same face weights, counts, offset), for the `paper` and `light` strategies.
 pub fn debug_pixel(fd: &FrameData, s: &Settings, px: &GPixel, pixel_index: u32) -> PixelDebug {
     debug_pixel_at(fd, s, px, None, pixel_index)
