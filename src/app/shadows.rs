@@ -97,6 +97,7 @@ type CasterChanged = Or<(
 )]
 pub fn gather_shadow_geometry(
     cameras: Query<(), With<EnvironmentSampling>>,
+    new_cameras: Query<(), Added<EnvironmentSampling>>,
     casters: Casters,
     changed: Query<(), (With<Mesh3d>, CasterChanged)>,
     mut removed: RemovedComponents<Mesh3d>,
@@ -110,7 +111,9 @@ pub fn gather_shadow_geometry(
     mut geometry: ResMut<ShadowGeometry>,
     counters: Res<EnvisCounters>,
 ) {
+    // A first envis camera in a scene that has not changed since needs the geometry too.
     let dirty = !changed.is_empty()
+        | (!new_cameras.is_empty() && geometry.generation == 0)
         | !opted_out.is_empty()
         | (opted_in.read().count() > 0)
         | (removed.read().count() > 0)

@@ -154,6 +154,9 @@ pub fn advance_stream(
             map: stream.stream.frame().clone(),
         };
         // A new image rather than new bytes in the old one: the face size may have changed.
-        let _ = images.insert(&stream.image, cube_image(&frame.map));
+        if let Err(e) = images.insert(&stream.image, cube_image(&frame.map)) {
+            let msg = format!("the stream's image could not be updated ({e}); kept the last frame");
+            stream.push_log(msg);
+        }
     }
 }

@@ -591,6 +591,16 @@ fn bevy_environment_shadows() {
         "{:?}",
         counters.0
     );
+    // A camera that arrives after the scene (which then never changes) still gets its geometry.
+    let mut late = standard_sphere_app(white_furnace_material());
+    for _ in 0..3 {
+        late.update();
+    }
+    let (env, _) = latlong_image(8, |_| Vec3::ONE);
+    let env = late.add::<Image>(env);
+    let target = sphere_camera(&mut late, env, EnvironmentSampling::default(), 16);
+    let _ = late.capture(&target).unwrap();
+    assert_eq!(late.counters().get(|c| &c.shadow_bvh_builds), 1);
     let (hidden, _) = render(true, false, On);
     let near_hidden = ring(&hidden, 1.05, 1.4);
     assert!(
