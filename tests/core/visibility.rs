@@ -28,8 +28,9 @@ const TORUS: &str = "[[object]]\nshape = \"torus\"\nposition = [0.0, 0.45, 0.0]\
 /// Looking down at the contact region, from the side of the low afternoon sun's shadow.
 const CAMERA: &str = "position = [0.0, 3.2, 3.2]\ntarget = [0.0, 0.5, 0.0]\nfov = 50.0";
 
-/// With occluders the estimators stay unbiased for the integrand with visibility: the mean over
-/// seeds matches a reference that casts a shadow ray per quadrature node. The reference resolves
+/// With occluders (a sphere, the torus, the bunny, each on a plane) the estimators stay unbiased
+/// for the integrand with visibility: the mean over seeds matches a reference that casts a
+/// shadow ray per quadrature node. The reference resolves
 /// visibility only to its sub-texel grid, so its error is bounded by comparing two grids and
 /// added to each check's standard error. Checked against a mutation: BRDF samples that ignore
 /// visibility fail it (z about 7 in the shadowed quadrant).
@@ -39,9 +40,14 @@ fn shadows_are_unbiased() {
     let map = load_env(&EnvSource::Sky { hours: 15.0 }, 8).unwrap().cube;
     let (_, configs) = few_sample_configs();
     let mut test = UnbiasedTest::new("shadows_are_unbiased");
+    let bunny = format!(
+        "[[object]]\nshape = \"gltf\"\npath = \"{}/assets/models/bunny_plain.glb\"\nposition = [0.0, 0.72, 0.0]\nscale = 0.8\nmaterial = {{ type = \"diffuse\", albedo = 0.8 }}\n",
+        env!("CARGO_MANIFEST_DIR")
+    );
     for (sname, objects) in [
         ("sphere on a plane", format!("{SPHERE}\n{PLANE}")),
         ("torus on a plane", format!("{TORUS}\n{PLANE}")),
+        ("bunny on a plane", format!("{bunny}\n{PLANE}")),
     ] {
         let sc = scene(&sname.replace(' ', "-"), CAMERA, &objects);
         let (gbuf, points) = sc.gbuffer_points(size, size);
