@@ -325,22 +325,26 @@ impl HeadlessSphere {
 
     /// The camera's environment (change it between frames).
     pub fn env_mut(&mut self) -> Mut<'_, EnvisEnvironment> {
+        let e = self.camera();
         let world = self.app.app.world_mut();
-        let e = world
-            .query_filtered::<Entity, With<EnvisEnvironment>>()
-            .single(world)
-            .expect("one envis camera");
         world.get_mut::<EnvisEnvironment>(e).expect("camera")
+    }
+
+    /// The scene's one envis camera.
+    fn camera(&mut self) -> Entity {
+        let world = self.app.app.world_mut();
+        world
+            .query_filtered::<Entity, With<EnvironmentSampling>>()
+            .single(world)
+            .expect("one envis camera")
     }
 
     /// Frames the camera has accumulated before its last frame.
     pub fn accumulated_frames(&mut self) -> u32 {
-        let world = self.app.app.world_mut();
-        let e = world
-            .query_filtered::<Entity, With<EnvironmentSampling>>()
-            .single(world)
-            .expect("one envis camera");
-        world
+        let e = self.camera();
+        self.app
+            .app
+            .world()
             .resource::<super::AccumulatedFrames>()
             .get(e)
             .unwrap_or(0)
@@ -348,11 +352,8 @@ impl HeadlessSphere {
 
     /// The camera's sampling settings (change them between frames).
     pub fn sampling_mut(&mut self) -> Mut<'_, EnvironmentSampling> {
+        let e = self.camera();
         let world = self.app.app.world_mut();
-        let e = world
-            .query_filtered::<Entity, With<EnvironmentSampling>>()
-            .single(world)
-            .expect("one envis camera");
         world.get_mut::<EnvironmentSampling>(e).expect("camera")
     }
 }

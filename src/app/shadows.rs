@@ -16,7 +16,6 @@ use bevy::render::extract_resource::{ExtractResource, ExtractResourcePlugin};
 use bevy::render::renderer::RenderDevice;
 use bevy::render::{Render, RenderApp, RenderSystems};
 use std::sync::Arc;
-use wgpu::util::DeviceExt;
 
 /// The shadow-casting geometry of the main world, flattened (extracted to the render world).
 #[derive(Resource, Clone, Default, ExtractResource)]
@@ -187,24 +186,12 @@ pub fn upload_shadow_geometry(
     if gpu.is_some_and(|g| g.generation == geometry.generation) {
         return;
     }
-    let device = device.wgpu_device();
-    // A binding may not be empty nor shorter than one element (48 bytes for a triangle).
-    let zeros = [0u8; 48];
-    let buffer = |label: &str, bytes: &[u8]| {
-        device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents: if bytes.is_empty() { &zeros } else { bytes },
-            usage: wgpu::BufferUsages::STORAGE,
-        })
-    };
-    let bvh = &geometry.bvh;
+    let (nodes, triangles) =
+        crate::gpu::visibility::upload_bvh(device.wgpu_device(), &geometry.bvh);
     commands.insert_resource(GpuShadowGeometry {
         generation: geometry.generation,
-        nodes: buffer("envis shadow bvh nodes", bytemuck::cast_slice(&bvh.nodes)),
-        triangles: buffer(
-            "envis shadow bvh triangles",
-            bytemuck::cast_slice(&bvh.triangles),
-        ),
-        node_count: bvh.nodes.len() as u32,
+        nodes,
+        triangles,
+        node_count: geometry.bvh.nodes.len() as u32,
     });
 }

@@ -27,6 +27,19 @@ pub struct GpuBvh {
     pipeline: wgpu::ComputePipeline,
 }
 
+/// Upload a flattened BVH: its node and triangle storage buffers (the layout `visibility.wgsl`
+/// reads). Shared by [`GpuBvh`] and the Bevy pass's shadow geometry.
+pub fn upload_bvh(device: &wgpu::Device, bvh: &FlatBvh) -> (wgpu::Buffer, wgpu::Buffer) {
+    (
+        storage_init(device, "envis bvh nodes", bytemuck::cast_slice(&bvh.nodes)),
+        storage_init(
+            device,
+            "envis bvh triangles",
+            bytemuck::cast_slice(&bvh.triangles),
+        ),
+    )
+}
+
 fn storage_init(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
     // A binding may not be empty nor shorter than one element (48 bytes for a triangle): a BVH
     // with no nodes binds zeros.
@@ -41,12 +54,7 @@ fn storage_init(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffe
 impl GpuBvh {
     pub fn new(ctx: &GpuContext, bvh: &FlatBvh) -> Self {
         let device = &ctx.device;
-        let nodes = storage_init(device, "envis bvh nodes", bytemuck::cast_slice(&bvh.nodes));
-        let triangles = storage_init(
-            device,
-            "envis bvh triangles",
-            bytemuck::cast_slice(&bvh.triangles),
-        );
+        let (nodes, triangles) = upload_bvh(device, bvh);
         use wgpu::{BindingType as B, BufferBindingType as BB};
         let entry = |binding: u32, ty: BB| wgpu::BindGroupLayoutEntry {
             binding,

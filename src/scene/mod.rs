@@ -532,19 +532,22 @@ impl TriMesh {
     /// The closest hit with `1e-4 < t < t_max` and its interpolated normal, through the mesh's
     /// BVH (built on first use).
     pub fn intersect(&self, o: Vec3, d: Vec3, t_max: f32) -> Option<(f32, Vec3)> {
-        let bvh = self
-            .bvh
-            .get_or_init(|| crate::visibility::MeshBvh::build(&self.positions, &self.indices));
-        let h = bvh.intersect(&self.positions, &self.indices, o, d, 1e-4, t_max)?;
+        let h = self
+            .bvh()
+            .intersect(&self.positions, &self.indices, o, d, 1e-4, t_max)?;
         Some((h.t, self.normal_at(h.triangle, h.u, h.v)))
     }
 
     /// Whether anything meets the ray with `1e-4 < t < t_max` (any hit, through the BVH).
     pub fn occluded(&self, o: Vec3, d: Vec3, t_max: f32) -> bool {
-        let bvh = self
-            .bvh
-            .get_or_init(|| crate::visibility::MeshBvh::build(&self.positions, &self.indices));
-        bvh.occluded(&self.positions, &self.indices, o, d, 1e-4, t_max)
+        self.bvh()
+            .occluded(&self.positions, &self.indices, o, d, 1e-4, t_max)
+    }
+
+    /// The mesh's BVH, built on first use.
+    fn bvh(&self) -> &crate::visibility::MeshBvh {
+        self.bvh
+            .get_or_init(|| crate::visibility::MeshBvh::build(&self.positions, &self.indices))
     }
 
     /// [`Self::intersect`] by testing every triangle in order (after a bounding-sphere test):

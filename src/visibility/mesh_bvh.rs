@@ -69,26 +69,17 @@ impl MeshBvh {
         let mut hit = RayHit::none();
         let mut best = None;
         self.bvh.ray_traverse(ray, &mut hit, |ray, slot| {
-            let i = self.bvh.primitive_indices[slot] as usize;
-            let [a, b, c] = tris[i].map(|k| p[k as usize]);
-            match ray_triangle(o, d, a, b, c) {
-                Some((t, u, v)) if t > t_min && t < ray.tmax => {
-                    best = Some(TriangleHit {
-                        t,
-                        triangle: i,
-                        u,
-                        v,
-                    });
-                    t
+            match self.slot_hit(p, tris, (o, d), (t_min, ray.tmax), slot) {
+                Some(h) => {
+                    best = Some(h);
+                    h.t
                 }
-                _ => f32::INFINITY,
+                None => f32::INFINITY,
             }
         });
         best
     }
-}
 
-impl MeshBvh {
     /// Whether any triangle meets the ray with `t` in `(t_min, t_max)`: a shadow ray, which
     /// stops at the first hit instead of looking for the closest.
     pub fn occluded(
@@ -105,13 +96,33 @@ impl MeshBvh {
         }
         let ray = Ray::new(ovec(o), ovec(d), t_min, t_max);
         !self.bvh.ray_traverse_miss(ray, |ray, slot| {
-            let i = self.bvh.primitive_indices[slot] as usize;
-            let [a, b, c] = tris[i].map(|k| p[k as usize]);
-            match ray_triangle(o, d, a, b, c) {
-                Some((t, _, _)) if t > t_min && t < ray.tmax => t,
-                _ => f32::INFINITY,
-            }
+            self.slot_hit(p, tris, (o, d), (t_min, ray.tmax), slot)
+                .map_or(f32::INFINITY, |h| h.t)
         })
+    }
+
+    /// The hit of ray `(o, d)` on the triangle in BVH primitive slot `slot`, with `t` in
+    /// `(t_min, t_max)`: what both traversals test at a leaf.
+    #[inline(always)]
+    fn slot_hit(
+        &self,
+        p: &[Vec3],
+        tris: &[[u32; 3]],
+        (o, d): (Vec3, Vec3),
+        (t_min, t_max): (f32, f32),
+        slot: usize,
+    ) -> Option<TriangleHit> {
+        let i = self.bvh.primitive_indices[slot] as usize;
+        let [a, b, c] = tris[i].map(|k| p[k as usize]);
+        match ray_triangle(o, d, a, b, c) {
+            Some((t, u, v)) if t > t_min && t < t_max => Some(TriangleHit {
+                t,
+                triangle: i,
+                u,
+                v,
+            }),
+            _ => None,
+        }
     }
 }
 
