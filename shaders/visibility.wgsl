@@ -1,13 +1,16 @@
-// envis — shadow rays on the GPU: any-hit traversal of a flattened BVH2 (twin of
+// envis — shadow rays on the GPU: any-hit traversal of a flattened two-level BVH2 (twin of
 // visibility::FlatBvh::occluded, step for step) and Möller–Trumbore (visibility::ray_triangle).
-// The including module declares `bvh_nodes` and `bvh_triangles` (laid out as FlatBvh).
+// The including module declares `bvh_nodes` and `bvh_triangles` (laid out as FlatBvh: the top
+// level over instances first, then each mesh's BVH in object space; the instance records, the
+// rows of object_from_world, come first in bvh_triangles).
 
 struct BvhNode {
     min: vec3<f32>,
-    // Inner node: the first child (the second follows it); leaf: the first triangle.
+    // Inner node: the first child (the second follows it); mesh leaf: the first triangle;
+    // top-level leaf: the instance record.
     first: u32,
     max: vec3<f32>,
-    // 0: inner node; otherwise the leaf's triangle count.
+    // 0: inner node; mesh leaf: its triangle count; top-level leaf: its mesh's root node.
     count: u32,
 }
 
@@ -63,14 +66,50 @@ fn ray_triangle(o: vec3<f32>, d: vec3<f32>, a: vec3<f32>, b: vec3<f32>, c: vec3<
     return dot(e2, q) * inv;
 }
 
-// Whether any triangle meets the ray with t in (t_min, t_max).
+// visibility::ObjectFromWorld::point / vector.
+fn to_object(m: array<vec4<f32>, 3>, p: vec3<f32>, w: f32) -> vec3<f32> {
+    return vec3(dot(m[0].xyz, p) + m[0].w * w, dot(m[1].xyz, p) + m[1].w * w, dot(m[2].xyz, p) + m[2].w * w);
+}
+
+fn safe_inverse3(d: vec3<f32>) -> vec3<f32> {
+    return vec3(safe_inverse(d.x), safe_inverse(d.y), safe_inverse(d.z));
+}
+
+// Whether any triangle meets the ray with t in (t_min, t_max): the top level, and at each
+// instance its mesh with the ray in object space (t is the same in both).
 fn bvh_occluded(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, node_count: u32) -> bool {
     if (node_count == 0u) {
         return false;
     }
-    let inv = vec3(safe_inverse(d.x), safe_inverse(d.y), safe_inverse(d.z));
+    let inv = safe_inverse3(d);
     var stack: array<u32, BVH_STACK_SIZE>;
     stack[0] = 0u;
+    var sp = 1u;
+    while (sp > 0u) {
+        sp -= 1u;
+        let n = bvh_nodes[stack[sp]];
+        if (!bvh_slab(n, o, inv, t_max)) {
+            continue;
+        }
+        if (n.count > 0u) {
+            let m = bvh_triangles[n.first];
+            if (blas_occluded(n.count, to_object(m, o, 1.0), to_object(m, d, 0.0), t_min, t_max)) {
+                return true;
+            }
+        } else if (sp + 2u <= BVH_STACK_SIZE) {
+            stack[sp] = n.first + 1u;
+            stack[sp + 1u] = n.first;
+            sp += 2u;
+        }
+    }
+    return false;
+}
+
+// One mesh's BVH from its root, the ray in its object space.
+fn blas_occluded(root: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32) -> bool {
+    let inv = safe_inverse3(d);
+    var stack: array<u32, BVH_STACK_SIZE>;
+    stack[0] = root;
     var sp = 1u;
     while (sp > 0u) {
         sp -= 1u;

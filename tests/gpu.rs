@@ -214,15 +214,17 @@ fn assert_cubes_close(what: &str, got: &CubeMap, want: &CubeMap) {
 }
 
 /// Shadow rays on the GPU (`visibility.wgsl`) against their CPU twin (`FlatBvh::occluded`):
-/// 20,000 rays on the bunny on a plane, half of them shadow rays leaving the plane. A ray may
-/// differ only where it grazes a triangle edge (the GPU may fuse multiply-adds): at most 0.1%.
+/// 20,000 rays on the bunny on a plane, half of them shadow rays leaving the plane; once as one
+/// mesh in world space, once as four placements of the bunny (one scaled non-uniformly) and a
+/// plane under a top level. A ray may differ only where it grazes a triangle edge (the GPU may
+/// fuse multiply-adds): at most 0.1%.
 #[test]
 fn gpu_shadow_rays_match_cpu() {
     use envis::gpu::visibility::{GpuBvh, ShadowRay};
     let Some(ctx) = gpu() else { return };
     let (mesh, rays) = support::bunny_on_plane_rays();
     let bvh = envis::visibility::MeshBvh::build(&mesh.positions, &mesh.indices);
-    let flat = bvh.flatten(&mesh.positions, &mesh.indices).unwrap();
+    let one = bvh.flatten(&mesh.positions, &mesh.indices).unwrap();
     let rays: Vec<ShadowRay> = rays
         .into_iter()
         .map(|(o, d)| ShadowRay {
@@ -232,26 +234,31 @@ fn gpu_shadow_rays_match_cpu() {
             t_max: f32::MAX,
         })
         .collect();
-    let got = GpuBvh::new(ctx, &flat).trace(ctx, &rays).unwrap();
-    let (mut differ, mut blocked) = (0, 0);
-    for (r, g) in rays.iter().zip(&got) {
-        let want = flat.occluded(r.o, r.d, r.t_min, r.t_max);
-        differ += (want != *g) as usize;
-        blocked += want as usize;
+    for (what, flat) in [
+        ("one mesh", one),
+        ("instances", support::instanced_bunnies(0.35).flat),
+    ] {
+        let got = GpuBvh::new(ctx, &flat).trace(ctx, &rays).unwrap();
+        let (mut differ, mut blocked) = (0, 0);
+        for (r, g) in rays.iter().zip(&got) {
+            let want = flat.occluded(r.o, r.d, r.t_min, r.t_max);
+            differ += (want != *g) as usize;
+            blocked += want as usize;
+        }
+        eprintln!(
+            "shadow rays, {what}: {blocked} of {} blocked, {differ} differ",
+            rays.len()
+        );
+        assert!(
+            blocked > 2_000,
+            "{what}: only {blocked} rays blocked: the scene is not in the rays' way"
+        );
+        assert!(
+            differ * 1000 <= rays.len(),
+            "{what}: {differ} of {} rays differ",
+            rays.len()
+        );
     }
-    eprintln!(
-        "shadow rays: {blocked} of {} blocked, {differ} differ",
-        rays.len()
-    );
-    assert!(
-        blocked > 2_000,
-        "only {blocked} rays blocked: the scene is not in the rays' way"
-    );
-    assert!(
-        differ * 1000 <= rays.len(),
-        "{differ} of {} rays differ",
-        rays.len()
-    );
     // An empty BVH blocks nothing.
     let empty = GpuBvh::new(ctx, &envis::visibility::FlatBvh::default());
     assert!(empty.trace(ctx, &rays[..10]).unwrap().iter().all(|b| !b));
@@ -264,7 +271,6 @@ fn gpu_shadow_rays_match_cpu() {
 #[test]
 fn gpu_shadows_match_cpu_same_seed() {
     use envis::gpu::visibility::GpuBvh;
-    use envis::scene::Shape;
     let Some(ctx) = gpu() else { return };
     let dir = std::env::temp_dir().join(format!("envis-gpu-shadows-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -275,30 +281,9 @@ fn gpu_shadows_match_cpu_same_seed() {
     )
     .unwrap();
     let sc = envis::scene::Scene::load(&path).unwrap();
-    // The traced geometry: the torus's triangles and the plane as two triangles.
-    let mut soup = envis::scene::TriMesh::default();
-    for o in &sc.objects {
-        let base = soup.positions.len() as u32;
-        match &o.shape {
-            Shape::Mesh(m) => {
-                soup.positions.extend(&m.positions);
-                soup.indices
-                    .extend(m.indices.iter().map(|t| t.map(|v| v + base)));
-            }
-            Shape::Plane {
-                center, u, v, half, ..
-            } => {
-                for (a, b) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
-                    soup.positions.push(*center + (*u * a + *v * b) * *half);
-                }
-                soup.indices
-                    .extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
-            }
-            Shape::Sphere { .. } => unreachable!("no sphere in this scene"),
-        }
-    }
-    let bvh = envis::visibility::MeshBvh::build(&soup.positions, &soup.indices);
-    let flat = bvh.flatten(&soup.positions, &soup.indices).unwrap();
+    // The traced geometry, two-level: the torus's mesh and the unit square, each placed once.
+    let flat = sc.shadow_bvh().unwrap();
+    assert_eq!((flat.instances(), flat.tlas_nodes()), (2, 3));
     let size = 40;
     let (gbuf, points) = sc.gbuffer_points(size, size);
     let map = load_env(&EnvSource::Sky { hours: 15.0 }, 16).unwrap().cube;

@@ -215,8 +215,13 @@ pub struct Counters {
     /// transparent ones, at the last look ([`coverage::warn_forward_meshes`]; gauges).
     pub forward_meshes: AtomicU64,
     pub transparent_meshes: AtomicU64,
-    /// Shadow-ray BVHs built from the scene's meshes (once for a static scene).
+    /// Shadow-ray BVHs built from mesh assets (once per mesh asset, however often it is
+    /// placed; again only when the asset changes).
     pub shadow_bvh_builds: AtomicU64,
+    /// Top levels over the placed meshes built anew (meshes came, went or changed; once for a
+    /// static scene) and refitted (meshes only moved).
+    pub shadow_tlas_builds: AtomicU64,
+    pub shadow_tlas_refits: AtomicU64,
     /// Lighting passes recorded (one per camera per frame).
     pub lighting_passes: AtomicU64,
     /// Lighting passes that ran an overlay (the overlay is a branch of the lighting pass: with

@@ -97,7 +97,10 @@ pub fn spawn_scene_objects(
                     Transform::from_translation(*center).with_rotation(rot),
                 )
             }
-            Shape::Mesh(m) => (meshes.add(bevy_mesh(m)), Transform::IDENTITY),
+            Shape::Mesh(m) => (
+                meshes.add(bevy_mesh(&m.mesh)),
+                Transform::from_matrix(Mat4::from(m.world_from_object)),
+            ),
         };
         spawn_object(commands, materials, &o.name, mesh, material, transform);
     }

@@ -1,29 +1,37 @@
-//! `EnvironmentShadowsPlugin`: shadow rays in the Bevy pass. The main world gathers the meshes
-//! that cast shadows (every visible `Mesh3d` without `NotShadowCaster`), in world space, into
-//! one BVH (`obvhs`, flattened as the GPU reads it: `visibility::FlatBvh`) whenever a mesh is
-//! added, moved, changed or removed; the render world uploads it to two storage buffers, and the
-//! lighting pass traverses it (`shaders/visibility.wgsl`) for every light and BRDF sample of a
-//! camera whose `EnvironmentSampling::shadows` is on. The geometry traced is the geometry
-//! rasterised (a tessellated sphere is traced as its triangles).
+//! `EnvironmentShadowsPlugin`: shadow rays in the Bevy pass. The main world keeps one BVH per
+//! shadow-casting mesh asset, in object space, built once (`visibility::MeshBvh`, flattened as
+//! the GPU reads it), and a top-level BVH over the placed meshes (every visible `Mesh3d` without
+//! `NotShadowCaster`, through its `GlobalTransform`). When meshes come, go or change, the top
+//! level is built anew and everything uploaded; when they only move, the top level is refitted
+//! and only it and the instance records are rewritten. The lighting pass traverses both levels
+//! (`shaders/visibility.wgsl`) for every light and BRDF sample of a camera whose
+//! `EnvironmentSampling::shadows` is on. The geometry traced is the geometry rasterised (a
+//! tessellated sphere is traced as its triangles).
 
 use super::components::EnvironmentSampling;
 use super::{Counters, EnvisCounters};
-use crate::visibility::{FlatBvh, MeshBvh, Visibility};
+use crate::visibility::{
+    Bounds, FlatBlas, FlatBvh, FlatInstance, MeshBvh, ObjectFromWorld, Tlas, Visibility,
+    world_bounds,
+};
 use bevy::light::NotShadowCaster;
 use bevy::mesh::{Indices, PrimitiveTopology};
+use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 use bevy::render::extract_resource::{ExtractResource, ExtractResourcePlugin};
-use bevy::render::renderer::RenderDevice;
+use bevy::render::renderer::{RenderDevice, RenderQueue};
 use bevy::render::{Render, RenderApp, RenderSystems};
 use std::sync::Arc;
 
 /// The shadow-casting geometry of the main world, flattened (extracted to the render world).
 #[derive(Resource, Clone, Default, ExtractResource)]
 pub struct ShadowGeometry {
-    /// Changes exactly when the geometry does.
+    /// Changes when meshes or the set of instances change (everything is uploaded).
     pub generation: u64,
-    pub bvh: Arc<FlatBvh>,
-    /// Triangles in it.
+    /// Changes when instances moved (the top part is rewritten).
+    pub placement: u64,
+    pub bvh: FlatBvh,
+    /// Triangles placed (a mesh counts once per instance).
     pub triangles: usize,
 }
 
@@ -39,10 +47,23 @@ impl ShadowGeometry {
     }
 }
 
+/// The main world's side: each mesh asset's flattened BVH, and the instances in the order the
+/// top level was built over them.
+#[derive(Resource, Default)]
+pub struct ShadowScene {
+    meshes: HashMap<AssetId<Mesh>, Arc<FlatBlas>>,
+    instances: Vec<Entity>,
+    placed: Vec<FlatInstance>,
+    /// Each instance's mesh bounds (object space).
+    object_bounds: Vec<Bounds>,
+    tlas: Tlas,
+}
+
 /// The geometry on the GPU (render world).
 #[derive(Resource)]
 pub struct GpuShadowGeometry {
     pub generation: u64,
+    pub placement: u64,
     pub nodes: wgpu::Buffer,
     pub triangles: wgpu::Buffer,
     pub node_count: u32,
@@ -54,6 +75,7 @@ impl Plugin for EnvironmentShadowsPlugin {
     fn build(&self, app: &mut App) {
         super::share_resources(app);
         app.init_resource::<ShadowGeometry>()
+            .init_resource::<ShadowScene>()
             .add_plugins(ExtractResourcePlugin::<ShadowGeometry>::default())
             .add_systems(
                 PostUpdate,
@@ -74,6 +96,7 @@ type Casters<'w, 's> = Query<
     'w,
     's,
     (
+        Entity,
         &'static Mesh3d,
         &'static GlobalTransform,
         &'static InheritedVisibility,
@@ -81,15 +104,24 @@ type Casters<'w, 's> = Query<
     Without<NotShadowCaster>,
 >;
 
-/// A mesh moved, was swapped, or was shown or hidden.
-type CasterChanged = Or<(
-    Changed<GlobalTransform>,
-    Changed<Mesh3d>,
-    Changed<InheritedVisibility>,
-)>;
+/// A mesh was swapped, or shown or hidden.
+type CasterChanged = Or<(Changed<Mesh3d>, Changed<InheritedVisibility>)>;
 
-/// Rebuild the BVH when a shadow-casting mesh came, went, moved or changed (and only then, and
-/// only while some camera samples the environment).
+/// A shadow-casting mesh moved.
+type CasterMoved = (Without<NotShadowCaster>, Changed<GlobalTransform>);
+
+/// What changed since the last look.
+#[derive(Clone, Copy, PartialEq, Debug)]
+enum Change {
+    None,
+    /// Instances moved: refit the top level.
+    Moved,
+    /// Meshes or instances came, went or changed: build the top level anew.
+    Structure,
+}
+
+/// Keep the geometry up to date, only while some camera samples the environment: build a
+/// mesh's BVH once, the top level when instances come or go, and refit it when they move.
 #[allow(
     clippy::too_many_arguments,
     reason = "a Bevy system's parameters are the data it touches"
@@ -98,7 +130,10 @@ pub fn gather_shadow_geometry(
     cameras: Query<(), With<EnvironmentSampling>>,
     new_cameras: Query<(), Added<EnvironmentSampling>>,
     casters: Casters,
-    changed: Query<(), (With<Mesh3d>, CasterChanged)>,
+    (changed, moved): (
+        Query<(), (With<Mesh3d>, CasterChanged)>,
+        Query<(), (With<Mesh3d>, CasterMoved)>,
+    ),
     mut removed: RemovedComponents<Mesh3d>,
     // Meshes that started or stopped casting shadows.
     (opted_out, mut opted_in): (
@@ -107,91 +142,183 @@ pub fn gather_shadow_geometry(
     ),
     mut events: MessageReader<AssetEvent<Mesh>>,
     meshes: Res<Assets<Mesh>>,
-    mut geometry: ResMut<ShadowGeometry>,
+    (mut scene, mut geometry): (ResMut<ShadowScene>, ResMut<ShadowGeometry>),
     counters: Res<EnvisCounters>,
 ) {
+    let mut assets_changed = false;
+    for e in events.read() {
+        if let AssetEvent::Modified { id } | AssetEvent::Removed { id } = e {
+            scene.meshes.remove(id);
+        }
+        assets_changed = true;
+    }
     // A first envis camera in a scene that has not changed since needs the geometry too.
-    let dirty = !changed.is_empty()
+    let structure = !changed.is_empty()
         | (!new_cameras.is_empty() && geometry.generation == 0)
         | !opted_out.is_empty()
         | (opted_in.read().count() > 0)
         | (removed.read().count() > 0)
-        | (events.read().count() > 0);
-    if !dirty || cameras.is_empty() {
+        | assets_changed;
+    let change = match (structure, moved.is_empty()) {
+        (true, _) => Change::Structure,
+        (false, false) => Change::Moved,
+        (false, true) => Change::None,
+    };
+    if change == Change::None || cameras.is_empty() {
         return;
     }
-    let (mut positions, mut tris) = (Vec::new(), Vec::new());
-    for (mesh, transform, visible) in &casters {
-        if visible.get()
-            && let Some(m) = meshes.get(&mesh.0)
-        {
-            append_triangles(m, &transform.affine(), &mut positions, &mut tris);
-        }
+    if change == Change::Moved && refit(&mut scene, &mut geometry, &casters) {
+        counters.bump(|c: &Counters| &c.shadow_tlas_refits);
+        return;
     }
-    let bvh = MeshBvh::build(&positions, &tris);
-    let flat = match bvh.flatten(&positions, &tris) {
-        Ok(f) => f,
-        Err(e) => {
-            error!("envis: no shadows: {e}");
-            FlatBvh::default()
-        }
-    };
-    *geometry = ShadowGeometry {
-        generation: geometry.generation + 1,
-        bvh: Arc::new(flat),
-        triangles: tris.len(),
-    };
-    counters.bump(|c: &Counters| &c.shadow_bvh_builds);
+    rebuild(&mut scene, &mut geometry, &casters, &meshes, &counters);
 }
 
-/// The triangles of `mesh` in world space (triangle lists with float positions; anything else,
-/// or a mesh whose data lives only in the render world, adds nothing).
-fn append_triangles(
-    mesh: &Mesh,
-    world: &bevy::math::Affine3A,
-    positions: &mut Vec<Vec3>,
-    tris: &mut Vec<[u32; 3]>,
+/// Build the top level over every visible caster whose mesh is loaded (and each new mesh's BVH).
+fn rebuild(
+    scene: &mut ShadowScene,
+    geometry: &mut ShadowGeometry,
+    casters: &Casters,
+    meshes: &Assets<Mesh>,
+    counters: &EnvisCounters,
 ) {
+    let mut used: HashMap<AssetId<Mesh>, usize> = HashMap::default();
+    let mut blases: Vec<Arc<FlatBlas>> = Vec::new();
+    let (mut instances, mut placed) = (Vec::new(), Vec::new());
+    let (mut object_bounds, mut bounds) = (Vec::new(), Vec::new());
+    let mut triangles = 0;
+    for (entity, mesh, transform, visible) in casters {
+        let id = mesh.id();
+        let Some(m) = meshes.get(id).filter(|_| visible.get()) else {
+            continue;
+        };
+        let blas = scene
+            .meshes
+            .entry(id)
+            .or_insert_with(|| {
+                counters.bump(|c: &Counters| &c.shadow_bvh_builds);
+                Arc::new(mesh_blas(m))
+            })
+            .clone();
+        let Some((b, to_object)) = blas.bounds.zip(ObjectFromWorld::new(transform.affine())) else {
+            continue; // no triangles, or a zero scale
+        };
+        let k = *used.entry(id).or_insert_with(|| {
+            blases.push(blas.clone());
+            blases.len() - 1
+        });
+        triangles += blas.triangles.len();
+        instances.push(entity);
+        placed.push(FlatInstance { blas: k, to_object });
+        object_bounds.push(b);
+        bounds.push(world_bounds(b, &transform.affine()));
+    }
+    scene.meshes.retain(|id, _| used.contains_key(id));
+    let tlas = Tlas::build(&bounds);
+    let bvh = FlatBvh::build(&blases, &placed, &tlas).unwrap_or_else(|e| {
+        error!("envis: no shadows: {e}");
+        FlatBvh::default()
+    });
+    (scene.instances, scene.placed) = (instances, placed);
+    (scene.object_bounds, scene.tlas) = (object_bounds, tlas);
+    *geometry = ShadowGeometry {
+        generation: geometry.generation + 1,
+        placement: geometry.placement + 1,
+        bvh,
+        triangles,
+    };
+    counters.bump(|c: &Counters| &c.shadow_tlas_builds);
+}
+
+/// Instances moved: their new transforms into the records, the top level refitted. `false`
+/// when that cannot be done (an instance is gone or lost its inverse): build anew instead.
+fn refit(scene: &mut ShadowScene, geometry: &mut ShadowGeometry, casters: &Casters) -> bool {
+    let mut bounds: Vec<Bounds> = Vec::with_capacity(scene.instances.len());
+    for (i, &entity) in scene.instances.iter().enumerate() {
+        let Ok((_, _, transform, _)) = casters.get(entity) else {
+            return false;
+        };
+        let Some(to_object) = ObjectFromWorld::new(transform.affine()) else {
+            return false;
+        };
+        scene.placed[i].to_object = to_object;
+        bounds.push(world_bounds(scene.object_bounds[i], &transform.affine()));
+    }
+    if !scene.tlas.refit(&bounds) || geometry.bvh.place(&scene.placed, &scene.tlas).is_err() {
+        return false;
+    }
+    geometry.placement += 1;
+    true
+}
+
+/// The BVH of `mesh` in object space, flattened (triangle lists with float positions; anything
+/// else, or a mesh whose data lives only in the render world, has no triangles).
+fn mesh_blas(mesh: &Mesh) -> FlatBlas {
+    let (positions, tris) = mesh_triangles(mesh);
+    MeshBvh::build(&positions, &tris)
+        .flat_blas(&positions, &tris)
+        .unwrap_or_else(|e| {
+            error!("envis: a mesh casts no shadow: {e}");
+            FlatBlas::default()
+        })
+}
+
+fn mesh_triangles(mesh: &Mesh) -> (Vec<Vec3>, Vec<[u32; 3]>) {
     if mesh.primitive_topology() != PrimitiveTopology::TriangleList {
-        return;
+        return Default::default();
     }
     let Ok(Some(p)) = mesh.try_attribute_option(Mesh::ATTRIBUTE_POSITION) else {
-        return;
+        return Default::default();
     };
-    let Some(p) = p.as_float3() else { return };
-    let base = positions.len() as u32;
-    positions.extend(p.iter().map(|v| world.transform_point3(Vec3::from(*v))));
+    let Some(p) = p.as_float3() else {
+        return Default::default();
+    };
+    let positions: Vec<Vec3> = p.iter().map(|v| Vec3::from(*v)).collect();
     let n = p.len() as u32;
     let index: Vec<u32> = match mesh.try_indices_option() {
         Ok(Some(Indices::U16(v))) => v.iter().map(|&i| i as u32).collect(),
         Ok(Some(Indices::U32(v))) => v.clone(),
         _ => (0..n).collect(),
     };
-    tris.extend(
-        index
-            .chunks_exact(3)
-            .filter(|t| t.iter().all(|&i| i < n))
-            .map(|t| [t[0] + base, t[1] + base, t[2] + base]),
-    );
+    let tris = index
+        .chunks_exact(3)
+        .filter(|t| t.iter().all(|&i| i < n))
+        .map(|t| [t[0], t[1], t[2]])
+        .collect();
+    (positions, tris)
 }
 
-/// Upload the geometry when its generation changed.
+/// Upload the geometry when it changed: everything for a new generation, the top part when
+/// instances only moved.
 pub fn upload_shadow_geometry(
     mut commands: Commands,
     geometry: Option<Res<ShadowGeometry>>,
-    gpu: Option<Res<GpuShadowGeometry>>,
+    gpu: Option<ResMut<GpuShadowGeometry>>,
     device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
 ) {
     let Some(geometry) = geometry else { return };
-    if gpu.is_some_and(|g| g.generation == geometry.generation) {
-        return;
+    match gpu {
+        Some(mut g) if g.generation == geometry.generation => {
+            if g.placement != geometry.placement {
+                crate::gpu::visibility::write_top(
+                    &queue,
+                    (&g.nodes, &g.triangles),
+                    &geometry.bvh.top,
+                );
+                g.placement = geometry.placement;
+            }
+        }
+        _ => {
+            let (nodes, triangles) =
+                crate::gpu::visibility::upload_bvh(device.wgpu_device(), &geometry.bvh);
+            commands.insert_resource(GpuShadowGeometry {
+                generation: geometry.generation,
+                placement: geometry.placement,
+                nodes,
+                triangles,
+                node_count: geometry.bvh.tlas_nodes() as u32,
+            });
+        }
     }
-    let (nodes, triangles) =
-        crate::gpu::visibility::upload_bvh(device.wgpu_device(), &geometry.bvh);
-    commands.insert_resource(GpuShadowGeometry {
-        generation: geometry.generation,
-        nodes,
-        triangles,
-        node_count: geometry.bvh.nodes.len() as u32,
-    });
 }

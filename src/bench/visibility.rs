@@ -103,7 +103,7 @@ fn scene_row(name: &str, sc: &Scene, w: usize, h: usize, repeat: usize) -> Resul
         .objects
         .iter()
         .map(|o| match &o.shape {
-            Shape::Mesh(m) => m.indices.len(),
+            Shape::Mesh(m) => m.mesh.indices.len(),
             _ => 0,
         })
         .sum();

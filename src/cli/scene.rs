@@ -72,7 +72,7 @@ impl Setup {
     pub fn occluders(&self) -> envis::scene::shadows::Occluders<'_> {
         match &self.scene {
             Some(sc) => sc.occluders(),
-            None => envis::scene::shadows::Occluders(vec![&UNIT_SPHERE]),
+            None => envis::scene::shadows::Occluders::new(vec![&UNIT_SPHERE]),
         }
     }
 }

@@ -5,7 +5,7 @@
 
 use super::{GpuContext, compute_pipeline, shaders};
 use crate::error::Result;
-use crate::visibility::FlatBvh;
+use crate::visibility::{FlatBvh, FlatTop};
 use glam::Vec3;
 use wgpu::util::DeviceExt;
 
@@ -28,16 +28,33 @@ pub struct GpuBvh {
 }
 
 /// Upload a flattened BVH: its node and triangle storage buffers (the layout `visibility.wgsl`
-/// reads). Shared by [`GpuBvh`] and the Bevy pass's shadow geometry.
+/// reads: each the top part, then the meshes'). Shared by [`GpuBvh`] and the Bevy pass's shadow
+/// geometry.
 pub fn upload_bvh(device: &wgpu::Device, bvh: &FlatBvh) -> (wgpu::Buffer, wgpu::Buffer) {
+    let cat = |a: &[u8], b: &[u8]| [a, b].concat();
+    let nodes = cat(
+        bytemuck::cast_slice(&bvh.top.nodes),
+        bytemuck::cast_slice(&bvh.meshes.nodes),
+    );
+    let triangles = cat(
+        bytemuck::cast_slice(&bvh.top.records),
+        bytemuck::cast_slice(&bvh.meshes.triangles),
+    );
     (
-        storage_init(device, "envis bvh nodes", bytemuck::cast_slice(&bvh.nodes)),
-        storage_init(
-            device,
-            "envis bvh triangles",
-            bytemuck::cast_slice(&bvh.triangles),
-        ),
+        storage_init(device, "envis bvh nodes", &nodes),
+        storage_init(device, "envis bvh triangles", &triangles),
     )
+}
+
+/// Instances moved: rewrite the top part of buffers [`upload_bvh`] made for the same instances
+/// (the meshes' part, after it, stays).
+pub fn write_top(
+    queue: &wgpu::Queue,
+    (nodes, triangles): (&wgpu::Buffer, &wgpu::Buffer),
+    top: &FlatTop,
+) {
+    queue.write_buffer(nodes, 0, bytemuck::cast_slice(&top.nodes));
+    queue.write_buffer(triangles, 0, bytemuck::cast_slice(&top.records));
 }
 
 fn storage_init(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
@@ -47,7 +64,8 @@ fn storage_init(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffe
     device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some(label),
         contents: if bytes.is_empty() { &zeros } else { bytes },
-        usage: wgpu::BufferUsages::STORAGE,
+        // COPY_DST: the top part is rewritten in place when instances move (`write_top`).
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
     })
 }
 
@@ -91,7 +109,7 @@ impl GpuBvh {
         GpuBvh {
             nodes,
             triangles,
-            node_count: bvh.nodes.len() as u32,
+            node_count: bvh.tlas_nodes() as u32,
             layout,
             pipeline,
         }

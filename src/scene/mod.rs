@@ -29,14 +29,18 @@
 
 mod glb;
 pub mod shadows;
+mod shapes;
 
 use crate::error::{Error, Result};
 use crate::render::{GPixel, Settings, Strategy};
 use crate::sampling::{Counts, Heuristic, Lobe, Material};
-use glam::{EulerRot, Mat3, Quat, Vec3};
+use glam::{Affine3A, EulerRot, Mat3, Quat, Vec3};
 pub use glb::{load_glb, parse_glb};
 use serde::Deserialize;
+pub use shapes::{MeshInstance, Shape, TriMesh, sphere_mesh, square_mesh, torus_mesh};
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -189,34 +193,6 @@ pub struct Object {
     pub spec: ObjectSpec,
 }
 
-#[derive(Clone, Debug)]
-pub enum Shape {
-    Sphere {
-        center: Vec3,
-        radius: f32,
-    },
-    /// A square of side `size` on the plane through `center` with normal `normal`.
-    Plane {
-        center: Vec3,
-        normal: Vec3,
-        u: Vec3,
-        v: Vec3,
-        half: f32,
-    },
-    /// World-space triangles with per-vertex normals.
-    Mesh(TriMesh),
-}
-
-#[derive(Clone, Debug, Default)]
-pub struct TriMesh {
-    pub positions: Vec<Vec3>,
-    pub normals: Vec<Vec3>,
-    pub indices: Vec<[u32; 3]>,
-    /// Built on the first ray cast (the mesh is complete and placed by then); a change to the
-    /// mesh after that must go through a method that clears it, like [`TriMesh::transformed`].
-    bvh: std::sync::OnceLock<crate::visibility::MeshBvh>,
-}
-
 /// A loaded scene.
 #[derive(Clone, Debug)]
 pub struct Scene {
@@ -226,6 +202,8 @@ pub struct Scene {
     pub settings: Settings,
     /// The environment source, resolved relative to the scene file.
     pub environment: String,
+    /// The top level over every object, for the G-buffer's rays.
+    tlas: crate::visibility::Tlas,
 }
 
 fn err(path: &Path, msg: impl Into<String>) -> Error {
@@ -270,6 +248,8 @@ impl Scene {
         };
         let settings = sampling_settings(path, &file.sampling)?;
         let mut objects = Vec::new();
+        // One mesh per asset (a glTF file, a torus's radii), however often it is placed.
+        let mut meshes: HashMap<String, Arc<TriMesh>> = HashMap::new();
         for (i, o) in file.objects.iter().enumerate() {
             let at = |field: &str| {
                 format!(
@@ -290,6 +270,18 @@ impl Scene {
             if !(o.scale.is_finite() && o.scale > 0.0) {
                 return Err(err(path, format!("{}: must be > 0", at("scale"))));
             }
+            let world = Affine3A::from_scale_rotation_translation(Vec3::splat(o.scale), rot, pos);
+            // A scale too small for f32 to invert (1e-39) is refused, not placed.
+            let place = |mesh| {
+                MeshInstance::new(mesh, world)
+                    .map(Shape::Mesh)
+                    .ok_or_else(|| {
+                        err(
+                            path,
+                            format!("{}: {} cannot be inverted", at("scale"), o.scale),
+                        )
+                    })
+            };
             let shape = match o.shape.as_str() {
                 "sphere" => Shape::Sphere {
                     center: pos,
@@ -305,20 +297,31 @@ impl Scene {
                         half: 0.5 * o.size.unwrap_or(10.0) * o.scale,
                     }
                 }
-                "torus" => Shape::Mesh(
-                    torus_mesh(
+                "torus" => {
+                    let (major, minor) = (
                         o.major_radius.unwrap_or(0.9),
                         o.minor_radius.unwrap_or(0.45),
-                        64,
-                        32,
-                    )
-                    .transformed(rot, pos, o.scale),
-                ),
+                    );
+                    let key = format!("torus {major} {minor}");
+                    let mesh = match meshes.get(&key) {
+                        Some(m) => m.clone(),
+                        None => Arc::new(torus_mesh(major, minor, 64, 32)),
+                    };
+                    meshes.insert(key, mesh.clone());
+                    place(mesh)?
+                }
                 "gltf" => {
                     let p = o.path.as_deref().ok_or_else(|| {
                         err(path, format!("{}: a gltf object needs a path", at("path")))
                     })?;
-                    Shape::Mesh(load_glb(&resolve(p))?.transformed(rot, pos, o.scale))
+                    let file = resolve(p);
+                    let key = format!("gltf {}", file.display());
+                    let mesh = match meshes.get(&key) {
+                        Some(m) => m.clone(),
+                        None => Arc::new(load_glb(&file)?),
+                    };
+                    meshes.insert(key, mesh.clone());
+                    place(mesh)?
                 }
                 other => {
                     return Err(err(
@@ -343,9 +346,11 @@ impl Scene {
         if objects.is_empty() {
             return Err(err(path, "no [[object]] in the scene"));
         }
+        let bounds: Vec<_> = objects.iter().map(|o: &Object| o.shape.bounds()).collect();
         Ok(Scene {
             path: path.to_path_buf(),
             file,
+            tlas: crate::visibility::Tlas::build(&bounds),
             objects,
             settings,
             environment,
@@ -397,15 +402,15 @@ impl Scene {
 
     /// [`Self::trace`] with the hit distance.
     pub fn trace_hit(&self, o: Vec3, d: Vec3) -> Option<(f32, Vec3, Material)> {
-        let mut best = f32::INFINITY;
-        let mut hit = None;
-        for obj in &self.objects {
-            if let Some((t, n)) = obj.shape.intersect(o, d, best) {
-                best = t;
-                hit = Some((t, if n.dot(d) > 0.0 { -n } else { n }, obj.material));
-            }
-        }
-        hit
+        let (i, (t, n)) = self.tlas.closest(o, d, f32::INFINITY, |i, t_max| {
+            let hit = self.objects[i].shape.intersect(o, d, t_max)?;
+            Some((hit.0, hit))
+        })?;
+        Some((
+            t,
+            if n.dot(d) > 0.0 { -n } else { n },
+            self.objects[i].material,
+        ))
     }
 }
 
@@ -476,143 +481,4 @@ pub fn material(m: &MaterialSpec) -> std::result::Result<Material, String> {
         }
         other => return Err(format!("unknown type '{other}' (diffuse, phong, ggx, mix)")),
     })
-}
-
-impl Shape {
-    /// Nearest intersection with `t` in `(1e-4, t_max)`: distance and geometric / shading normal.
-    pub fn intersect(&self, o: Vec3, d: Vec3, t_max: f32) -> Option<(f32, Vec3)> {
-        match self {
-            Shape::Sphere { center, radius } => {
-                let oc = o - *center;
-                let b = oc.dot(d);
-                let c = oc.length_squared() - radius * radius;
-                let disc = b * b - c;
-                if disc < 0.0 {
-                    return None;
-                }
-                let s = disc.sqrt();
-                let t = if -b - s > 1e-4 { -b - s } else { -b + s };
-                (t > 1e-4 && t < t_max).then(|| (t, (o + d * t - *center) / *radius))
-            }
-            Shape::Plane {
-                center,
-                normal,
-                u,
-                v,
-                half,
-            } => {
-                let den = normal.dot(d);
-                if den.abs() < 1e-9 {
-                    return None;
-                }
-                let t = normal.dot(*center - o) / den;
-                if !(t > 1e-4 && t < t_max) {
-                    return None;
-                }
-                let p = o + d * t - *center;
-                (p.dot(*u).abs() <= *half && p.dot(*v).abs() <= *half).then_some((t, *normal))
-            }
-            Shape::Mesh(m) => m.intersect(o, d, t_max),
-        }
-    }
-}
-
-impl TriMesh {
-    fn transformed(mut self, rot: Quat, pos: Vec3, scale: f32) -> Self {
-        self.bvh = std::sync::OnceLock::new();
-        for p in &mut self.positions {
-            *p = rot * (*p * scale) + pos;
-        }
-        for n in &mut self.normals {
-            *n = (rot * *n).normalize_or_zero();
-        }
-        self
-    }
-
-    /// The closest hit with `1e-4 < t < t_max` and its interpolated normal, through the mesh's
-    /// BVH (built on first use).
-    pub fn intersect(&self, o: Vec3, d: Vec3, t_max: f32) -> Option<(f32, Vec3)> {
-        let h = self
-            .bvh()
-            .intersect(&self.positions, &self.indices, o, d, 1e-4, t_max)?;
-        Some((h.t, self.normal_at(h.triangle, h.u, h.v)))
-    }
-
-    /// Whether anything meets the ray with `1e-4 < t < t_max` (any hit, through the BVH).
-    pub fn occluded(&self, o: Vec3, d: Vec3, t_max: f32) -> bool {
-        self.bvh()
-            .occluded(&self.positions, &self.indices, o, d, 1e-4, t_max)
-    }
-
-    /// The mesh's BVH, built on first use.
-    fn bvh(&self) -> &crate::visibility::MeshBvh {
-        self.bvh
-            .get_or_init(|| crate::visibility::MeshBvh::build(&self.positions, &self.indices))
-    }
-
-    /// [`Self::intersect`] by testing every triangle in order (after a bounding-sphere test):
-    /// the reference the BVH is tested against.
-    pub fn intersect_brute(&self, o: Vec3, d: Vec3, t_max: f32) -> Option<(f32, Vec3)> {
-        let (c, r) = self.bounds();
-        let oc = o - c;
-        let b = oc.dot(d);
-        if b * b - (oc.length_squared() - r * r) < 0.0 {
-            return None;
-        }
-        let mut best: Option<(f32, usize, f32, f32)> = None;
-        for (i, tri) in self.indices.iter().enumerate() {
-            let [a, bb, cc] = tri.map(|i| self.positions[i as usize]);
-            if let Some((t, u, v)) = crate::visibility::ray_triangle(o, d, a, bb, cc)
-                && t > 1e-4
-                && t < best.map_or(t_max, |b| b.0)
-            {
-                best = Some((t, i, u, v));
-            }
-        }
-        best.map(|(t, i, u, v)| (t, self.normal_at(i, u, v)))
-    }
-
-    /// The interpolated normal of triangle `i` at barycentrics `(u, v)` (the face normal where
-    /// the vertex normals cancel).
-    fn normal_at(&self, i: usize, u: f32, v: f32) -> Vec3 {
-        let tri = self.indices[i];
-        let [a, b, c] = tri.map(|k| self.positions[k as usize]);
-        let [na, nb, nc] = tri.map(|k| self.normals[k as usize]);
-        (na * (1.0 - u - v) + nb * u + nc * v)
-            .normalize_or((b - a).cross(c - a).normalize_or_zero())
-    }
-
-    fn bounds(&self) -> (Vec3, f32) {
-        let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
-        for p in &self.positions {
-            lo = lo.min(*p);
-            hi = hi.max(*p);
-        }
-        let c = 0.5 * (lo + hi);
-        (c, (hi - c).length() + 1e-4)
-    }
-}
-
-/// A torus around +Y: `major` ring radius, `minor` tube radius, `nu x nv` quads.
-pub fn torus_mesh(major: f32, minor: f32, nu: u32, nv: u32) -> TriMesh {
-    let mut m = TriMesh::default();
-    for i in 0..nu {
-        let a = i as f32 / nu as f32 * std::f32::consts::TAU;
-        for j in 0..nv {
-            let b = j as f32 / nv as f32 * std::f32::consts::TAU;
-            let ring = Vec3::new(a.cos(), 0.0, a.sin());
-            let n = ring * b.cos() + Vec3::Y * b.sin();
-            m.positions.push(ring * major + n * minor);
-            m.normals.push(n);
-        }
-    }
-    let idx = |i: u32, j: u32| (i % nu) * nv + (j % nv);
-    for i in 0..nu {
-        for j in 0..nv {
-            let (a, b, c, d) = (idx(i, j), idx(i + 1, j), idx(i + 1, j + 1), idx(i, j + 1));
-            m.indices.push([a, c, b]);
-            m.indices.push([a, d, c]);
-        }
-    }
-    m
 }

@@ -1,16 +1,20 @@
-//! The BVH as the GPU reads it: obvhs's BVH2 nodes flattened to plain arrays (32 bytes a node)
-//! and the triangles reordered into leaf order, with the traversal `shaders/visibility.wgsl`
-//! runs written here in the same order and arithmetic: the CPU twin of the WGSL, and the layout
-//! the GPU buffers are uploaded from.
+//! The two-level BVH as the GPU reads it: obvhs's BVH2 nodes flattened to plain arrays (32
+//! bytes a node), the top level over instances first, then every mesh's BVH in object space with
+//! its triangles in leaf order. The traversal `shaders/visibility.wgsl` runs is written here in the
+//! same order and arithmetic: the CPU twin of the WGSL, and the layout the GPU buffers are
+//! uploaded from.
 
+use super::instances::{Bounds, ObjectFromWorld, Tlas};
 use super::{MeshBvh, ray_triangle};
 use glam::Vec3;
 
 /// Most nodes a traversal keeps on its stack (the WGSL's array size); a deeper BVH is refused.
 pub const STACK_SIZE: usize = 64;
 
-/// One node: inner (`count == 0`, children at `first` and `first + 1`) or leaf (`count`
-/// triangles from `first`).
+/// One node: inner (`count == 0`, children at `first` and `first + 1`) or leaf. A mesh leaf
+/// holds `count` triangles from `first`; a top-level leaf holds one instance, whose record is
+/// `triangles[first]`, and `count` is the root of its mesh's BVH (never 0: node 0 is the
+/// top-level root).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[cfg_attr(feature = "gpu", derive(bytemuck::Pod, bytemuck::Zeroable))]
@@ -21,20 +25,55 @@ pub struct FlatNode {
     pub count: u32,
 }
 
-/// A BVH over a triangle soup, ready to upload.
+/// One mesh's BVH, flattened with indices local to it (object space).
+#[derive(Clone, Debug, Default)]
+pub struct FlatBlas {
+    pub nodes: Vec<FlatNode>,
+    pub triangles: Vec<[[f32; 4]; 3]>,
+    /// The root's box (object space); `None` for a mesh with no triangles.
+    pub bounds: Option<Bounds>,
+}
+
+/// One placement of a mesh: which [`FlatBlas`], and the transform into its object space.
+#[derive(Clone, Copy, Debug)]
+pub struct FlatInstance {
+    pub blas: usize,
+    pub to_object: ObjectFromWorld,
+}
+
+/// A scene's shadow geometry, ready to upload: as the GPU reads it, one node array (the top
+/// level's nodes, then every mesh's) and one triangle array (the instance records, then every
+/// mesh's triangles), here kept in two parts so that moving instances rewrites only the first.
 #[derive(Clone, Debug, Default)]
 pub struct FlatBvh {
+    pub top: FlatTop,
+    pub meshes: std::sync::Arc<FlatMeshes>,
+}
+
+/// The part instances move: the top level and the instance records (rows of
+/// [`ObjectFromWorld`]). Its size depends only on the number of instances.
+#[derive(Clone, Debug, Default)]
+pub struct FlatTop {
     pub nodes: Vec<FlatNode>,
-    /// Triangle `i` of the leaves is `triangles[i]` (vertices as `[x, y, z, 0]`).
+    pub records: Vec<[[f32; 4]; 3]>,
+}
+
+/// Every mesh's nodes and triangles (vertices as `[x, y, z, 0]`, object space), with indices
+/// into the whole arrays (after the [`FlatTop`] of as many instances).
+#[derive(Clone, Debug, Default)]
+pub struct FlatMeshes {
+    pub nodes: Vec<FlatNode>,
     pub triangles: Vec<[[f32; 4]; 3]>,
+    /// Where each mesh's root node is (the top-level leaves point at them).
+    roots: Vec<u32>,
 }
 
 impl MeshBvh {
-    /// The flat layout of this BVH over `tris` of vertices `p`, or why the GPU could not
-    /// traverse it (deeper than [`STACK_SIZE`]).
-    pub fn flatten(&self, p: &[Vec3], tris: &[[u32; 3]]) -> Result<FlatBvh, String> {
+    /// This BVH over `tris` of vertices `p`, laid out flat, or why the GPU could not traverse
+    /// it (deeper than [`STACK_SIZE`]).
+    pub fn flat_blas(&self, p: &[Vec3], tris: &[[u32; 3]]) -> Result<FlatBlas, String> {
         if self.bvh.nodes.is_empty() || tris.is_empty() {
-            return Ok(FlatBvh::default()); // nothing to trace (obvhs's depth needs a root)
+            return Ok(FlatBlas::default()); // nothing to trace (obvhs's depth needs a root)
         }
         let depth = self.bvh.depth(0);
         if depth >= STACK_SIZE {
@@ -42,34 +81,141 @@ impl MeshBvh {
                 "a BVH {depth} levels deep is beyond the GPU traversal's stack of {STACK_SIZE}"
             ));
         }
-        let nodes = self
-            .bvh
-            .nodes
-            .iter()
-            .map(|n| FlatNode {
-                min: n.aabb().min.to_array(),
-                first: n.first_index,
-                max: n.aabb().max.to_array(),
-                count: n.prim_count,
-            })
-            .collect();
+        let nodes = self.bvh.nodes.iter().map(flat_node).collect();
         let triangles = self
             .bvh
             .primitive_indices
             .iter()
             .map(|&i| tris[i as usize].map(|k| p[k as usize].extend(0.0).to_array()))
             .collect();
-        Ok(FlatBvh { nodes, triangles })
+        let root = self.bvh.nodes[0].aabb();
+        let bounds = Some((
+            Vec3::from(root.min.to_array()),
+            Vec3::from(root.max.to_array()),
+        ));
+        Ok(FlatBlas {
+            nodes,
+            triangles,
+            bounds,
+        })
+    }
+
+    /// One mesh in world space as the whole scene: [`Self::flat_blas`] under one instance with
+    /// the identity transform.
+    pub fn flatten(&self, p: &[Vec3], tris: &[[u32; 3]]) -> Result<FlatBvh, String> {
+        let blas = self.flat_blas(p, tris)?;
+        let bounds: Vec<Bounds> = blas.bounds.into_iter().collect();
+        let instances: Vec<FlatInstance> = bounds
+            .iter()
+            .map(|_| FlatInstance {
+                blas: 0,
+                to_object: ObjectFromWorld::IDENTITY,
+            })
+            .collect();
+        FlatBvh::build(&[blas], &instances, &Tlas::build(&bounds))
     }
 }
 
-/// obvhs's `safe_inverse`: `1 / x`, or `±1 / EPSILON` for `|x| <= EPSILON`.
-#[inline]
-fn safe_inverse(x: f32) -> f32 {
-    if x.abs() <= f32::EPSILON {
-        x.signum() / f32::EPSILON
-    } else {
-        1.0 / x
+fn flat_node(n: &obvhs::bvh2::node::Bvh2Node) -> FlatNode {
+    FlatNode {
+        min: n.aabb().min.to_array(),
+        first: n.first_index,
+        max: n.aabb().max.to_array(),
+        count: n.prim_count,
+    }
+}
+
+impl FlatBvh {
+    /// The scene of `instances` of `blases`, under the top level `tlas` built over the instances'
+    /// world bounds (in the same order). Instances of an empty mesh must be left out.
+    pub fn build(
+        blases: &[impl std::borrow::Borrow<FlatBlas>],
+        instances: &[FlatInstance],
+        tlas: &Tlas,
+    ) -> Result<FlatBvh, String> {
+        let (top_nodes, top_records) = (tlas.bvh.nodes.len() as u32, instances.len() as u32);
+        let mut meshes = FlatMeshes::default();
+        for b in blases.iter().map(|b| b.borrow()) {
+            let node0 = top_nodes + meshes.nodes.len() as u32;
+            let tri0 = top_records + meshes.triangles.len() as u32;
+            meshes.roots.push(node0);
+            meshes.nodes.extend(b.nodes.iter().map(|n| FlatNode {
+                first: n.first + if n.count > 0 { tri0 } else { node0 },
+                ..*n
+            }));
+            meshes.triangles.extend(&b.triangles);
+        }
+        let meshes = std::sync::Arc::new(meshes);
+        let top = meshes.top(instances, tlas)?;
+        Ok(FlatBvh { top, meshes })
+    }
+
+    /// Move the instances (after `tlas` was refitted to their new bounds): rewrite the top part.
+    pub fn place(&mut self, instances: &[FlatInstance], tlas: &Tlas) -> Result<(), String> {
+        if instances.len() != self.instances() || tlas.bvh.nodes.len() != self.tlas_nodes() {
+            return Err("the instances changed: build anew".into());
+        }
+        self.top = self.meshes.top(instances, tlas)?;
+        Ok(())
+    }
+
+    /// Nodes in the top level (0: nothing to trace).
+    pub fn tlas_nodes(&self) -> usize {
+        self.top.nodes.len()
+    }
+
+    pub fn instances(&self) -> usize {
+        self.top.records.len()
+    }
+
+    /// Node `i` of the whole node array.
+    #[inline]
+    fn node(&self, i: u32) -> FlatNode {
+        let top = self.top.nodes.len();
+        match (i as usize).checked_sub(top) {
+            None => self.top.nodes[i as usize],
+            Some(k) => self.meshes.nodes[k],
+        }
+    }
+
+    /// Entry `i` of the whole triangle array (a record or a triangle).
+    #[inline]
+    fn triangle(&self, i: u32) -> [[f32; 4]; 3] {
+        match (i as usize).checked_sub(self.top.records.len()) {
+            None => self.top.records[i as usize],
+            Some(k) => self.meshes.triangles[k],
+        }
+    }
+}
+
+impl FlatMeshes {
+    /// The top part for `instances` under `tlas`.
+    fn top(&self, instances: &[FlatInstance], tlas: &Tlas) -> Result<FlatTop, String> {
+        if tlas.len() != instances.len() {
+            return Err(format!(
+                "{} instances under a top level over {}",
+                instances.len(),
+                tlas.len()
+            ));
+        }
+        let mut nodes = Vec::with_capacity(tlas.bvh.nodes.len());
+        for n in &tlas.bvh.nodes {
+            let mut f = flat_node(n);
+            if n.is_leaf() {
+                if n.prim_count != 1 {
+                    return Err(format!("a top-level leaf with {} instances", n.prim_count));
+                }
+                let i = tlas.bvh.primitive_indices[n.first_index as usize] as usize;
+                let root = instances
+                    .get(i)
+                    .and_then(|inst| self.roots.get(inst.blas))
+                    .ok_or_else(|| format!("instance {i} has no mesh"))?;
+                (f.first, f.count) = (i as u32, *root);
+            }
+            nodes.push(f);
+        }
+        let records = instances.iter().map(|i| i.to_object.0).collect();
+        Ok(FlatTop { nodes, records })
     }
 }
 
@@ -77,21 +223,48 @@ impl FlatBvh {
     /// Whether any triangle meets the ray with `t` in `(t_min, t_max)`: the traversal of
     /// `bvh_occluded` in `shaders/visibility.wgsl`, step for step.
     pub fn occluded(&self, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> bool {
-        if self.nodes.is_empty() {
+        if self.top.nodes.is_empty() {
             return false;
         }
-        let inv = Vec3::new(safe_inverse(d.x), safe_inverse(d.y), safe_inverse(d.z));
+        let inv = inverse(d);
         let mut stack = [0u32; STACK_SIZE];
         let mut sp = 1;
         while sp > 0 {
             sp -= 1;
-            let n = self.nodes[stack[sp] as usize];
+            let n = self.node(stack[sp]);
+            if !slab(&n, o, inv, t_max) {
+                continue;
+            }
+            if n.count > 0 {
+                let m = ObjectFromWorld(self.triangle(n.first));
+                if self.blas_occluded(n.count, m.point(o), m.vector(d), t_min, t_max) {
+                    return true;
+                }
+            } else if sp + 2 <= STACK_SIZE {
+                stack[sp] = n.first + 1;
+                stack[sp + 1] = n.first;
+                sp += 2;
+            }
+        }
+        false
+    }
+
+    /// [`Self::occluded`] within one mesh from its `root`, the ray in its object space
+    /// (`blas_occluded` in the WGSL).
+    fn blas_occluded(&self, root: u32, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> bool {
+        let inv = inverse(d);
+        let mut stack = [0u32; STACK_SIZE];
+        stack[0] = root;
+        let mut sp = 1;
+        while sp > 0 {
+            sp -= 1;
+            let n = self.node(stack[sp]);
             if !slab(&n, o, inv, t_max) {
                 continue;
             }
             if n.count > 0 {
                 for k in n.first..n.first + n.count {
-                    let [a, b, c] = self.triangles[k as usize].map(|v| Vec3::new(v[0], v[1], v[2]));
+                    let [a, b, c] = self.triangle(k).map(|v| Vec3::new(v[0], v[1], v[2]));
                     if let Some((t, _, _)) = ray_triangle(o, d, a, b, c)
                         && t > t_min
                         && t < t_max
@@ -107,6 +280,21 @@ impl FlatBvh {
         }
         false
     }
+}
+
+/// obvhs's `safe_inverse`: `1 / x`, or `±1 / EPSILON` for `|x| <= EPSILON`.
+#[inline]
+fn safe_inverse(x: f32) -> f32 {
+    if x.abs() <= f32::EPSILON {
+        x.signum() / f32::EPSILON
+    } else {
+        1.0 / x
+    }
+}
+
+#[inline]
+fn inverse(d: Vec3) -> Vec3 {
+    Vec3::new(safe_inverse(d.x), safe_inverse(d.y), safe_inverse(d.z))
 }
 
 /// The ray meets the node's box before `t_max` (obvhs's slab test).

@@ -1,14 +1,18 @@
 //! Visibility: ray casts against the scene's geometry through bounding volume hierarchies built
-//! with `obvhs`: one BVH per triangle mesh ([`MeshBvh`]), used by the CPU G-buffer's ray cast and
-//! by the shadow rays of the estimator ([`Occluder`]).
+//! with `obvhs`, in two levels: one BVH per triangle mesh in object space ([`MeshBvh`], built
+//! once per mesh) and a top level over the placed instances ([`Tlas`], refitted when they move).
+//! They serve the CPU G-buffer's ray cast and the shadow rays of the estimator ([`Occluder`]);
+//! [`FlatBvh`] is both levels laid out for the GPU, with its CPU twin traversal.
 //!
 //! `obvhs` works in glam 0.33 (its range is 0.33–0.34) while envis (with Bevy) uses glam 0.32: vectors cross the boundary
 //! as plain `[f32; 3]` arrays, here and nowhere else.
 
 mod flat_bvh;
+mod instances;
 mod mesh_bvh;
 
-pub use flat_bvh::{FlatBvh, FlatNode, STACK_SIZE};
+pub use flat_bvh::{FlatBlas, FlatBvh, FlatInstance, FlatMeshes, FlatNode, FlatTop, STACK_SIZE};
+pub use instances::{Bounds, ObjectFromWorld, Tlas, world_bounds};
 pub use mesh_bvh::{MeshBvh, TriangleHit, ray_triangle};
 
 use glam::Vec3;

@@ -585,12 +585,15 @@ fn bevy_environment_shadows() {
         (far_on - far_off).abs() < 0.03 * far_off,
         "open ground changed: {far_on} vs {far_off}"
     );
-    assert_eq!(
-        counters.get(|c| &c.shadow_bvh_builds),
-        1,
-        "{:?}",
-        counters.0
-    );
+    // Two mesh assets (the sphere, the plane), one top level over them, nothing moved.
+    let get = |c: &envis::app::EnvisCounters| {
+        [
+            c.get(|c| &c.shadow_bvh_builds),
+            c.get(|c| &c.shadow_tlas_builds),
+            c.get(|c| &c.shadow_tlas_refits),
+        ]
+    };
+    assert_eq!(get(&counters), [2, 1, 0], "{:?}", counters.0);
     // A camera that arrives after the scene (which then never changes) still gets its geometry.
     let mut late = standard_sphere_app(white_furnace_material());
     for _ in 0..3 {
@@ -600,7 +603,7 @@ fn bevy_environment_shadows() {
     let env = late.add::<Image>(env);
     let target = sphere_camera(&mut late, env, EnvironmentSampling::default(), 16);
     let _ = late.capture(&target).unwrap();
-    assert_eq!(late.counters().get(|c| &c.shadow_bvh_builds), 1);
+    assert_eq!(get(&late.counters()), [1, 1, 0]);
     let (hidden, _) = render(true, false, On);
     let near_hidden = ring(&hidden, 1.05, 1.4);
     assert!(
@@ -614,5 +617,111 @@ fn bevy_environment_shadows() {
     assert!(
         (a - b).abs() < 0.01 * a,
         "the lone sphere shadows itself: {b} vs {a}"
+    );
+}
+
+/// Moving meshes: a sphere crosses a plane, with ten more placements of the same sphere mesh off
+/// to the side. The shadow follows the sphere (dark where it now rests, open ground where it
+/// was); every mesh's BVH is built once (two assets, however often placed), the top level is
+/// built once and then only refitted as the sphere moves.
+#[test]
+fn bevy_shadows_follow_moving_meshes() {
+    let Some(_) = gpu() else { return };
+    let size = 48u32;
+    let mut h = standard_sphere_app(white_furnace_material());
+    let world = h.app.world_mut();
+    let (sphere, sphere_mesh) = world
+        .query::<(Entity, &Mesh3d)>()
+        .single(world)
+        .map(|(e, m)| (e, m.0.clone()))
+        .unwrap();
+    world
+        .entity_mut(sphere)
+        .insert(Transform::from_xyz(-1.5, 1.0, 0.0));
+    let mat = h.add::<StandardMaterial>(white_furnace_material());
+    for k in 0..10 {
+        h.app.world_mut().spawn((
+            Mesh3d(sphere_mesh.clone()),
+            MeshMaterial3d(mat.clone()),
+            Transform::from_xyz(-2.7 + 0.6 * k as f32, 0.2, 2.6).with_scale(Vec3::splat(0.2)),
+        ));
+    }
+    let plane = h.add::<Mesh>(Plane3d::default().mesh().size(6.0, 6.0));
+    h.app
+        .world_mut()
+        .spawn((Mesh3d(plane), MeshMaterial3d(mat)));
+    let (env, _) = latlong_image(16, |d| Vec3::splat((0.2 + d.y).max(0.05)));
+    let env = h.add::<Image>(env);
+    let target = h.float_target(size, size);
+    let projection = Projection::Orthographic(OrthographicProjection {
+        scaling_mode: bevy::camera::ScalingMode::Fixed {
+            width: 6.0,
+            height: 6.0,
+        },
+        ..OrthographicProjection::default_3d()
+    });
+    let sampling = EnvironmentSampling {
+        shadows: envis::visibility::Visibility::On,
+        light_samples: 64,
+        brdf_samples: 0,
+        ..default()
+    };
+    h.app.world_mut().spawn(radiance_camera(
+        target.clone(),
+        projection,
+        Transform::from_xyz(0.0, 5.0, 0.0).looking_at(Vec3::ZERO, Vec3::Z),
+        sampling,
+        EnvisEnvironment::new(env),
+    ));
+    // Mean luminance of the ground ring [1.05, 1.4) around (x, 0) in the top-down view (the
+    // image's x runs along -X: the camera looks down with +Z up the image).
+    let ring = |img: &[Vec3], x0: f32| {
+        let px: Vec<f32> = (0..img.len())
+            .filter(|&i| {
+                let c = |v: u32| -3.0 + 6.0 * (v as f32 + 0.5) / size as f32;
+                let (x, z) = (-c(i as u32 % size), c(i as u32 / size));
+                let r = (x - x0).hypot(z);
+                (1.05..1.4).contains(&r)
+            })
+            .map(|i| luminance(img[i]))
+            .collect();
+        px.iter().sum::<f32>() / px.len() as f32
+    };
+    let before = h.capture(&target).unwrap();
+    let counters = |h: &HeadlessApp| {
+        let c = h.counters();
+        [
+            c.get(|c| &c.shadow_bvh_builds),
+            c.get(|c| &c.shadow_tlas_builds),
+        ]
+    };
+    assert_eq!(counters(&h), [2, 1]);
+    for k in 1..=6 {
+        h.app
+            .world_mut()
+            .entity_mut(sphere)
+            .insert(Transform::from_xyz(-1.5 + 0.5 * k as f32, 1.0, 0.0));
+        h.update();
+    }
+    let after = h.capture(&target).unwrap();
+    let refits = h.counters().get(|c| &c.shadow_tlas_refits);
+    assert_eq!(counters(&h), [2, 1], "a move rebuilt something");
+    assert!(refits >= 6, "{refits} refits for 6 moves");
+    let (left, right) = (
+        (ring(&before, -1.5), ring(&before, 1.5)),
+        (ring(&after, -1.5), ring(&after, 1.5)),
+    );
+    eprintln!("ground rings (left, right): before {left:?}, after {right:?}");
+    assert!(
+        left.0 < 0.85 * left.1,
+        "no shadow under the sphere before: {left:?}"
+    );
+    assert!(
+        right.1 < 0.85 * right.0,
+        "the shadow did not follow: {right:?}"
+    );
+    assert!(
+        (right.0 - left.1).abs() < 0.05 * left.1,
+        "the old shadow stayed: {right:?} {left:?}"
     );
 }

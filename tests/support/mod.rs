@@ -126,3 +126,91 @@ pub fn bunny_on_plane_rays() -> (envis::scene::TriMesh, Vec<(glam::Vec3, glam::V
     }
     (mesh, rays)
 }
+
+/// The bunny placed four times (rotated, scaled, one non-uniformly) on a plane, as instances
+/// of two meshes, every instance moved by `shift` along +X and turned by `shift` radians: the
+/// two-level BVH and its parts, and the same triangles merged in world space.
+pub struct Instanced {
+    pub flat: envis::visibility::FlatBvh,
+    pub tlas: envis::visibility::Tlas,
+    pub bounds: Vec<envis::visibility::Bounds>,
+    pub placed: Vec<envis::visibility::FlatInstance>,
+    pub instances: Vec<envis::scene::MeshInstance>,
+    pub world: envis::scene::TriMesh,
+}
+
+pub fn instanced_bunnies(shift: f32) -> Instanced {
+    use envis::visibility::{FlatBvh, FlatInstance, Tlas, world_bounds};
+    use glam::{Affine3A, Quat, Vec3};
+    use std::sync::Arc;
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let bunny =
+        Arc::new(envis::scene::load_glb(&root.join("assets/models/bunny_plain.glb")).unwrap());
+    let square = Arc::new(envis::scene::square_mesh());
+    let (lo, hi) = bunny.bounds().unwrap();
+    let (c, e) = (0.5 * (lo + hi), (hi - lo).max_element());
+    let turn = |a: f32| Quat::from_rotation_y(a + shift);
+    let at = |x: f32| c + Vec3::new(x * e + shift, 0.0, 0.0);
+    let placements = [
+        (
+            &bunny,
+            Affine3A::from_rotation_translation(turn(0.0), at(0.0)),
+        ),
+        (
+            &bunny,
+            Affine3A::from_scale_rotation_translation(Vec3::splat(0.7), turn(1.6), at(1.0)),
+        ),
+        (
+            &bunny,
+            Affine3A::from_scale_rotation_translation(
+                Vec3::new(1.0, 1.5, 0.8),
+                turn(-0.5),
+                at(-1.0),
+            ),
+        ),
+        (
+            &bunny,
+            Affine3A::from_rotation_translation(turn(3.0), c + Vec3::new(0.0, 0.0, e)),
+        ),
+        (
+            &square,
+            Affine3A::from_scale_rotation_translation(
+                Vec3::splat(2.0 * e),
+                Quat::IDENTITY,
+                Vec3::new(c.x, lo.y, c.z),
+            ),
+        ),
+    ];
+    // Centre each bunny on its own origin so a turn keeps it in place.
+    let recentre = Affine3A::from_translation(-c);
+    let blases = [&bunny, &square].map(|m| m.bvh().flat_blas(&m.positions, &m.indices).unwrap());
+    let mut out = Instanced {
+        flat: FlatBvh::default(),
+        tlas: Tlas::default(),
+        bounds: Vec::new(),
+        placed: Vec::new(),
+        instances: Vec::new(),
+        world: envis::scene::TriMesh::default(),
+    };
+    for (mesh, place) in placements {
+        let is_bunny = Arc::ptr_eq(mesh, &bunny);
+        let world = if is_bunny { place * recentre } else { place };
+        let inst = envis::scene::MeshInstance::new(mesh.clone(), world).unwrap();
+        let base = out.world.positions.len() as u32;
+        out.world.positions.extend(inst.world_positions());
+        out.world
+            .indices
+            .extend(mesh.indices.iter().map(|t| t.map(|v| v + base)));
+        let blas = if is_bunny { 0 } else { 1 };
+        out.bounds
+            .push(world_bounds(blases[blas].bounds.unwrap(), &world));
+        out.placed.push(FlatInstance {
+            blas,
+            to_object: inst.to_object,
+        });
+        out.instances.push(inst);
+    }
+    out.tlas = Tlas::build(&out.bounds);
+    out.flat = FlatBvh::build(&blases, &out.placed, &out.tlas).unwrap();
+    out
+}

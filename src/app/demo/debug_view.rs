@@ -27,7 +27,7 @@ pub(super) fn update_debug_view(
         s,
         p.pixel_index,
         p.gpixel.n,
-        geometry.generation,
+        geometry.placement,
     );
     if state.key == Some(key) {
         return;
@@ -41,7 +41,7 @@ pub(super) fn update_debug_view(
     // The same shadow rays as the GPU, against the same meshes (the demo's map is unrotated, so
     // its frame is the world's).
     if p.point.is_some() {
-        fd.occluder = Some(&*geometry.bvh);
+        fd.occluder = Some(&geometry.bvh);
     }
     let d = crate::render::debug_pixel_at(&fd, &s, &p.gpixel, p.point, p.pixel_index);
     state.pixel = Some((d, p.gpixel, p.estimate));
