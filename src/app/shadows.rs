@@ -130,10 +130,8 @@ pub fn gather_shadow_geometry(
     cameras: Query<(), With<EnvironmentSampling>>,
     new_cameras: Query<(), Added<EnvironmentSampling>>,
     casters: Casters,
-    (changed, moved): (
-        Query<(), (With<Mesh3d>, CasterChanged)>,
-        Query<(), (With<Mesh3d>, CasterMoved)>,
-    ),
+    changed: Query<(), (With<Mesh3d>, CasterChanged)>,
+    moved: Query<(), (With<Mesh3d>, CasterMoved)>,
     mut removed: RemovedComponents<Mesh3d>,
     // Meshes that started or stopped casting shadows.
     (opted_out, mut opted_in): (
