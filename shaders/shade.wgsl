@@ -63,6 +63,10 @@ struct Shaded {
     stats: vec4<u32>,
 }
 
+// Light samples above the horizon that a shadow ray found blocked, in this invocation
+// (render::PixelStats::blocked; the compute entry point reports it).
+var<private> light_blocked: u32;
+
 fn shade(px: GPixel, pixel_index: u32) -> Shaded {
     return shade_counts(px, pixel_index, sp.counts);
 }
@@ -108,6 +112,7 @@ fn shade_counts(px: GPixel, pixel_index: u32, counts: u32) -> Shaded {
                 continue;
             }
             if (sample_blocked(px, pixel_index, gs.xyz)) {
+                light_blocked += 1u;
                 continue;
             }
             res.stats.y += 1u;
@@ -152,6 +157,7 @@ fn shade_counts(px: GPixel, pixel_index: u32, counts: u32) -> Shaded {
                     continue;
                 }
                 if (sample_blocked(px, pixel_index, dp.xyz)) {
+                    light_blocked += 1u;
                     continue;
                 }
                 res.stats.y += 1u;

@@ -17,6 +17,10 @@
 @group(0) @binding(8) var<storage, read> bvh_nodes: array<BvhNode>;
 @group(0) @binding(9) var<storage, read> bvh_triangles: array<array<vec4<f32>, 3>>;
 @group(0) @binding(10) var<storage, read> points: array<vec4<f32>>;
+// Per pixel: (shadow rays cast, light samples blocked) (render::PixelStats).
+@group(0) @binding(11) var<storage, read_write> out_rays: array<vec2<u32>>;
+
+var<private> shadow_rays: u32;
 
 @compute @workgroup_size(64)
 fn shade_gbuffer(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
@@ -28,11 +32,13 @@ fn shade_gbuffer(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_wor
     if (px.n.w == 0.0) {
         out_color[i] = vec4(0.0);
         out_stats[i] = vec4(0u);
+        out_rays[i] = vec2(0u);
         return;
     }
     let r = shade(px, i);
     out_color[i] = vec4(r.color, 1.0);
     out_stats[i] = r.stats;
+    out_rays[i] = vec2(shadow_rays, light_blocked);
 }
 
 // A shadow ray through the BVH (the CPU's FlatBvh as render::FrameData::occluder): t_min 1e-4,
@@ -41,6 +47,7 @@ fn sample_blocked(px: GPixel, pixel_index: u32, d: vec3<f32>) -> bool {
     if (sp.bvh_nodes == 0u) {
         return false;
     }
+    shadow_rays += 1u;
     let o = shadow_origin(points[pixel_index].xyz, normalize_or_zero(px.n.xyz), d);
     return bvh_occluded(o, d, 1e-4, 3.4028235e38, sp.bvh_nodes);
 }

@@ -27,14 +27,7 @@ pub fn render(r: RenderArgs) -> Result<()> {
     // A scene file supplies the sampling settings too.
     let settings = su.scene.as_ref().map_or(settings, |sc| sc.settings);
     let size = r.scene.size;
-    let (mut shadows, mut why) = su.shadows(r.scene.visibility);
-    if shadows && matches!(r.backend, BackendArg::Wgpu) {
-        eprintln!("envis: --backend wgpu casts no shadow rays yet: rendering without ({why})");
-        (shadows, why) = (
-            false,
-            "off (--backend wgpu casts no shadow rays yet)".into(),
-        );
-    }
+    let (shadows, why) = su.shadows(r.scene.visibility);
     let occluders = su.occluders();
     let (mut out, extra) = match r.backend {
         BackendArg::Cpu => {
@@ -47,7 +40,16 @@ pub fn render(r: RenderArgs) -> Result<()> {
                 serde_json::json!({ "backend": "cpu" }),
             )
         }
-        BackendArg::Wgpu => render_wgpu(&env.cube, gbuf, size, &settings)?,
+        BackendArg::Wgpu => {
+            // The GPU traces triangles: the scene's meshes, and a tessellated sphere and a
+            // square for each analytic one (`Scene::shadow_bvh`).
+            let bvh = match shadows {
+                true => Some(su.shadow_bvh().map_err(Error::invalid)?),
+                false => None,
+            };
+            let shadows = bvh.as_ref().map(|b| (b, su.points.as_slice()));
+            render_wgpu(&env.cube, gbuf, size, &settings, shadows)?
+        }
         BackendArg::Gpu => render_bevy(&r.scene, &settings, su.scene.as_ref(), shadows)?,
     };
     out.stats.visibility = why;
@@ -127,9 +129,11 @@ fn render_wgpu(
     gbuf: &[Option<render::GPixel>],
     size: usize,
     s: &Settings,
+    shadows: Option<(&envis::visibility::FlatBvh, &[glam::Vec3])>,
 ) -> Result<(render::Rendered, serde_json::Value)> {
     let ctx = envis::gpu::GpuContext::new()?;
-    let (out, t) = envis::gpu::render_gpu(&ctx, map, gbuf, size, size, s)?;
+    let (out, t) = envis::gpu::GpuRenderer::new(&ctx)
+        .render_with_shadows(map, gbuf, size, size, s, shadows)?;
     let extra = serde_json::json!({ "backend": "wgpu", "device": ctx.info.name, "device_backend": format!("{:?}", ctx.info.backend), "gpu_timings": t });
     Ok((out, extra))
 }
@@ -140,6 +144,7 @@ fn render_wgpu(
     _: &[Option<render::GPixel>],
     _: usize,
     _: &Settings,
+    _: Option<(&envis::visibility::FlatBvh, &[glam::Vec3])>,
 ) -> Result<(render::Rendered, serde_json::Value)> {
     Err(Error::invalid(
         "--backend wgpu: this envis was built without the `gpu` feature (cargo build --features gpu)",

@@ -68,6 +68,11 @@ impl Setup {
         }
     }
 
+    /// The shadow-casting geometry as the GPU traces it.
+    pub fn shadow_bvh(&self) -> std::result::Result<envis::visibility::FlatBvh, String> {
+        self.occluders().flat()
+    }
+
     /// The shapes that block shadow rays.
     pub fn occluders(&self) -> envis::scene::shadows::Occluders<'_> {
         match &self.scene {

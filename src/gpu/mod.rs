@@ -120,6 +120,21 @@ impl<'c> GpuRenderer<'c> {
         height: usize,
         s: &Settings,
     ) -> Result<(Rendered, GpuTimings)> {
+        self.render_with_shadows(map, gbuf, width, height, s, None)
+    }
+
+    /// [`Self::render`] with a shadow ray per sample through `shadows`' geometry, from each
+    /// pixel's surface point (the CPU twin: [`crate::render::render_with`] with the same
+    /// [`crate::visibility::FlatBvh`] as its occluder).
+    pub fn render_with_shadows(
+        &mut self,
+        map: &CubeMap,
+        gbuf: &[Option<GPixel>],
+        width: usize,
+        height: usize,
+        s: &Settings,
+        shadows: Option<(&crate::visibility::FlatBvh, &[Vec3])>,
+    ) -> Result<(Rendered, GpuTimings)> {
         s.validate()?;
         assert_eq!(gbuf.len(), width * height);
         let ctx = self.ctx;
@@ -150,8 +165,15 @@ impl<'c> GpuRenderer<'c> {
         let (build_gpu_ms, clamped) = sampler.read_report(ctx)?;
         timings.build_gpu_ms = build_gpu_ms;
 
+        let bvh = shadows.map(|(flat, points)| (visibility::GpuBvh::new(ctx, flat), points));
         let t1 = std::time::Instant::now();
-        let job = self.shader.shade(ctx, sampler, &pixels, s)?;
+        let job = self.shader.shade_with_shadows(
+            ctx,
+            sampler,
+            &pixels,
+            s,
+            bvh.as_ref().map(|(b, p)| (b, *p)),
+        )?;
         timings.shade_wall_ms = t1.elapsed().as_secs_f64() * 1e3;
         timings.shade_gpu_ms = job.gpu_ms;
 
@@ -161,15 +183,16 @@ impl<'c> GpuRenderer<'c> {
         let per_pixel: Vec<Option<PixelStats>> = job
             .stats
             .iter()
+            .zip(&job.rays)
             .zip(gbuf)
-            .map(|(q, g)| {
+            .map(|((q, r), g)| {
                 g.as_ref().map(|_| PixelStats {
                     available: q[0],
                     green: q[1],
                     yellow: q[2],
                     brdf: q[3],
-                    // The WGSL stages cast no shadow rays (yet).
-                    ..PixelStats::default()
+                    shadow_rays: r[0],
+                    blocked: r[1],
                 })
             })
             .collect();

@@ -146,6 +146,8 @@ pub struct ShadeJob {
     pub color: Vec<[f32; 4]>,
     /// Per pixel (available, green, yellow, brdf).
     pub stats: Vec<[u32; 4]>,
+    /// Per pixel (shadow rays cast, light samples blocked).
+    pub rays: Vec<[u32; 2]>,
     pub gpu_ms: Option<f64>,
 }
 
@@ -181,6 +183,7 @@ impl Shader {
                 e(8, ro),
                 e(9, ro),
                 e(10, ro),
+                e(11, rw),
             ],
         });
         let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -251,6 +254,7 @@ impl Shader {
         let gbuf = mk("envis gbuffer", count as u64 * 64, su);
         let color = mk("envis color", count as u64 * 16, su);
         let stats = mk("envis pixel stats", count as u64 * 16, su);
+        let rays = mk("envis pixel shadow rays", count as u64 * 8, su);
         ctx.queue
             .write_buffer(&gbuf, 0, bytemuck::cast_slice(pixels));
         let mut params = ShadeParams::new(s, sampler.n, sampler.m, count);
@@ -320,6 +324,10 @@ impl Shader {
                     binding: 10,
                     resource: points.as_entire_binding(),
                 },
+                wgpu::BindGroupEntry {
+                    binding: 11,
+                    resource: rays.as_entire_binding(),
+                },
             ],
         });
         let mut enc = ctx.device.create_command_encoder(&Default::default());
@@ -342,13 +350,15 @@ impl Shader {
         let mut parts = vec![
             (&color, 0, count as u64 * 16),
             (&stats, 0, count as u64 * 16),
+            (&rays, 0, count as u64 * 8),
         ];
         parts.extend(self.timer.as_ref().map(|t| t.part()));
         let data = ctx.read_many(&parts)?;
-        let gpu_ms = data.get(2).and_then(|b| PassTimer::ms(ctx, b));
+        let gpu_ms = data.get(3).and_then(|b| PassTimer::ms(ctx, b));
         Ok(ShadeJob {
             color: bytemuck::pod_collect_to_vec(&data[0]),
             stats: bytemuck::pod_collect_to_vec(&data[1]),
+            rays: bytemuck::pod_collect_to_vec(&data[2]),
             gpu_ms,
         })
     }

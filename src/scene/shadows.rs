@@ -25,6 +25,40 @@ impl<'a> Occluders<'a> {
             shapes,
         }
     }
+
+    /// These shapes as the GPU traces them: one BVH per mesh, a tessellated unit sphere and a
+    /// two-triangle square placed for every sphere and plane, and the top level over them all. A sphere's triangles lie inside the analytic sphere, so the analytic
+    /// G-buffer's points never see their own sphere's triangles above the horizon.
+    pub fn flat(&self) -> Result<FlatBvh, String> {
+        let (sphere, square) = (
+            Arc::new(sphere_mesh(SPHERE_SEGMENTS.0, SPHERE_SEGMENTS.1)),
+            Arc::new(square_mesh()),
+        );
+        let mut meshes: Vec<Arc<TriMesh>> = Vec::new();
+        let mut blases: Vec<FlatBlas> = Vec::new();
+        let (mut instances, mut bounds) = (Vec::new(), Vec::new());
+        for shape in &self.shapes {
+            let mesh = match shape {
+                Shape::Sphere { .. } => &sphere,
+                Shape::Plane { .. } => &square,
+                Shape::Mesh(m) => &m.mesh,
+            };
+            let blas = match meshes.iter().position(|m| Arc::ptr_eq(m, mesh)) {
+                Some(i) => i,
+                None => {
+                    meshes.push(mesh.clone());
+                    blases.push(mesh.bvh().flat_blas(&mesh.positions, &mesh.indices)?);
+                    blases.len() - 1
+                }
+            };
+            let world = shape.world_from_object();
+            if let (Some(b), Some(to_object)) = (blases[blas].bounds, ObjectFromWorld::new(world)) {
+                instances.push(FlatInstance { blas, to_object });
+                bounds.push(crate::visibility::world_bounds(b, &world));
+            }
+        }
+        FlatBvh::build(&blases, &instances, &Tlas::build(&bounds))
+    }
 }
 
 impl Occluder for Occluders<'_> {
@@ -62,39 +96,9 @@ impl Scene {
         )
     }
 
-    /// The shadow-casting objects as the GPU traces them: one BVH per mesh, a tessellated unit
-    /// sphere and a two-triangle square placed for every sphere and plane, and the top level
-    /// over them all. A sphere's triangles lie inside the analytic sphere, so the analytic
-    /// G-buffer's points never see their own sphere's triangles above the horizon.
+    /// The shadow-casting objects as the GPU traces them ([`Occluders::flat`]).
     pub fn shadow_bvh(&self) -> Result<FlatBvh, String> {
-        let (sphere, square) = (
-            Arc::new(sphere_mesh(SPHERE_SEGMENTS.0, SPHERE_SEGMENTS.1)),
-            Arc::new(square_mesh()),
-        );
-        let mut meshes: Vec<Arc<TriMesh>> = Vec::new();
-        let mut blases: Vec<FlatBlas> = Vec::new();
-        let (mut instances, mut bounds) = (Vec::new(), Vec::new());
-        for shape in self.occluders().shapes {
-            let mesh = match shape {
-                Shape::Sphere { .. } => &sphere,
-                Shape::Plane { .. } => &square,
-                Shape::Mesh(m) => &m.mesh,
-            };
-            let blas = match meshes.iter().position(|m| Arc::ptr_eq(m, mesh)) {
-                Some(i) => i,
-                None => {
-                    meshes.push(mesh.clone());
-                    blases.push(mesh.bvh().flat_blas(&mesh.positions, &mesh.indices)?);
-                    blases.len() - 1
-                }
-            };
-            let world = shape.world_from_object();
-            if let (Some(b), Some(to_object)) = (blases[blas].bounds, ObjectFromWorld::new(world)) {
-                instances.push(FlatInstance { blas, to_object });
-                bounds.push(crate::visibility::world_bounds(b, &world));
-            }
-        }
-        FlatBvh::build(&blases, &instances, &Tlas::build(&bounds))
+        self.occluders().flat()
     }
 
     /// Whether to cast shadow rays under `mode` (`None`: the scene file's `visibility`, else
