@@ -1,6 +1,11 @@
 #!/usr/bin/env python3
 """Samples per second of `envis render` (CPU) vs Mitsuba 3's `direct` integrator, in one run.
 
+Two modes. Without `--scene` (below): the lone diffuse sphere, speed only. With
+`--scene FILE` (a scene file of diffuse spheres, planes and glTF meshes, e.g.
+`assets/scenes/occluded.toml`): speed, equal-sample error and contact shadows with visibility,
+see `occluded()` at the end of this file.
+
 Same scene (unit sphere, orthographic camera on +Z covering [-1,1]^2, diffuse albedo 0.8),
 same lat-long map (Mitsuba 3's convention is envis's), same sample counts (32 emitter/light +
 32 BSDF samples per pixel, one camera sample per pixel), same machine, same process tree.
@@ -13,16 +18,27 @@ envis (`cargo build --release`). Usage:
 import argparse, json, os, subprocess, sys, tempfile, time
 
 ap = argparse.ArgumentParser()
-ap.add_argument("--env", default=os.path.join(os.path.dirname(__file__), "../../../shared/data/hdri/sky.exr"))
+ap.add_argument("--env", help="the map (default: ../shared/data/hdri/sky.exr; with --scene, the scene's)")
 ap.add_argument("--size", type=int, default=256)
 ap.add_argument("--face-size", type=int, default=64)
 ap.add_argument("--repeat", type=int, default=5)
 ap.add_argument("--envis", default=os.environ.get("ENVIS", "target/release/envis"))
+ap.add_argument("--scene", help="an occluded scene file: error and speed with visibility")
+ap.add_argument("--seeds", type=int, default=8, help="--scene: envis / Mitsuba 32 spp runs averaged")
+ap.add_argument("--ref-spp", type=int, default=4096, help="--scene: the converged reference's spp")
+ap.add_argument("--out", help="--scene: write the JSON here too")
 a = ap.parse_args()
 
 import mitsuba as mi
 import drjit as dr
 mi.set_variant("llvm_ad_rgb")
+
+if a.scene:
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    import mitsuba_occluded
+    mitsuba_occluded.run(a)
+    sys.exit(0)
+a.env = a.env or os.path.join(os.path.dirname(__file__), "../../../shared/data/hdri/sky.exr")
 
 W = a.size
 on_sphere = sum(1 for j in range(W) for i in range(W)

@@ -195,6 +195,8 @@ fn fmt(x: Option<f64>) -> String {
 #[derive(serde::Serialize)]
 struct SceneRow {
     scene: String,
+    /// Shadow rays cast: `on` or `off`.
+    visibility: &'static str,
     frames: usize,
     builds: usize,
     mean_frame_ms: f64,
@@ -203,89 +205,133 @@ struct SceneRow {
     shade_gpu_ms: Option<f64>,
     brdf_samples_per_frame: u64,
     light_samples_per_frame: f64,
+    shadow_rays_per_frame: u64,
+}
+
+/// The scene suite's numbers for one scene: its frame cost with and without shadow rays.
+#[derive(serde::Serialize)]
+struct VisibilityCost {
+    scene: String,
+    /// Triangles the GPU traces (meshes once per placement, a sphere as 4,096).
+    triangles_traced: usize,
+    shade_on_over_off: f64,
+    /// Shadow rays per second, counting all the extra shading time as ray time.
+    shadow_rays_per_second: f64,
 }
 
 /// Suite `scene`: what a scene costs per frame when only the work it needs is done. Each scene
-/// file is played for `--repeat` x 10 frames at 30 fps: its environment stream advances, the
-/// distribution is rebuilt only when the frame changed, and the G-buffer is shaded.
+/// file is played for `--repeat` x 10 frames at 30 fps (3 with `--quick`), once without shadow
+/// rays and once with: its environment stream advances, the distribution is rebuilt only when
+/// the frame changed, and the G-buffer is shaded.
 pub fn scenes(a: BenchArgs, dir: PathBuf) -> Result<()> {
     use crate::scene::Scene;
-    use crate::stream::{EnvStream, StreamSource};
     let ctx = GpuContext::new()?;
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
-    let names = ["diffuse-static.toml", "glossy-dynamic.toml"];
-    let frames = 10 * a.repeat.max(1);
+    let names = [
+        "diffuse-static.toml",
+        "glossy-dynamic.toml",
+        "showcase.toml",
+    ];
+    let frames = if a.quick { 3 } else { 10 * a.repeat.max(1) };
     let (w, h) = if a.quick {
         (160, 100)
     } else {
         (a.size, a.height.unwrap_or(a.size * 10 / 16))
     };
-    let mut rows = Vec::new();
+    let (mut rows, mut costs) = (Vec::new(), Vec::new());
     for name in names {
         let sc = Scene::load(&root.join(name))?;
-        let source = match StreamSource::parse(&sc.environment)? {
-            StreamSource::Sky { hours, .. } => StreamSource::Sky {
-                hours,
-                speed: sc.file.environment.speed,
-            },
-            o => o,
-        };
-        let mut stream = EnvStream::open(source, sc.file.environment.face_size)?;
-        let gbuf = sc.gbuffer(w, h);
-        let pixels: Vec<GpuGPixel> = gbuf.iter().map(GpuGPixel::from).collect();
-        let s = sc.settings;
-        let sampler = EnvSampler::new(&ctx, stream.face_size(), s.pool_per_face())?;
-        let shader = Shader::new(&ctx);
-        let (mut builds, mut frame_ms, mut build_ms, mut shade_ms, mut gpu) =
-            (0, Vec::new(), Vec::new(), Vec::new(), Vec::new());
-        let mut uploaded = None;
-        let (mut brdf, mut light) = (0u64, 0.0f64);
-        for f in 0..frames {
-            let t0 = Instant::now();
-            if f > 0 {
-                stream.advance(1.0 / 30.0);
-            }
-            if uploaded != Some(stream.generation()) {
-                sampler.upload(&ctx.queue, stream.frame());
-                ctx.wait(sampler.run(&ctx, pool_seed(s.seed)))?;
-                uploaded = Some(stream.generation());
-                builds += 1;
-            }
-            let t1 = Instant::now();
-            let job = shader.shade(&ctx, &sampler, &pixels, &s)?;
-            let t2 = Instant::now();
-            frame_ms.push((t2 - t0).as_secs_f64() * 1e3);
-            build_ms.push((t1 - t0).as_secs_f64() * 1e3);
-            shade_ms.push((t2 - t1).as_secs_f64() * 1e3);
-            if let Some(g) = job.gpu_ms {
-                gpu.push(g);
-            }
-            brdf = job.stats.iter().map(|q| q[3] as u64).sum();
-            light = job.stats.iter().map(|q| (q[1] + q[2]) as f64).sum();
-        }
-        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
-        let row = SceneRow {
+        let flat = sc.shadow_bvh().map_err(crate::error::Error::invalid)?;
+        let (gbuf, points) = sc.gbuffer_points(w, h);
+        let bvh = crate::gpu::visibility::GpuBvh::new(&ctx, &flat);
+        let off = play(&ctx, name, &sc, &gbuf, None, frames)?;
+        let on = play(&ctx, name, &sc, &gbuf, Some((&bvh, &points)), frames)?;
+        let extra_s = (on.mean_shade_ms - off.mean_shade_ms).max(1e-6) / 1e3;
+        costs.push(VisibilityCost {
             scene: name.into(),
-            frames,
-            builds,
-            mean_frame_ms: mean(&frame_ms),
-            mean_build_ms: mean(&build_ms),
-            mean_shade_ms: mean(&shade_ms),
-            shade_gpu_ms: (!gpu.is_empty()).then(|| mean(&gpu)),
-            brdf_samples_per_frame: brdf,
-            light_samples_per_frame: light,
-        };
-        eprintln!(
-            "  {name}: {frames} frames, {builds} builds, frame {:.2} ms (build {:.2} + shade {:.2}), BRDF samples/frame {brdf}, light samples/frame {light:.0}",
-            row.mean_frame_ms, row.mean_build_ms, row.mean_shade_ms
-        );
-        rows.push(row);
+            triangles_traced: flat.meshes.triangles.len(),
+            shade_on_over_off: on.mean_shade_ms / off.mean_shade_ms.max(1e-9),
+            shadow_rays_per_second: on.shadow_rays_per_frame as f64 / extra_s,
+        });
+        rows.extend([off, on]);
     }
-    let ratio = rows[1].mean_frame_ms / rows[0].mean_frame_ms.max(1e-9);
-    eprintln!("  glossy-dynamic / diffuse-static frame time: {ratio:.2}x");
-    let out = serde_json::json!({ "device": ctx.info.name, "width": w, "height": h, "scenes": rows, "dynamic_glossy_over_static_diffuse": ratio });
+    let ratio = rows[2].mean_frame_ms / rows[0].mean_frame_ms.max(1e-9);
+    eprintln!("  glossy-dynamic / diffuse-static frame time (no shadow rays): {ratio:.2}x");
+    let out = serde_json::json!({ "device": ctx.info.name, "width": w, "height": h, "scenes": rows, "visibility": costs, "dynamic_glossy_over_static_diffuse": ratio });
     let path = dir.join("bench-scene.json");
     crate::render::output::write_json(&path, &out)?;
     eprintln!("wrote {}", path.display());
     Ok(())
+}
+
+/// Play `sc` for `frames` frames, with shadow rays through `shadows` (the GPU geometry and each
+/// pixel's surface point) or without.
+fn play(
+    ctx: &GpuContext,
+    name: &str,
+    sc: &crate::scene::Scene,
+    gbuf: &[Option<crate::render::GPixel>],
+    shadows: Option<(&crate::gpu::visibility::GpuBvh, &[glam::Vec3])>,
+    frames: usize,
+) -> Result<SceneRow> {
+    use crate::stream::{EnvStream, StreamSource};
+    let source = match StreamSource::parse(&sc.environment)? {
+        StreamSource::Sky { hours, .. } => StreamSource::Sky {
+            hours,
+            speed: sc.file.environment.speed,
+        },
+        o => o,
+    };
+    let mut stream = EnvStream::open(source, sc.file.environment.face_size)?;
+    let pixels: Vec<GpuGPixel> = gbuf.iter().map(GpuGPixel::from).collect();
+    let s = sc.settings;
+    let sampler = EnvSampler::new(ctx, stream.face_size(), s.pool_per_face())?;
+    let shader = Shader::new(ctx);
+    let (mut builds, mut frame_ms, mut build_ms, mut shade_ms, mut gpu) =
+        (0, Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut uploaded = None;
+    let (mut brdf, mut light, mut rays) = (0u64, 0.0f64, 0u64);
+    for f in 0..frames {
+        let t0 = Instant::now();
+        if f > 0 {
+            stream.advance(1.0 / 30.0);
+        }
+        if uploaded != Some(stream.generation()) {
+            sampler.upload(&ctx.queue, stream.frame());
+            ctx.wait(sampler.run(ctx, pool_seed(s.seed)))?;
+            uploaded = Some(stream.generation());
+            builds += 1;
+        }
+        let t1 = Instant::now();
+        let job = shader.shade_with_shadows(ctx, &sampler, &pixels, &s, shadows)?;
+        let t2 = Instant::now();
+        frame_ms.push((t2 - t0).as_secs_f64() * 1e3);
+        build_ms.push((t1 - t0).as_secs_f64() * 1e3);
+        shade_ms.push((t2 - t1).as_secs_f64() * 1e3);
+        if let Some(g) = job.gpu_ms {
+            gpu.push(g);
+        }
+        brdf = job.stats.iter().map(|q| q[3] as u64).sum();
+        light = job.stats.iter().map(|q| (q[1] + q[2]) as f64).sum();
+        rays = job.rays.iter().map(|r| r[0] as u64).sum();
+    }
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    let row = SceneRow {
+        scene: name.into(),
+        visibility: if shadows.is_some() { "on" } else { "off" },
+        frames,
+        builds,
+        mean_frame_ms: mean(&frame_ms),
+        mean_build_ms: mean(&build_ms),
+        mean_shade_ms: mean(&shade_ms),
+        shade_gpu_ms: (!gpu.is_empty()).then(|| mean(&gpu)),
+        brdf_samples_per_frame: brdf,
+        light_samples_per_frame: light,
+        shadow_rays_per_frame: rays,
+    };
+    eprintln!(
+        "  {name} (shadows {}): {frames} frames, {builds} builds, frame {:.2} ms (build {:.2} + shade {:.2}), BRDF samples/frame {brdf}, light samples/frame {light:.0}, shadow rays/frame {rays}",
+        row.visibility, row.mean_frame_ms, row.mean_build_ms, row.mean_shade_ms
+    );
+    Ok(row)
 }

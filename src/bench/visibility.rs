@@ -1,7 +1,8 @@
 //! `envis bench --suite visibility`: what shadow rays cost on the CPU. For each scene, the frame
 //! time with visibility off and on (same process, same G-buffer, same settings), the shadow rays
-//! cast and their rate; and the BVH build time against triangle count (the bunny, Suzanne, and
-//! the bunny merged 100 times).
+//! cast and their rate; the BVH build time against triangle count (the bunny, Suzanne, and the
+//! bunny merged 100 times into one mesh); and for the bunny placed 100 times (two levels), the
+//! one mesh BVH, the top level's build and refit, and the GPU layout's build and rewrite.
 
 use super::{BenchArgs, median};
 use crate::envmap::load::{EnvSource, load_env};
@@ -27,6 +28,21 @@ struct SceneRow {
     blocked_fraction: f64,
 }
 
+/// The bunny placed 100 times: what each level costs.
+#[derive(serde::Serialize)]
+struct InstancedRow {
+    instances: usize,
+    triangles_placed: usize,
+    /// The bunny's BVH, built once for all placements.
+    mesh_bvh_ms: f64,
+    /// The top level over the placements: built anew, and refitted after every instance moved.
+    tlas_build_ms: f64,
+    tlas_refit_ms: f64,
+    /// The GPU layout: both levels laid out, and only the top part rewritten after a move.
+    flat_build_ms: f64,
+    flat_place_ms: f64,
+}
+
 #[derive(serde::Serialize)]
 struct BuildRow {
     mesh: String,
@@ -48,6 +64,10 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
         let sc = Scene::load(&root.join(name))?;
         scenes.push(scene_row(name, &sc, w, h, repeat)?);
     }
+    let grid = bunny_grid_scene(&dir)?;
+    let sc = Scene::load(&grid)?;
+    scenes.push(scene_row("bunny x100 (instanced)", &sc, w, h, repeat)?);
+    let instanced = instanced_row(&sc, repeat.max(3))?;
     let mut builds = Vec::new();
     for (name, mesh) in meshes(&root)? {
         let t: Vec<f64> = (0..repeat.max(3))
@@ -69,7 +89,7 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
     }
     let out = serde_json::json!({
         "width": w, "height": h, "threads": rayon::current_num_threads(),
-        "scenes": scenes, "bvh_builds": builds,
+        "scenes": scenes, "bvh_builds": builds, "instanced": instanced,
     });
     let path = dir.join("bench-visibility.json");
     crate::render::output::write_json(&path, &out)?;
@@ -145,4 +165,112 @@ fn meshes(root: &Path) -> Result<Vec<(String, TriMesh)>> {
         ("suzanne".into(), suzi),
         ("bunny x100 (merged)".into(), many),
     ])
+}
+
+/// A scene file of 100 bunnies (one glTF file, so one mesh placed 100 times) in a 10 x 10 grid,
+/// each turned differently, on a plane, written to `dir`.
+pub(super) fn bunny_grid_scene(dir: &Path) -> Result<PathBuf> {
+    let models = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/models/bunny_plain.glb");
+    let mut text = format!(
+        "[environment]\nsource = \"builtin:sky:15\"\nface_size = 32\n\n[camera]\nposition = [0.0, 6.0, 9.0]\ntarget = [0.0, 0.0, 0.0]\nfov = 45.0\n\n[[object]]\nshape = \"plane\"\nsize = 12.0\nmaterial = {{ type = \"diffuse\", albedo = 0.6 }}\n"
+    );
+    for i in 0..100 {
+        let (x, z) = ((i % 10) as f32 - 4.5, (i / 10) as f32 - 4.5);
+        text += &format!(
+            "\n[[object]]\nshape = \"gltf\"\npath = {:?}\nposition = [{x}, 0.0, {z}]\nrotation = [0.0, {}, 0.0]\nscale = 0.9\nmaterial = {{ type = \"diffuse\", albedo = 0.8 }}\n",
+            models.display().to_string(),
+            (i * 37 % 360) as f32
+        );
+    }
+    let path = dir.join("bunny-grid.toml");
+    std::fs::create_dir_all(dir)
+        .and_then(|_| std::fs::write(&path, text))
+        .map_err(|e| crate::error::Error::file(&path, format!("cannot write: {e}")))?;
+    Ok(path)
+}
+
+/// Time each level of the bunny grid's shadow geometry (`repeat` times, medians).
+fn instanced_row(sc: &Scene, repeat: usize) -> Result<InstancedRow> {
+    use crate::visibility::{FlatBvh, FlatInstance, ObjectFromWorld, Tlas, world_bounds};
+    let bunnies: Vec<&crate::scene::MeshInstance> = sc
+        .objects
+        .iter()
+        .filter_map(|o| match &o.shape {
+            Shape::Mesh(m) => Some(m),
+            _ => None,
+        })
+        .collect();
+    let mesh = &bunnies[0].mesh;
+    let time = |f: &mut dyn FnMut()| {
+        median(
+            (0..repeat)
+                .map(|_| {
+                    let t0 = Instant::now();
+                    f();
+                    t0.elapsed().as_secs_f64() * 1e3
+                })
+                .collect(),
+        )
+    };
+    let mesh_bvh_ms = time(&mut || {
+        let _ = MeshBvh::build(&mesh.positions, &mesh.indices);
+    });
+    let blas = mesh
+        .bvh()
+        .flat_blas(&mesh.positions, &mesh.indices)
+        .map_err(crate::error::Error::invalid)?;
+    let local = blas.bounds.unwrap_or_default();
+    // The placements, and the same placements each moved a little (what a frame's refit sees).
+    let place = |shift: f32| -> (Vec<FlatInstance>, Vec<crate::visibility::Bounds>) {
+        bunnies
+            .iter()
+            .map(|b| {
+                let world =
+                    glam::Affine3A::from_translation(glam::Vec3::X * shift) * b.world_from_object;
+                let to_object = ObjectFromWorld::new(world).unwrap_or(b.to_object);
+                (
+                    FlatInstance { blas: 0, to_object },
+                    world_bounds(local, &world),
+                )
+            })
+            .unzip()
+    };
+    let (placed, bounds) = place(0.0);
+    let (moved, moved_bounds) = place(0.05);
+    let tlas_build_ms = time(&mut || {
+        let _ = Tlas::build(&bounds);
+    });
+    let mut tlas = Tlas::build(&bounds);
+    let tlas_refit_ms = time(&mut || {
+        tlas.refit(&moved_bounds);
+    });
+    let blases = [blas];
+    let mut flat = FlatBvh::default();
+    let mut err = None;
+    let flat_build_ms = time(&mut || match FlatBvh::build(&blases, &placed, &tlas) {
+        Ok(f) => flat = f,
+        Err(e) => err = Some(e),
+    });
+    let flat_place_ms = time(&mut || {
+        if let Err(e) = flat.place(&moved, &tlas) {
+            err = Some(e);
+        }
+    });
+    if let Some(e) = err {
+        return Err(crate::error::Error::invalid(e));
+    }
+    let row = InstancedRow {
+        instances: bunnies.len(),
+        triangles_placed: bunnies.len() * mesh.indices.len(),
+        mesh_bvh_ms,
+        tlas_build_ms,
+        tlas_refit_ms,
+        flat_build_ms,
+        flat_place_ms,
+    };
+    eprintln!(
+        "  bunny x{} (instanced): mesh BVH {:.2} ms once; top level build {:.3} ms, refit {:.3} ms; GPU layout {:.2} ms, rewrite {:.3} ms",
+        row.instances, mesh_bvh_ms, tlas_build_ms, tlas_refit_ms, flat_build_ms, flat_place_ms
+    );
+    Ok(row)
 }

@@ -197,14 +197,15 @@ fn cli_visibility_stats() {
     assert!(a == b, "the sphere scene changed with visibility off");
 }
 
-/// `envis bench --suite visibility --quick`: both scenes timed with and without shadow rays
-/// (rays counted only with), and the three BVH builds.
+/// `envis bench --suite visibility --quick`: the three scenes (the last the bunny placed 100
+/// times) timed with and without shadow rays (rays counted only with), the three BVH builds,
+/// and each level of the instanced bunnies timed.
 #[test]
 fn bench_visibility_smoke() {
     let dir = std::env::temp_dir().join(format!("envis-bench-vis-{}", std::process::id()));
     let js = bench_json(&dir, &["visibility", "--quick"], "bench-visibility.json");
     let scenes = js["scenes"].as_array().unwrap();
-    assert_eq!(scenes.len(), 2);
+    assert_eq!(scenes.len(), 3);
     for s in scenes {
         assert!(s["shadow_rays_per_frame"].as_u64().unwrap() > 0, "{s}");
         assert!(s["on_ms"].as_f64().unwrap() > 0.0 && s["off_ms"].as_f64().unwrap() > 0.0);
@@ -216,6 +217,12 @@ fn bench_visibility_smoke() {
     let builds = js["bvh_builds"].as_array().unwrap();
     assert_eq!(builds.len(), 3);
     assert_eq!(builds[2]["triangles"].as_u64(), Some(100 * 5648));
+    let inst = &js["instanced"];
+    assert_eq!(inst["instances"].as_u64(), Some(100), "{inst}");
+    assert_eq!(inst["triangles_placed"].as_u64(), Some(100 * 5648));
+    for k in ["mesh_bvh_ms", "tlas_build_ms", "tlas_refit_ms", "flat_build_ms", "flat_place_ms"] {
+        assert!(inst[k].as_f64().unwrap() >= 0.0, "{k}: {inst}");
+    }
 }
 
 /// The flattened BVH's traversal (the WGSL's CPU twin) answers exactly as obvhs's own.
