@@ -171,8 +171,8 @@ fn meshes(root: &Path) -> Result<Vec<(String, TriMesh)>> {
 /// each turned differently, on a plane, written to `dir`.
 pub(super) fn bunny_grid_scene(dir: &Path) -> Result<PathBuf> {
     let models = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/models/bunny_plain.glb");
-    let mut text = format!(
-        "[environment]\nsource = \"builtin:sky:15\"\nface_size = 32\n\n[camera]\nposition = [0.0, 6.0, 9.0]\ntarget = [0.0, 0.0, 0.0]\nfov = 45.0\n\n[[object]]\nshape = \"plane\"\nsize = 12.0\nmaterial = {{ type = \"diffuse\", albedo = 0.6 }}\n"
+    let mut text = String::from(
+        "[environment]\nsource = \"builtin:sky:15\"\nface_size = 32\n\n[camera]\nposition = [0.0, 6.0, 9.0]\ntarget = [0.0, 0.0, 0.0]\nfov = 45.0\n\n[[object]]\nshape = \"plane\"\nsize = 12.0\nmaterial = { type = \"diffuse\", albedo = 0.6 }\n",
     );
     for i in 0..100 {
         let (x, z) = ((i % 10) as f32 - 4.5, (i / 10) as f32 - 4.5);

@@ -173,16 +173,13 @@ impl TriMesh {
     /// The closest hit with `1e-4 < t < t_max` and its interpolated normal, through the mesh's
     /// BVH (built on first use).
     pub fn intersect(&self, o: Vec3, d: Vec3, t_max: f32) -> Option<(f32, Vec3)> {
-        let h = self
-            .bvh()
-            .intersect(&self.positions, &self.indices, o, d, 1e-4, t_max)?;
+        let h = self.bvh().intersect(o, d, 1e-4, t_max)?;
         Some((h.t, self.normal_at(h.triangle, h.u, h.v)))
     }
 
     /// Whether anything meets the ray with `1e-4 < t < t_max` (any hit, through the BVH).
     pub fn occluded(&self, o: Vec3, d: Vec3, t_max: f32) -> bool {
-        self.bvh()
-            .occluded(&self.positions, &self.indices, o, d, 1e-4, t_max)
+        self.bvh().occluded(o, d, 1e-4, t_max)
     }
 
     /// The mesh's BVH, built on first use.

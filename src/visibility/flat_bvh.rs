@@ -293,15 +293,21 @@ fn safe_inverse(x: f32) -> f32 {
 }
 
 #[inline]
-fn inverse(d: Vec3) -> Vec3 {
+pub(super) fn inverse(d: Vec3) -> Vec3 {
     Vec3::new(safe_inverse(d.x), safe_inverse(d.y), safe_inverse(d.z))
 }
 
 /// The ray meets the node's box before `t_max` (obvhs's slab test).
 #[inline]
 fn slab(n: &FlatNode, o: Vec3, inv: Vec3, t_max: f32) -> bool {
-    let t1 = (Vec3::from(n.min) - o) * inv;
-    let t2 = (Vec3::from(n.max) - o) * inv;
+    slab_hit(Vec3::from(n.min), Vec3::from(n.max), o, inv, t_max)
+}
+
+/// The ray `o + t d` (`inv` = 1 / `d`) meets the box `[lo, hi]` at some `t` in `[0, t_max)`.
+#[inline]
+pub(super) fn slab_hit(lo: Vec3, hi: Vec3, o: Vec3, inv: Vec3, t_max: f32) -> bool {
+    let t1 = (lo - o) * inv;
+    let t2 = (hi - o) * inv;
     let (near, far) = (t1.min(t2).max_element(), t1.max(t2).min_element());
     far >= near && far >= 0.0 && near < t_max
 }

@@ -25,6 +25,9 @@ pub struct TriangleHit {
 pub struct MeshBvh {
     pub(super) bvh: Bvh2,
     cw: CwBvh,
+    /// The triangles' vertices in the CWBVH's leaf order: a leaf reads them without going
+    /// through two index arrays (a shadow ray's cache misses).
+    leaf_triangles: Vec<[Vec3; 3]>,
 }
 
 impl std::fmt::Debug for MeshBvh {
@@ -51,27 +54,28 @@ impl MeshBvh {
         let params = obvhs::BvhBuildParams::medium_build();
         let bvh = obvhs::bvh2::builder::build_bvh2_from_tris(&triangles, params, &mut core_time);
         let cw = obvhs::cwbvh::builder::build_cwbvh_from_tris(&triangles, params, &mut core_time);
-        MeshBvh { bvh, cw }
+        let leaf_triangles = cw
+            .primitive_indices
+            .iter()
+            .map(|&i| tris[i as usize].map(|k| p[k as usize]))
+            .collect();
+        MeshBvh {
+            bvh,
+            cw,
+            leaf_triangles,
+        }
     }
 
     /// The closest hit with `t` in `(t_min, t_max)` of the ray `o + t d`.
-    pub fn intersect(
-        &self,
-        p: &[Vec3],
-        tris: &[[u32; 3]],
-        o: Vec3,
-        d: Vec3,
-        t_min: f32,
-        t_max: f32,
-    ) -> Option<TriangleHit> {
-        if tris.is_empty() {
+    pub fn intersect(&self, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> Option<TriangleHit> {
+        if self.leaf_triangles.is_empty() {
             return None;
         }
         let ray = Ray::new(ovec(o), ovec(d), t_min, t_max);
         let mut hit = RayHit::none();
         let mut best = None;
         self.cw.ray_traverse(ray, &mut hit, |ray, slot| {
-            match self.slot_hit(p, tris, (o, d), (t_min, ray.tmax), slot) {
+            match self.slot_hit((o, d), (t_min, ray.tmax), slot) {
                 Some(h) => {
                     best = Some(h);
                     h.t
@@ -84,21 +88,13 @@ impl MeshBvh {
 
     /// Whether any triangle meets the ray with `t` in `(t_min, t_max)`: a shadow ray, which
     /// stops at the first hit instead of looking for the closest.
-    pub fn occluded(
-        &self,
-        p: &[Vec3],
-        tris: &[[u32; 3]],
-        o: Vec3,
-        d: Vec3,
-        t_min: f32,
-        t_max: f32,
-    ) -> bool {
-        if tris.is_empty() {
+    pub fn occluded(&self, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> bool {
+        if self.leaf_triangles.is_empty() {
             return false;
         }
         let ray = Ray::new(ovec(o), ovec(d), t_min, t_max);
         !self.cw.ray_traverse_miss(ray, |ray, slot| {
-            self.slot_hit(p, tris, (o, d), (t_min, ray.tmax), slot)
+            self.slot_hit((o, d), (t_min, ray.tmax), slot)
                 .map_or(f32::INFINITY, |h| h.t)
         })
     }
@@ -108,18 +104,15 @@ impl MeshBvh {
     #[inline(always)]
     fn slot_hit(
         &self,
-        p: &[Vec3],
-        tris: &[[u32; 3]],
         (o, d): (Vec3, Vec3),
         (t_min, t_max): (f32, f32),
         slot: usize,
     ) -> Option<TriangleHit> {
-        let i = self.cw.primitive_indices[slot] as usize;
-        let [a, b, c] = tris[i].map(|k| p[k as usize]);
+        let [a, b, c] = self.leaf_triangles[slot];
         match ray_triangle(o, d, a, b, c) {
             Some((t, u, v)) if t > t_min && t < t_max => Some(TriangleHit {
                 t,
-                triangle: i,
+                triangle: self.cw.primitive_indices[slot] as usize,
                 u,
                 v,
             }),

@@ -220,7 +220,13 @@ fn bench_visibility_smoke() {
     let inst = &js["instanced"];
     assert_eq!(inst["instances"].as_u64(), Some(100), "{inst}");
     assert_eq!(inst["triangles_placed"].as_u64(), Some(100 * 5648));
-    for k in ["mesh_bvh_ms", "tlas_build_ms", "tlas_refit_ms", "flat_build_ms", "flat_place_ms"] {
+    for k in [
+        "mesh_bvh_ms",
+        "tlas_build_ms",
+        "tlas_refit_ms",
+        "flat_build_ms",
+        "flat_place_ms",
+    ] {
         assert!(inst[k].as_f64().unwrap() >= 0.0, "{k}: {inst}");
     }
 }
@@ -233,7 +239,7 @@ fn flat_bvh_matches_obvhs_traversal() {
     let flat = bvh.flatten(&mesh.positions, &mesh.indices).unwrap();
     let mut blocked = 0;
     for (o, d) in rays {
-        let want = bvh.occluded(&mesh.positions, &mesh.indices, o, d, 1e-4, f32::MAX);
+        let want = bvh.occluded(o, d, 1e-4, f32::MAX);
         assert_eq!(flat.occluded(o, d, 1e-4, f32::MAX), want, "ray {o} {d}");
         blocked += want as usize;
     }
@@ -267,7 +273,7 @@ fn instances_match_world_space_triangles() {
                 .tlas
                 .any(o, d, f32::MAX, |i| at.instances[i].occluded(o, d, f32::MAX));
             assert_eq!(got, cpu, "{what}: the two traversals differ on ray {o} {d}");
-            let want = merged.occluded(&world.positions, &world.indices, o, d, 1e-4, f32::MAX);
+            let want = merged.occluded(o, d, 1e-4, f32::MAX);
             differ += (got != want) as usize;
             blocked += want as usize;
         }
