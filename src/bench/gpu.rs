@@ -289,6 +289,11 @@ fn play(
     let shader = Shader::new(ctx);
     let (mut builds, mut frame_ms, mut build_ms, mut shade_ms, mut gpu) =
         (0, Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    // Some drivers (lavapipe among them) compile a pipeline at its first dispatch: one untimed
+    // frame first, so that the timings are steady-state frames.
+    sampler.upload(&ctx.queue, stream.frame());
+    ctx.wait(sampler.run(ctx, pool_seed(s.seed)))?;
+    shader.shade_with_shadows(ctx, &sampler, &pixels, &s, shadows)?;
     let mut uploaded = None;
     let (mut brdf, mut light, mut rays) = (0u64, 0.0f64, 0u64);
     for f in 0..frames {
