@@ -10,6 +10,7 @@
 #[cfg(feature = "app")]
 pub mod app;
 pub mod bench;
+pub mod cpu;
 pub mod envmap;
 pub mod error;
 #[cfg(feature = "gpu")]

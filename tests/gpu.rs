@@ -382,7 +382,7 @@ fn gpu_distribution_matches_cpu() {
                 for col in 0..n {
                     let base = (f * n + col) * (n + 1);
                     for (r, &v) in g.cond_cdf[base..base + n + 1].iter().enumerate() {
-                        let want = fd.conditional[col].cdf[r];
+                        let want = fd.conditional.cdf(col, r);
                         assert!(
                             (v - want).abs() < 2e-6,
                             "{name}: face {f} CDF(v|u={col})[{r}]: gpu {v} cpu {want}"
@@ -390,7 +390,10 @@ fn gpu_distribution_matches_cpu() {
                     }
                 }
                 for t in 0..nn {
-                    let (a, b) = (g.pdf_area[f * nn + t] as f64, fd.pdf_area[t] as f64);
+                    let (a, b) = (
+                        g.pdf_area[f * nn + t] as f64,
+                        fd.pdf_area(t % n, t / n) as f64,
+                    );
                     assert!(
                         rel(a, b) < 2e-5 || (a - b).abs() < 1e-30,
                         "{name}: face {f} pdf_area[{t}]: gpu {a} cpu {b}"

@@ -4,7 +4,9 @@
 use super::{GpuContext, dispatch_size, shaders};
 use crate::envmap::{CubeMap, SanitizeReport};
 use crate::error::{Error, Result};
-use crate::sampling::distribution::{Distribution1D, FaceDistribution, face_solid_angles};
+use crate::sampling::distribution::{
+    Conditionals, Distribution1D, FaceDistribution, face_solid_angles,
+};
 use crate::sampling::{CubeDistribution, LightPool, PoolSample};
 use glam::Vec3;
 
@@ -513,16 +515,13 @@ impl GpuTables {
         let n = self.n;
         let faces = (0..6)
             .map(|f| {
-                let conditional = (0..n)
-                    .map(|c| {
-                        let col = f * n + c;
-                        Distribution1D {
-                            func: (0..n).map(|r| self.weights[(f * n + r) * n + c]).collect(),
-                            cdf: self.cond_cdf[col * (n + 1)..(col + 1) * (n + 1)].to_vec(),
-                            total: self.col_totals[col] as f64,
-                        }
-                    })
-                    .collect();
+                let cols = f * n..(f + 1) * n;
+                let conditional = Conditionals::from_columns(
+                    n,
+                    &self.weights[f * n * n..(f + 1) * n * n],
+                    &self.cond_cdf[cols.start * (n + 1)..cols.end * (n + 1)],
+                    self.col_totals[cols].iter().map(|&t| t as f64).collect(),
+                );
                 FaceDistribution {
                     size: n,
                     marginal: Distribution1D {
@@ -532,7 +531,12 @@ impl GpuTables {
                     },
                     conditional,
                     energy: self.energies[f] as f64,
-                    pdf_area: self.pdf_area[f * n * n..(f + 1) * n * n].to_vec(),
+                    // `pdf_table`'s scale, computed as it does (in f32).
+                    area_scale: if self.energies[f] > 0.0 {
+                        (n * n) as f32 * 0.25 / self.energies[f]
+                    } else {
+                        0.0
+                    },
                 }
             })
             .collect();

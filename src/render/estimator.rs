@@ -49,12 +49,16 @@ impl<'a> FrameData<'a> {
             }
         };
         let global = (s.strategy == Strategy::Global).then(|| GlobalDistribution::build(map));
-        let nn = map.size * map.size;
+        let n = map.size;
         let texels = map
             .data
-            .iter()
-            .enumerate()
-            .map(|(i, c)| c.extend(dist.faces[i / nn].pdf_area[i % nn]))
+            .chunks(n * n)
+            .zip(&dist.faces)
+            .flat_map(|(face, fd)| {
+                face.iter()
+                    .enumerate()
+                    .map(|(t, c)| c.extend(fd.pdf_area(t % n, t / n)))
+            })
             .collect();
         FrameData {
             map,
@@ -109,7 +113,7 @@ pub fn shade_pixel_at(
     pixel_index: u32,
 ) -> (Vec3, PixelStats) {
     #[cfg(target_arch = "x86_64")]
-    if simd::enabled() {
+    if crate::cpu::avx2_fma() {
         // SAFETY: the CPU supports the features `shade_pixel_avx2` is compiled for.
         return unsafe { simd::shade_pixel_avx2(fd, s, px, at, pixel_index) };
     }
@@ -119,16 +123,6 @@ pub fn shade_pixel_at(
 #[cfg(target_arch = "x86_64")]
 mod simd {
     use super::*;
-    /// AVX2 + FMA present and `ENVIS_PORTABLE` unset (decided once per process).
-    #[inline]
-    pub fn enabled() -> bool {
-        static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-        *ON.get_or_init(|| {
-            std::arch::is_x86_feature_detected!("avx2")
-                && std::arch::is_x86_feature_detected!("fma")
-                && std::env::var_os("ENVIS_PORTABLE").is_none()
-        })
-    }
     #[target_feature(enable = "avx2,fma")]
     pub fn shade_pixel_avx2(
         fd: &FrameData,
