@@ -1,6 +1,7 @@
 //! `envis bench --suite accuracy`: what accuracy costs in time (CPU backend).
 //!
 //! Sweep: strategies {paper-fractional, paper-offset (a random per-pixel start into the pool),
+//! paper-offset-4x (the same into a pool of 4 N_L per face),
 //! paper-integer, global (power MIS), light, brdf} x total
 //! sample budgets N = N_L + N_B (4..512; paper and global also at light fractions 1/4 and 3/4) x
 //! materials {diffuse, Phong 150, GGX 0.3, GGX 0.05} x environments (built-in sky at 8h, 12h, 17h,
@@ -122,6 +123,14 @@ fn strategies(n: usize) -> Vec<(String, Settings)> {
             "paper-offset".to_string(),
             Settings {
                 pixel_offset: true,
+                ..half
+            },
+        ),
+        (
+            "paper-offset-4x".to_string(),
+            Settings {
+                pixel_offset: true,
+                pool_size: 4 * (n / 2).max(1),
                 ..half
             },
         ),
@@ -459,6 +468,7 @@ pub fn report(cfg: &Config, pts: &[Point], command: &str, gpu_device: Option<&st
     let main = [
         "paper-fractional",
         "paper-offset",
+        "paper-offset-4x",
         "paper-integer",
         "global",
         "light",
@@ -491,6 +501,7 @@ pub fn report(cfg: &Config, pts: &[Point], command: &str, gpu_device: Option<&st
         let (mut wins, mut cases) = (0, 0);
         // Issue 14's FLIP target: mean FLIP <= 0.8 x global's at N >= 16.
         let (mut flip_shared, mut flip_offset, mut flip_cases) = (0, 0, 0);
+        let mut flip_offset4 = 0;
         for env in &cfg.envs {
             for &n in &cfg.budgets {
                 let get = |s: &str| {
@@ -508,12 +519,14 @@ pub fn report(cfg: &Config, pts: &[Point], command: &str, gpu_device: Option<&st
                     flip_cases += 1;
                     flip_shared += (a.flip <= 0.8 * g.flip) as usize;
                     flip_offset += (o.flip <= 0.8 * g.flip) as usize;
+                    flip_offset4 +=
+                        get("paper-offset-4x").is_some_and(|o4| o4.flip <= 0.8 * g.flip) as usize;
                 }
             }
         }
         let _ = writeln!(
             md,
-            "\nMean FLIP at most 0.8 x global's, N >= 16: paper-fractional (shared pool) in **{flip_shared} of {flip_cases}** cases, paper-offset in **{flip_offset} of {flip_cases}**."
+            "\nMean FLIP at most 0.8 x global's, N >= 16: paper-fractional (shared pool) in **{flip_shared} of {flip_cases}** cases, paper-offset in **{flip_offset} of {flip_cases}**, paper-offset-4x (pool 4 N_L) in **{flip_offset4} of {flip_cases}**."
         );
         let wasted = |s: &str| {
             100.0
@@ -582,9 +595,10 @@ pub fn csv(pts: &[Point]) -> String {
 
 pub use super::chart::{Chart, Series};
 
-const MAIN: [(&str, &str); 6] = [
+const MAIN: [(&str, &str); 7] = [
     ("paper-fractional", "#d62728"),
     ("paper-offset", "#8c564b"),
+    ("paper-offset-4x", "#17becf"),
     ("paper-integer", "#ff9896"),
     ("global", "#1f77b4"),
     ("light", "#2ca02c"),
