@@ -213,129 +213,6 @@ fn assert_cubes_close(what: &str, got: &CubeMap, want: &CubeMap) {
     }
 }
 
-/// Shadow rays on the GPU (`visibility.wgsl`) against their CPU twin (`FlatBvh::occluded`):
-/// 20,000 rays on the bunny on a plane, half of them shadow rays leaving the plane; once as one
-/// mesh in world space, once as four placements of the bunny (one scaled non-uniformly) and a
-/// plane under a top level. A ray may differ only where it grazes a triangle edge (the GPU may
-/// fuse multiply-adds): at most 0.1%.
-#[test]
-fn gpu_shadow_rays_match_cpu() {
-    use envis::gpu::visibility::{GpuBvh, ShadowRay};
-    let Some(ctx) = gpu() else { return };
-    let (mesh, rays) = support::bunny_on_plane_rays();
-    let bvh = envis::visibility::MeshBvh::build(&mesh.positions, &mesh.indices);
-    let one = bvh.flatten(&mesh.positions, &mesh.indices).unwrap();
-    let rays: Vec<ShadowRay> = rays
-        .into_iter()
-        .map(|(o, d)| ShadowRay {
-            o,
-            d,
-            t_min: 1e-4,
-            t_max: f32::MAX,
-        })
-        .collect();
-    for (what, flat) in [
-        ("one mesh", one),
-        ("instances", support::instanced_bunnies(0.35).flat),
-    ] {
-        let got = GpuBvh::new(ctx, &flat).trace(ctx, &rays).unwrap();
-        let (mut differ, mut blocked) = (0, 0);
-        for (r, g) in rays.iter().zip(&got) {
-            let want = flat.occluded(r.o, r.d, r.t_min, r.t_max);
-            differ += (want != *g) as usize;
-            blocked += want as usize;
-        }
-        eprintln!(
-            "shadow rays, {what}: {blocked} of {} blocked, {differ} differ",
-            rays.len()
-        );
-        assert!(
-            blocked > 2_000,
-            "{what}: only {blocked} rays blocked: the scene is not in the rays' way"
-        );
-        assert!(
-            differ * 1000 <= rays.len(),
-            "{what}: {differ} of {} rays differ",
-            rays.len()
-        );
-    }
-    // An empty BVH blocks nothing.
-    let empty = GpuBvh::new(ctx, &envis::visibility::FlatBvh::default());
-    assert!(empty.trace(ctx, &rays[..10]).unwrap().iter().all(|b| !b));
-}
-
-/// Same-seed frames with shadow rays: the GPU's shading stage (`shade.wgsl` through
-/// `visibility.wgsl`) against the CPU estimator with the same flattened BVH as its occluder, on a
-/// torus resting on a plane seen from above its contact shadow. Per pixel near-identical, as
-/// `gpu_render_matches_cpu_same_seed`, and the shadow is really there.
-#[test]
-fn gpu_shadows_match_cpu_same_seed() {
-    use envis::gpu::visibility::GpuBvh;
-    let Some(ctx) = gpu() else { return };
-    let dir = std::env::temp_dir().join(format!("envis-gpu-shadows-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("torus.toml");
-    std::fs::write(
-        &path,
-        "[environment]\nsource = \"builtin:sky:15\"\nface_size = 16\n\n[camera]\nposition = [0.0, 3.0, 3.0]\ntarget = [0.0, 0.3, 0.0]\nfov = 50.0\n\n[[object]]\nshape = \"torus\"\nposition = [0.0, 0.45, 0.0]\nmaterial = { type = \"ggx\", albedo = 0.8, alpha = 0.3 }\n\n[[object]]\nshape = \"plane\"\nsize = 6.0\nmaterial = { type = \"diffuse\", albedo = 0.6 }\n",
-    )
-    .unwrap();
-    let sc = envis::scene::Scene::load(&path).unwrap();
-    // The traced geometry, two-level: the torus's mesh and the unit square, each placed once.
-    let flat = sc.shadow_bvh().unwrap();
-    assert_eq!((flat.instances(), flat.tlas_nodes()), (2, 3));
-    let size = 40;
-    let (gbuf, points) = sc.gbuffer_points(size, size);
-    let map = load_env(&EnvSource::Sky { hours: 15.0 }, 16).unwrap().cube;
-    let s = Settings {
-        light_samples: 16,
-        brdf_samples: 16,
-        seed: 5,
-        pixel_offset: true,
-        ..Default::default()
-    };
-    let extras = envis::render::Extras {
-        shadows: Some((&flat, points.as_slice())),
-        ..Default::default()
-    };
-    let cpu = envis::render::render_with(&map, extras, &gbuf, size, size, &s).unwrap();
-    let open = render(&map, &gbuf, size, size, &s).unwrap();
-    let sampler = EnvSampler::new(ctx, map.size, s.pool_per_face()).unwrap();
-    sampler.upload(&ctx.queue, &map);
-    ctx.wait(sampler.run(ctx, pool_seed(s.seed))).unwrap();
-    let pixels: Vec<GpuGPixel> = gbuf.iter().map(GpuGPixel::from).collect();
-    let gpu_bvh = GpuBvh::new(ctx, &flat);
-    let job = Shader::new(ctx)
-        .shade_with_shadows(ctx, &sampler, &pixels, &s, Some((&gpu_bvh, &points)))
-        .unwrap();
-    let img: Vec<Vec3> = job
-        .color
-        .iter()
-        .map(|c| Vec3::new(c[0], c[1], c[2]))
-        .collect();
-    let mut off = 0;
-    for (a, b) in img.iter().zip(&cpu.image.data) {
-        let d = (*a - *b).abs().max_element() / b.max_element().max(1e-3);
-        off += (d > 1e-3) as usize;
-    }
-    assert!(
-        off * 200 <= size * size,
-        "{off} pixels differ by more than 0.1%"
-    );
-    let (mg, mc, mo) = (
-        mean_lum(&img),
-        mean_lum(&cpu.image.data),
-        mean_lum(&open.image.data),
-    );
-    assert!(rel(mg, mc) < 1e-3, "image mean gpu {mg} cpu {mc}");
-    assert!(mc < 0.97 * mo, "no visible shadow: {mc} with, {mo} without");
-    assert!(
-        cpu.stats.blocked > 0.01,
-        "blocked fraction {}",
-        cpu.stats.blocked
-    );
-}
-
 #[test]
 fn gpu_distribution_matches_cpu() {
     let Some(ctx) = gpu() else { return };
@@ -811,6 +688,26 @@ mod bevy_plugin;
 #[path = "gpu/examples.rs"]
 mod examples;
 
+#[path = "gpu/visibility.rs"]
+mod visibility;
+
+/// `envis ARGS --out OUT --stats STATS`, which must succeed (`what` names the run if not).
+fn render_ok(args: &[&str], out: &Path, stats: &Path, what: &str) {
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_envis"))
+        .args(args)
+        .arg("--out")
+        .arg(out)
+        .arg("--stats")
+        .arg(stats)
+        .output()
+        .unwrap();
+    assert!(
+        o.status.success(),
+        "{what}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
 fn read_exr_mean(path: &Path) -> f64 {
     let img = envis::envmap::load::read_exr(path).unwrap();
     mean_lum(&img.data)
@@ -832,33 +729,22 @@ fn cli_gpu_backends() {
     for b in &backends {
         let out = dir.join(format!("{b}.exr"));
         let stats = dir.join(format!("{b}.json"));
-        let o = std::process::Command::new(env!("CARGO_BIN_EXE_envis"))
-            .args([
-                "render",
-                "--env",
-                "builtin:sky:14",
-                "--brdf",
-                "ggx",
-                "--alpha",
-                "0.3",
-                "--size",
-                "48",
-                "--face-size",
-                "32",
-                "--backend",
-                b,
-            ])
-            .arg("--out")
-            .arg(&out)
-            .arg("--stats")
-            .arg(&stats)
-            .output()
-            .unwrap();
-        assert!(
-            o.status.success(),
-            "--backend {b}: {}",
-            String::from_utf8_lossy(&o.stderr)
-        );
+        let args = [
+            "render",
+            "--env",
+            "builtin:sky:14",
+            "--brdf",
+            "ggx",
+            "--alpha",
+            "0.3",
+            "--size",
+            "48",
+            "--face-size",
+            "32",
+            "--backend",
+            b,
+        ];
+        render_ok(&args, &out, &stats, &format!("--backend {b}"));
         let j: serde_json::Value = support::read_json(&stats);
         assert_eq!(j["backend"], *b, "{j}");
         means.push(read_exr_mean(&out));
@@ -888,21 +774,18 @@ fn cli_gpu_backends() {
         for b in &backends {
             let out = dir.join(format!("scene-{b}-{vis}.exr"));
             let stats = dir.join(format!("scene-{b}-{vis}.json"));
-            let o = std::process::Command::new(env!("CARGO_BIN_EXE_envis"))
-                .args(["render", "--size", "48", "--visibility", vis])
-                .args(["--backend", b, "--scene"])
-                .arg(&scene)
-                .arg("--out")
-                .arg(&out)
-                .arg("--stats")
-                .arg(&stats)
-                .output()
-                .unwrap();
-            assert!(
-                o.status.success(),
-                "scene on {b}: {}",
-                String::from_utf8_lossy(&o.stderr)
-            );
+            let scene = scene.to_str().unwrap();
+            let args = [
+                "render",
+                "--size",
+                "48",
+                "--visibility",
+                vis,
+                "--backend",
+                b,
+            ];
+            let args = [&args[..], &["--scene", scene]].concat();
+            render_ok(&args, &out, &stats, &format!("scene on {b}"));
             scene_means.push(read_exr_mean(&out));
             let j = support::read_json(&stats);
             rays.push(j["shadow_rays"].as_f64().unwrap_or(0.0));

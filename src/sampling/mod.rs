@@ -3,6 +3,7 @@
 //! Each routine keeps its pdf beside it; f32 at run time, f64 in the reference.
 
 pub mod brdf;
+pub mod conditionals;
 pub mod distribution;
 pub mod faceweights;
 pub mod global;

@@ -221,37 +221,41 @@ impl FlatMeshes {
 
 impl FlatBvh {
     /// Whether any triangle meets the ray with `t` in `(t_min, t_max)`: the traversal of
-    /// `bvh_occluded` in `shaders/visibility.wgsl`, step for step.
+    /// `bvh_occluded` in `shaders/visibility.wgsl`, step for step: the top level, and at each
+    /// instance leaf its mesh, the ray carried into object space.
     pub fn occluded(&self, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> bool {
         if self.top.nodes.is_empty() {
             return false;
         }
-        let inv = inverse(d);
-        let mut stack = [0u32; STACK_SIZE];
-        let mut sp = 1;
-        while sp > 0 {
-            sp -= 1;
-            let n = self.node(stack[sp]);
-            if !slab(&n, o, inv, t_max) {
-                continue;
-            }
-            if n.count > 0 {
-                let m = ObjectFromWorld(self.triangle(n.first));
-                if self.blas_occluded(n.count, m.point(o), m.vector(d), t_min, t_max) {
-                    return true;
-                }
-            } else if sp + 2 <= STACK_SIZE {
-                stack[sp] = n.first + 1;
-                stack[sp + 1] = n.first;
-                sp += 2;
-            }
-        }
-        false
+        self.walk(0, o, d, t_max, |n| {
+            let m = ObjectFromWorld(self.triangle(n.first));
+            self.blas_occluded(n.count, m.point(o), m.vector(d), t_min, t_max)
+        })
     }
 
     /// [`Self::occluded`] within one mesh from its `root`, the ray in its object space
     /// (`blas_occluded` in the WGSL).
     fn blas_occluded(&self, root: u32, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> bool {
+        self.walk(root, o, d, t_max, |n| {
+            (n.first..n.first + n.count).any(|k| {
+                let [a, b, c] = self.triangle(k).map(|v| Vec3::new(v[0], v[1], v[2]));
+                ray_triangle(o, d, a, b, c).is_some_and(|(t, _, _)| t > t_min && t < t_max)
+            })
+        })
+    }
+
+    /// The stack walk both levels share (the WGSL writes it out twice): from `root`, every node
+    /// whose box the ray meets before `t_max`, inner nodes' children pushed second child first,
+    /// until `leaf` answers `true` for a leaf.
+    #[inline(always)]
+    fn walk(
+        &self,
+        root: u32,
+        o: Vec3,
+        d: Vec3,
+        t_max: f32,
+        mut leaf: impl FnMut(FlatNode) -> bool,
+    ) -> bool {
         let inv = inverse(d);
         let mut stack = [0u32; STACK_SIZE];
         stack[0] = root;
@@ -263,14 +267,8 @@ impl FlatBvh {
                 continue;
             }
             if n.count > 0 {
-                for k in n.first..n.first + n.count {
-                    let [a, b, c] = self.triangle(k).map(|v| Vec3::new(v[0], v[1], v[2]));
-                    if let Some((t, _, _)) = ray_triangle(o, d, a, b, c)
-                        && t > t_min
-                        && t < t_max
-                    {
-                        return true;
-                    }
+                if leaf(n) {
+                    return true;
                 }
             } else if sp + 2 <= STACK_SIZE {
                 stack[sp] = n.first + 1;

@@ -488,6 +488,40 @@ fn bevy_gpu_written_image_rebuilds_every_frame() {
     );
 }
 
+/// A camera looking straight down at the ground's 6 x 6 square around the origin (+Z up the
+/// image), lit by a sky brighter overhead than at the horizon over a dark ground, 64 light
+/// samples, `shadows` as given; its `size^2` target.
+fn top_down_camera(
+    h: &mut HeadlessApp,
+    shadows: envis::visibility::Visibility,
+    size: u32,
+) -> Handle<Image> {
+    let (env, _) = latlong_image(16, |d| Vec3::splat((0.2 + d.y).max(0.05)));
+    let env = h.add::<Image>(env);
+    let target = h.float_target(size, size);
+    let projection = Projection::Orthographic(OrthographicProjection {
+        scaling_mode: bevy::camera::ScalingMode::Fixed {
+            width: 6.0,
+            height: 6.0,
+        },
+        ..OrthographicProjection::default_3d()
+    });
+    let sampling = EnvironmentSampling {
+        shadows,
+        light_samples: 64,
+        brdf_samples: 0,
+        ..default()
+    };
+    h.app.world_mut().spawn(radiance_camera(
+        target.clone(),
+        projection,
+        Transform::from_xyz(0.0, 5.0, 0.0).looking_at(Vec3::ZERO, Vec3::Z),
+        sampling,
+        EnvisEnvironment::new(env),
+    ));
+    target
+}
+
 /// Environment shadows in the Bevy pass: a sphere resting on a plane, seen from straight above.
 /// With shadow rays the ground around the sphere darkens (the sphere hides part of the sky) and
 /// the ground far from it does not change; `NotShadowCaster` removes the shadow; a lone sphere
@@ -517,31 +551,7 @@ fn bevy_environment_shadows() {
             let mat = h.add::<StandardMaterial>(white_furnace_material());
             h.app.world_mut().spawn((Mesh3d(mesh), MeshMaterial3d(mat)));
         }
-        // A sky brighter overhead than at the horizon, a dark ground.
-        let (env, _) = latlong_image(16, |d| Vec3::splat((0.2 + d.y).max(0.05)));
-        let env = h.add::<Image>(env);
-        let target = h.float_target(size, size);
-        let projection = Projection::Orthographic(OrthographicProjection {
-            scaling_mode: bevy::camera::ScalingMode::Fixed {
-                width: 6.0,
-                height: 6.0,
-            },
-            ..OrthographicProjection::default_3d()
-        });
-        let transform = Transform::from_xyz(0.0, 5.0, 0.0).looking_at(Vec3::ZERO, Vec3::Z);
-        let sampling = EnvironmentSampling {
-            shadows,
-            light_samples: 64,
-            brdf_samples: 0,
-            ..default()
-        };
-        h.app.world_mut().spawn(radiance_camera(
-            target.clone(),
-            projection,
-            transform,
-            sampling,
-            EnvisEnvironment::new(env),
-        ));
+        let target = top_down_camera(&mut h, shadows, size);
         let img = h.capture(&target).unwrap();
         if let Ok(dir) = std::env::var("ENVIS_TEST_DUMP") {
             let name = format!("bevy-shadows-plane{plane}-caster{caster}-{shadows}.png");
@@ -650,29 +660,7 @@ fn bevy_shadows_follow_moving_meshes() {
     h.app
         .world_mut()
         .spawn((Mesh3d(plane), MeshMaterial3d(mat)));
-    let (env, _) = latlong_image(16, |d| Vec3::splat((0.2 + d.y).max(0.05)));
-    let env = h.add::<Image>(env);
-    let target = h.float_target(size, size);
-    let projection = Projection::Orthographic(OrthographicProjection {
-        scaling_mode: bevy::camera::ScalingMode::Fixed {
-            width: 6.0,
-            height: 6.0,
-        },
-        ..OrthographicProjection::default_3d()
-    });
-    let sampling = EnvironmentSampling {
-        shadows: envis::visibility::Visibility::On,
-        light_samples: 64,
-        brdf_samples: 0,
-        ..default()
-    };
-    h.app.world_mut().spawn(radiance_camera(
-        target.clone(),
-        projection,
-        Transform::from_xyz(0.0, 5.0, 0.0).looking_at(Vec3::ZERO, Vec3::Z),
-        sampling,
-        EnvisEnvironment::new(env),
-    ));
+    let target = top_down_camera(&mut h, envis::visibility::Visibility::On, size);
     // Mean luminance of the ground ring [1.05, 1.4) around (x, 0) in the top-down view (the
     // image's x runs along -X: the camera looks down with +Z up the image).
     let ring = |img: &[Vec3], x0: f32| {
