@@ -57,6 +57,9 @@ pub struct ShadowScene {
     /// Each instance's mesh bounds (object space).
     object_bounds: Vec<Bounds>,
     tlas: Tlas,
+    /// A visible caster's mesh was not loaded at the last build: a mesh that loads since may be
+    /// it.
+    waiting: bool,
 }
 
 /// The geometry on the GPU (render world).
@@ -143,12 +146,19 @@ pub fn gather_shadow_geometry(
     (mut scene, mut geometry): (ResMut<ShadowScene>, ResMut<ShadowGeometry>),
     counters: Res<EnvisCounters>,
 ) {
+    // Only the meshes that cast shadows matter (a mesh modified every frame elsewhere, or one
+    // with NotShadowCaster, costs nothing), and new ones while a caster waits for its mesh.
     let mut assets_changed = false;
     for e in events.read() {
-        if let AssetEvent::Modified { id } | AssetEvent::Removed { id } = e {
-            scene.meshes.remove(id);
+        match e {
+            AssetEvent::Modified { id } | AssetEvent::Removed { id } => {
+                assets_changed |= scene.meshes.remove(id).is_some();
+            }
+            AssetEvent::Added { .. } | AssetEvent::LoadedWithDependencies { .. } => {
+                assets_changed |= scene.waiting;
+            }
+            _ => {}
         }
-        assets_changed = true;
     }
     // A first envis camera in a scene that has not changed since needs the geometry too.
     let structure = !changed.is_empty()
@@ -185,9 +195,14 @@ fn rebuild(
     let (mut instances, mut placed) = (Vec::new(), Vec::new());
     let (mut object_bounds, mut bounds) = (Vec::new(), Vec::new());
     let mut triangles = 0;
+    scene.waiting = false;
     for (entity, mesh, transform, visible) in casters {
         let id = mesh.id();
-        let Some(m) = meshes.get(id).filter(|_| visible.get()) else {
+        if !visible.get() {
+            continue;
+        }
+        let Some(m) = meshes.get(id) else {
+            scene.waiting = true;
             continue;
         };
         let blas = scene

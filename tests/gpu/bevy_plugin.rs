@@ -633,7 +633,8 @@ fn bevy_environment_shadows() {
 /// Moving meshes: a sphere crosses a plane, with ten more placements of the same sphere mesh off
 /// to the side. The shadow follows the sphere (dark where it now rests, open ground where it
 /// was); every mesh's BVH is built once (two assets, however often placed), the top level is
-/// built once and then only refitted as the sphere moves.
+/// built once and then only refitted as the sphere moves, and a mesh without shadows modified
+/// every frame changes nothing.
 #[test]
 fn bevy_shadows_follow_moving_meshes() {
     let Some(_) = gpu() else { return };
@@ -659,7 +660,15 @@ fn bevy_shadows_follow_moving_meshes() {
     let plane = h.add::<Mesh>(Plane3d::default().mesh().size(6.0, 6.0));
     h.app
         .world_mut()
-        .spawn((Mesh3d(plane), MeshMaterial3d(mat)));
+        .spawn((Mesh3d(plane), MeshMaterial3d(mat.clone())));
+    // A mesh that casts no shadow, modified every frame: it must not rebuild anything.
+    let busy = h.add::<Mesh>(Cuboid::new(0.1, 0.1, 0.1));
+    h.app.world_mut().spawn((
+        Mesh3d(busy.clone()),
+        MeshMaterial3d(mat),
+        Transform::from_xyz(2.8, 0.05, -2.8),
+        bevy::light::NotShadowCaster,
+    ));
     let target = top_down_camera(&mut h, envis::visibility::Visibility::On, size);
     // Mean luminance of the ground ring [1.05, 1.4) around (x, 0) in the top-down view (the
     // image's x runs along -X: the camera looks down with +Z up the image).
@@ -689,6 +698,8 @@ fn bevy_shadows_follow_moving_meshes() {
             .world_mut()
             .entity_mut(sphere)
             .insert(Transform::from_xyz(-1.5 + 0.5 * k as f32, 1.0, 0.0));
+        let mut meshes = h.app.world_mut().resource_mut::<Assets<Mesh>>();
+        let _ = meshes.get_mut(&busy);
         h.update();
     }
     let after = h.capture(&target).unwrap();
