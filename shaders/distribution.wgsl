@@ -15,7 +15,8 @@ struct Params {
     m: u32,
     // Pool seed (already hashed: the CPU twin's hash(seed ^ 0xA511E9B3)).
     seed: u32,
-    _pad: u32,
+    // Independent stratified blocks of M / blocks samples per face (1: the seed's pool).
+    blocks: u32,
 }
 
 // Per texel (r, g, b, pdf_area): radiance in, sanitised radiance and the pdf table out.
@@ -155,7 +156,11 @@ fn build_pool(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgr
         pool[2u * k + 1u] = vec4(0.0);
         return;
     }
-    let p = pool_point(params.seed, f, i, m);
+    // sampling::pool::block_point: a Latin-hypercube point of the slot's own block.
+    let w = m / max(params.blocks, 1u);
+    let block = i / w;
+    let block_seed = select(hash3(params.seed, block, 0xb10cu), params.seed, block == 0u);
+    let p = pool_point(block_seed, f, i % w, w);
     let cs = sample_cdf(marg_base(n) + f * (n + 1u), n, p.x);
     let rs = sample_cdf((f * n + cs.i) * (n + 1u), n, p.y);
     let h = 2.0 / f32(n);

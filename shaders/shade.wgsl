@@ -9,7 +9,7 @@
 // written by distribution.wgsl on the GPU; nothing is read back to the CPU.
 
 struct ShadeParams {
-    // Face size N and pool samples per face M.
+    // Face size N and pool slots per face (M x pool_blocks).
     n: u32,
     m: u32,
     // Light and BRDF samples this strategy draws (already remapped as render::shade_pixel does).
@@ -20,12 +20,43 @@ struct ShadeParams {
     counts: u32,
     mis: u32,
     seed: u32,
-    pixel_offset: u32,
+    // render::PoolLayout: 0 shared, 1 offset, 2 blocks (pool_blocks of them).
+    pool_layout: u32,
     pixel_count: u32,
     // 1: each pixel's material chooses the split of nl + nb (render::budget_for).
     material_budget: u32,
     // Nodes of the shadow-ray BVH (visibility.wgsl); 0: no shadow rays.
     bvh_nodes: u32,
+    pool_blocks: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+}
+
+const POOL_OFFSET: u32 = 1u;
+const POOL_BLOCKS: u32 = 2u;
+
+// render::estimator::PoolWindow: slots base .. base + len of each face, in order from base + start.
+struct PoolWindow {
+    base: u32,
+    len: u32,
+    start: u32,
+}
+
+// render::estimator::pool_window: the pixel's first random number picks its start (offset) or its
+// block, read from its first slot (blocks); the seed's shared pool draws none.
+fn pool_window(rng: ptr<function, Rng>, m: u32) -> PoolWindow {
+    var w = PoolWindow(0u, m, 0u);
+    if (m == 0u) {
+        return w;
+    }
+    if (sp.pool_layout == POOL_OFFSET) {
+        w.start = rng_next_u32(rng) % m;
+    } else if (sp.pool_layout == POOL_BLOCKS) {
+        w.len = m / sp.pool_blocks;
+        w.base = (rng_next_u32(rng) % sp.pool_blocks) * w.len;
+    }
+    return w;
 }
 
 // render::budget_for: diffuse -> all light samples; near-mirror with no diffuse part -> all BRDF.
@@ -127,24 +158,21 @@ fn shade_counts(px: GPixel, pixel_index: u32, counts: u32) -> Shaded {
         }
     } else if (sp.strategy != STRATEGY_BRDF) {
         // Section `light_pool_samples` of render/estimator.rs.
-        res.stats.x = 6u * m;
+        let w = pool_window(&rng, m);
+        res.stats.x = 6u * w.len;
         var energy: array<f32, 6>;
         for (var f = 0u; f < 6u; f++) {
             energy[f] = face_energy[f];
         }
         let mu = face_weights(n, energy, sp.strategy == STRATEGY_PAPER);
-        var offset = 0u;
-        if (sp.pixel_offset != 0u && m > 0u) {
-            offset = rng_next_u32(&rng) % m;
-        }
         for (var f = 0u; f < 6u; f++) {
-            let c = face_count(mu[f] * f32(nl), m, counts);
+            let c = face_count(mu[f] * f32(nl), w.len, counts);
             density[f] = c.density;
-            var idx = offset;
+            var idx = w.start;
             for (var k = 0u; k < c.taken; k++) {
-                let s = f * m + idx;
+                let s = f * m + w.base + idx;
                 idx += 1u;
-                if (idx == m) {
+                if (idx == w.len) {
                     idx = 0u;
                 }
                 let dp = pool[2u * s];

@@ -5,7 +5,7 @@ mod cli;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use envis::error::Result;
-use envis::render::Strategy;
+use envis::render::{PoolLayout, Settings, Strategy};
 use envis::sampling::{Counts, Heuristic};
 use std::path::PathBuf;
 
@@ -141,8 +141,15 @@ struct RenderArgs {
     /// M, pool samples per face (default: N_L).
     #[arg(long, default_value_t = 0)]
     pool: usize,
-    /// Start each pixel at a random offset into the pool (decorrelates pixels).
-    #[arg(long)]
+    /// How pixels share the pool: `shared` (the seed's), `offset` (a random start per pixel),
+    /// `blocks` (one of K independent pools per pixel).
+    #[arg(long, value_enum, default_value_t = Settings::default().pool_layout)]
+    pool_layout: PoolLayout,
+    /// K, the independent pools of `--pool-layout blocks`.
+    #[arg(long, default_value_t = envis::render::DEFAULT_POOL_BLOCKS)]
+    pool_blocks: usize,
+    /// The same as `--pool-layout offset` (kept for scripts written before `--pool-layout`).
+    #[arg(long, hide = true, conflicts_with = "pool_layout")]
     pixel_offset: bool,
     /// Let each pixel's material choose the light / BRDF split of the budget (`paper` only):
     /// diffuse -> light samples only, near-mirror -> BRDF samples only.

@@ -604,6 +604,38 @@ fn light_pool_chi2_per_slot() {
     }
 }
 
+/// A pool of blocks (`PoolLayout::Blocks`) is `K` seed pools side by side: block 0 is the seed's
+/// pool of the same seed, block `b` the seed's pool drawn with `block_seed(seed, b)`, and the
+/// blocks differ (independent draws), so a pixel that takes one whole block takes a stratified
+/// pool whose every slot is distributed as the face pdf (`light_pool_chi2_per_slot`).
+#[test]
+fn pool_blocks_are_independent_seed_pools() {
+    use envis::sampling::pool::block_seed;
+    let map = smooth_cube(8);
+    let dist = CubeDistribution::build(&map);
+    let (m, k, seed) = (6usize, 4usize, 77u32);
+    let blocks = LightPool::build_blocks(&map, &dist, m, k, seed);
+    assert_eq!((blocks.per_face, blocks.block), (k * m, m));
+    for b in 0..k {
+        let one = LightPool::build(&map, &dist, m, block_seed(seed, b as u32));
+        for f in 0..6 {
+            for i in 0..m {
+                assert_eq!(
+                    blocks.get(f, b * m + i),
+                    one.get(f, i),
+                    "block {b} face {f} slot {i}"
+                );
+            }
+        }
+    }
+    let seeds_pool = LightPool::build(&map, &dist, m, seed);
+    assert_eq!(&blocks.samples[..m], &seeds_pool.samples[..m]);
+    let same = (0..m)
+        .filter(|&i| blocks.get(0, i) == blocks.get(0, m + i))
+        .count();
+    assert_eq!(same, 0, "blocks 0 and 1 share {same} samples");
+}
+
 /// Integral of a pdf over the sphere by midpoint quadrature on a fine (cos t, phi) grid.
 fn integrate_sphere(pdf: impl Fn(Vec3) -> f32 + Sync) -> f64 {
     use rayon::prelude::*;
@@ -1157,8 +1189,16 @@ fn estimators_are_unbiased() {
         (
             "paper fractional offset pool=16",
             Settings {
-                pixel_offset: true,
+                pool_layout: envis::render::PoolLayout::Offset,
                 pool_size: 16,
+                ..base
+            },
+        ),
+        (
+            "paper fractional blocks K=5",
+            Settings {
+                pool_layout: envis::render::PoolLayout::Blocks,
+                pool_blocks: 5,
                 ..base
             },
         ),
@@ -1731,10 +1771,21 @@ fn bench_flicker_smoke() {
         "bench-flicker.json",
     );
     let rows = js["rows"].as_array().unwrap();
-    assert_eq!(rows.len(), 5);
+    assert_eq!(rows.len(), 8);
     let sd = |i: usize| rows[i]["image_mean_rel_sd"].as_f64().unwrap();
-    assert!((0..5).all(|i| sd(i).is_finite() && sd(i) >= 0.0));
+    let layout = |i: usize| rows[i]["pool_layout"].as_str().unwrap().to_string();
+    assert!((0..8).all(|i| sd(i).is_finite() && sd(i) >= 0.0));
+    assert_eq!(
+        (layout(0), layout(1), layout(5)),
+        ("shared".into(), "offset".into(), "blocks".into())
+    );
     assert!(sd(0) > 3.0 * sd(1), "shared {} vs offset {}", sd(0), sd(1));
+    assert!(
+        sd(0) > 2.0 * sd(5),
+        "shared {} vs 16 blocks {}",
+        sd(0),
+        sd(5)
+    );
 }
 
 /// `envis bench --suite SUITE_AND_ARGS --out DIR`, which must succeed; returns `DIR/json`.
@@ -1984,7 +2035,7 @@ fn debug_pixel_matches_the_estimator() {
             light_samples: 24,
             brdf_samples: 8,
             counts: Counts::Integer,
-            pixel_offset: true,
+            pool_layout: envis::render::PoolLayout::Offset,
             pool_size: 40,
             seed: 5,
             ..Default::default()
@@ -1993,6 +2044,8 @@ fn debug_pixel_matches_the_estimator() {
             light_samples: 10,
             brdf_samples: 6,
             strategy: Strategy::Light,
+            pool_layout: envis::render::PoolLayout::Blocks,
+            pool_blocks: 3,
             ..Default::default()
         },
     ] {

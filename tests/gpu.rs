@@ -7,7 +7,9 @@ use envis::envmap::load::{EnvSource, load_env};
 use envis::envmap::*;
 use envis::gpu::{EnvSampler, GpuContext, GpuGPixel, Shader, render_gpu};
 use envis::render::reference::reference_image;
-use envis::render::{FrameData, GPixel, Settings, Strategy, pool_seed, render, sphere_gbuffer};
+use envis::render::{
+    FrameData, GPixel, PoolLayout, Settings, Strategy, pool_seed, render, sphere_gbuffer,
+};
 use envis::sampling::*;
 use envis::stats::{MeanCheck, UnbiasedTest};
 use glam::Vec3;
@@ -79,9 +81,16 @@ fn rel(a: f64, b: f64) -> f64 {
     (a - b).abs() / a.abs().max(b.abs()).max(1e-30)
 }
 
-/// Build on the GPU and read every table back.
-fn gpu_build(ctx: &GpuContext, map: &CubeMap, m: usize, seed: u32) -> envis::gpu::GpuTables {
-    let s = EnvSampler::new(ctx, map.size, m).unwrap();
+/// Build on the GPU (a pool of `blocks` blocks of `m` per face) and read every table back.
+fn gpu_build(
+    ctx: &GpuContext,
+    map: &CubeMap,
+    m: usize,
+    blocks: usize,
+    seed: u32,
+) -> envis::gpu::GpuTables {
+    let mut s = EnvSampler::new(ctx, map.size, m * blocks).unwrap();
+    s.set_blocks(blocks).unwrap();
     s.upload(&ctx.queue, map);
     ctx.wait(s.run(ctx, seed)).unwrap();
     s.read_tables(ctx).unwrap()
@@ -229,7 +238,7 @@ fn gpu_distribution_matches_cpu() {
         }) {
             let cpu = CubeDistribution::build(&map);
             let w_cpu = envis::sampling::distribution::texel_weights(&map);
-            let g = gpu_build(ctx, &map, 8, 1);
+            let g = gpu_build(ctx, &map, 8, 1, 1);
             let nn = map.size * map.size;
             for (i, (&a, &b)) in g.weights.iter().zip(&w_cpu).enumerate() {
                 assert!(
@@ -329,14 +338,16 @@ fn gpu_global_distribution_matches_cpu() {
 
 /// The pool stage alone: the CPU twin draws the pool from the GPU's own tables, so every sample
 /// must match (same hashes, same binary search); the only allowed difference is float rounding.
+/// The seed's pool and a pool of independent blocks (`PoolLayout::Blocks`).
 #[test]
 fn gpu_pool_matches_cpu_twin() {
     let Some(ctx) = gpu() else { return };
     for (name, map) in stage_maps(32) {
-        for m in [1usize, 37, 256] {
+        for (m, blocks) in [(1usize, 1usize), (37, 1), (256, 1), (12, 5)] {
             let seed = pool_seed(5);
-            let g = gpu_build(ctx, &map, m, seed);
-            let cpu = LightPool::build(&g.to_map(), &g.to_distribution(), m, seed);
+            let g = gpu_build(ctx, &map, m, blocks, seed);
+            let cpu = LightPool::build_blocks(&g.to_map(), &g.to_distribution(), m, blocks, seed);
+            assert_eq!(cpu.samples.len(), g.pool.len());
             let mut worst_dir = 0.0f32;
             for (k, (a, b)) in g.pool.iter().zip(&cpu.samples).enumerate() {
                 worst_dir = worst_dir.max((a.dir - b.dir).length());
@@ -354,7 +365,7 @@ fn gpu_pool_matches_cpu_twin() {
                 );
                 assert_eq!(a.radiance, b.radiance, "{name} M={m}: sample {k} radiance");
                 assert!(
-                    a.pdf > 0.0 || g.energies[k / m] == 0.0,
+                    a.pdf > 0.0 || g.energies[k / (m * blocks)] == 0.0,
                     "{name}: a sample with pdf 0 on a lit face"
                 );
             }
@@ -366,6 +377,8 @@ fn gpu_pool_matches_cpu_twin() {
                     light_samples: m,
                     brdf_samples: 0,
                     seed: 5,
+                    pool_layout: PoolLayout::Blocks,
+                    pool_blocks: blocks,
                     ..Default::default()
                 },
             );
@@ -417,44 +430,50 @@ fn gpu_render_matches_cpu_same_seed() {
             Strategy::Paper,
             Counts::Fractional,
             Heuristic::Balance,
-            false,
+            PoolLayout::Shared,
         ),
-        (Strategy::Paper, Counts::Integer, Heuristic::Power, true),
+        (
+            Strategy::Paper,
+            Counts::Integer,
+            Heuristic::Power,
+            PoolLayout::Offset,
+        ),
         (
             Strategy::Light,
             Counts::Fractional,
             Heuristic::Balance,
-            false,
+            PoolLayout::Blocks,
         ),
         (
             Strategy::Brdf,
             Counts::Fractional,
             Heuristic::Balance,
-            false,
+            PoolLayout::Shared,
         ),
         (
             Strategy::Global,
             Counts::Fractional,
             Heuristic::Power,
-            false,
+            PoolLayout::Shared,
         ),
     ];
     for (mname, mat) in mats {
         let gbuf = sphere_gbuffer(size, size, mat);
-        for (strategy, counts, mis, pixel_offset) in strategies {
+        for (strategy, counts, mis, pool_layout) in strategies {
             let s = Settings {
                 light_samples: 8,
                 brdf_samples: 8,
                 strategy,
                 counts,
                 mis,
-                pixel_offset,
+                pool_layout,
+                pool_blocks: 4,
                 seed: 11,
                 ..Default::default()
             };
             let cpu = render(&map, &gbuf, size, size, &s).unwrap();
             let (gpu_img, timings) = render_gpu(ctx, &map, &gbuf, size, size, &s).unwrap();
-            let label = format!("{mname} {strategy:?} {counts:?} {mis:?} offset={pixel_offset}");
+            let label = format!("{mname} {strategy:?} {counts:?} {mis:?} pool={pool_layout}");
             // Per pixel: near-identical. A handful of pixels may take a different branch where a
             // cosine or a CDF comparison sits within rounding of its threshold.
             let mut off = 0;
@@ -624,7 +643,7 @@ fn gpu_stream_follows_the_map_every_frame() {
         seed: 3,
         ..Default::default()
     };
-    let sampler = EnvSampler::new(ctx, face, s.pool_per_face()).unwrap();
+    let sampler = EnvSampler::for_settings(ctx, face, &s).unwrap();
     let shader = Shader::new(ctx);
     let mut prev_cpu: Option<Vec<Vec3>> = None;
     for frame in 0..6 {

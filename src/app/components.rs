@@ -3,7 +3,7 @@
 //! `EnvironmentMapLight` does, so two cameras can sample differently in one app.
 
 use super::Overlay;
-use crate::render::{Settings, Strategy};
+use crate::render::{PoolLayout, Settings, Strategy};
 use crate::sampling::{Counts, Heuristic};
 use bevy::core_pipeline::prepass::{DeferredPrepass, DepthPrepass};
 use bevy::prelude::*;
@@ -33,9 +33,12 @@ pub struct EnvironmentSampling {
     pub heuristic: Heuristic,
     /// Light samples drawn per cube face per frame, `M` (0: `light_samples`).
     pub pool_size: u32,
-    /// Each pixel starts at a random offset into the pool, so neighbours use different samples
-    /// (turns the shared pool's coherent error into noise; `docs/benchmarks.md`).
-    pub pixel_offset: bool,
+    /// How pixels share the pool: `shared` (the seed's: the same samples everywhere, coherent
+    /// error), `offset` (a random start per pixel) or `blocks` (one of `pool_blocks`
+    /// independent pools per pixel: the error becomes noise; `docs/benchmarks.md`).
+    pub pool_layout: PoolLayout,
+    /// Independent pools with `blocks`, `K`.
+    pub pool_blocks: u32,
     /// Let each pixel's material split the budget (diffuse: all light samples; near-mirror: all
     /// BRDF samples); `paper` only.
     pub material_budget: bool,
@@ -65,7 +68,8 @@ impl Default for EnvironmentSampling {
             counts: Counts::Fractional,
             heuristic: Heuristic::Balance,
             pool_size: 0,
-            pixel_offset: true,
+            pool_layout: PoolLayout::Blocks,
+            pool_blocks: crate::render::DEFAULT_POOL_BLOCKS as u32,
             material_budget: false,
             seed: 0,
             accumulate: false,
@@ -88,7 +92,8 @@ impl EnvironmentSampling {
             counts: self.counts,
             mis: self.heuristic,
             seed: self.seed,
-            pixel_offset: self.pixel_offset,
+            pool_layout: self.pool_layout,
+            pool_blocks: self.pool_blocks as usize,
             material_budget: self.material_budget,
         }
     }
@@ -102,7 +107,8 @@ impl EnvironmentSampling {
         self.counts = s.counts;
         self.heuristic = s.mis;
         self.seed = s.seed;
-        self.pixel_offset = s.pixel_offset;
+        self.pool_layout = s.pool_layout;
+        self.pool_blocks = s.pool_blocks as u32;
         self.material_budget = s.material_budget;
     }
 

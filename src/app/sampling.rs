@@ -69,7 +69,9 @@ pub enum SeedOwner {
 pub struct SamplerKey {
     pub image: AssetId<Image>,
     pub face_size: usize,
-    pub pool_per_face: usize,
+    /// Slots per face (`M` x blocks) and the blocks they split into.
+    pub pool_slots: usize,
+    pub pool_blocks: usize,
     pub seed: SeedOwner,
 }
 
@@ -271,7 +273,8 @@ pub fn prepare_samplers(
         let key = SamplerKey {
             image: env.image.id(),
             face_size,
-            pool_per_face: settings.pool_per_face(),
+            pool_slots: settings.pool_slots(),
+            pool_blocks: settings.pool_block_count(),
             seed: if sampling.accumulate {
                 SeedOwner::View(entity)
             } else {
@@ -391,8 +394,13 @@ fn slot_for<'a>(
         Entry::Occupied(e) => return Some(e.into_mut()),
         Entry::Vacant(v) => v,
     };
-    let (n, m) = (key.face_size, key.pool_per_face);
-    match EnvSampler::with_device(device.wgpu_device(), queue, n, m, false) {
+    let (n, m) = (key.face_size, key.pool_slots);
+    let built =
+        EnvSampler::with_device(device.wgpu_device(), queue, n, m, false).and_then(|mut s| {
+            s.set_blocks(key.pool_blocks)?;
+            Ok(s)
+        });
+    match built {
         Ok(sampler) => {
             counters.bump(|c: &Counters| &c.allocations);
             Some(vacant.insert(SamplerSlot {

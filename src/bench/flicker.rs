@@ -1,9 +1,9 @@
 //! Suite `flicker`: how much one frame's image mean moves from seed to seed on a white furnace,
 //! for the pool layouts envis has today. Every pixel shading from the same per-frame pool makes
 //! the error coherent across the image: in a live view, whole-image flicker. This measures the
-//! candidates of issue 14 part 1 before one is chosen: the seed's shared pool, a random per-pixel
-//! start offset into pools of `N_L`, 4 `N_L` and 16 `N_L` samples per face, and the `global`
-//! baseline (independent samples per pixel) for comparison.
+//! pool layouts of issue 14 part 1: the seed's shared pool, a random per-pixel start offset into
+//! pools of `N_L`, 4 `N_L` and 16 `N_L` samples per face, `K` = 4, 16, 64 independent blocks of
+//! `N_L` (one per pixel), and the `global` baseline (independent samples per pixel).
 //!
 //! The furnace: a constant map of radiance 1 (faces `--face-size`), a diffuse sphere of albedo 1
 //! (`--size`), `N_L + N_B` samples; the exact image is 1 everywhere. Per layout, over `--repeat`
@@ -13,7 +13,7 @@
 use super::{BenchArgs, median};
 use crate::envmap::CubeMap;
 use crate::error::Result;
-use crate::render::{self, Settings, Strategy};
+use crate::render::{self, PoolLayout, Settings, Strategy};
 use crate::sampling::Material;
 use glam::Vec3;
 use std::path::Path;
@@ -24,7 +24,8 @@ struct Row {
     layout: String,
     strategy: Strategy,
     pool_per_face: usize,
-    pixel_offset: bool,
+    pool_layout: PoolLayout,
+    pool_blocks: usize,
     image_mean_rel_sd: f64,
     relmse: f64,
     frame_ms: f64,
@@ -34,13 +35,27 @@ struct Row {
 /// The layouts measured: (name, settings on top of the base).
 fn layouts(base: Settings) -> Vec<(String, Settings)> {
     let nl = base.light_samples.max(1);
-    let mut v = vec![("shared (the seed's)".to_string(), base)];
+    let shared = Settings {
+        pool_layout: PoolLayout::Shared,
+        ..base
+    };
+    let mut v = vec![("shared (the seed's)".to_string(), shared)];
     for mult in [1, 4, 16] {
         v.push((
             format!("offset, pool {mult} N_L"),
             Settings {
-                pixel_offset: true,
+                pool_layout: PoolLayout::Offset,
                 pool_size: mult * nl,
+                ..base
+            },
+        ));
+    }
+    for k in [4, 16, 64] {
+        v.push((
+            format!("blocks, {k} pools of N_L"),
+            Settings {
+                pool_layout: PoolLayout::Blocks,
+                pool_blocks: k,
                 ..base
             },
         ));
@@ -87,7 +102,8 @@ pub fn run(a: BenchArgs, dir: &Path) -> Result<()> {
             layout: name,
             strategy: s.strategy,
             pool_per_face: s.pool_per_face(),
-            pixel_offset: s.pixel_offset,
+            pool_layout: s.pool_layout,
+            pool_blocks: s.pool_block_count(),
             image_mean_rel_sd: se * (seeds as f64).sqrt() / mean,
             relmse: relmse / (seeds * idx.len()) as f64,
             frame_ms,

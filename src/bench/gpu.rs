@@ -125,7 +125,7 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
         let gbuf = render::sphere_gbuffer(width, height, mat);
         let shaded = gbuf.iter().filter(|p| p.is_some()).count();
         let pixels: Vec<GpuGPixel> = gbuf.iter().map(GpuGPixel::from).collect();
-        let sampler = EnvSampler::new(&ctx, face, s.pool_per_face())?;
+        let sampler = EnvSampler::for_settings(&ctx, face, &s)?;
         sampler.upload(&ctx.queue, &map);
         let shader = Shader::new(&ctx);
         let (mut gb, mut gs, mut gw, mut cs) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
@@ -285,7 +285,7 @@ fn play(
     let mut stream = EnvStream::open(source, sc.file.environment.face_size)?;
     let pixels: Vec<GpuGPixel> = gbuf.iter().map(GpuGPixel::from).collect();
     let s = sc.settings;
-    let sampler = EnvSampler::new(ctx, stream.face_size(), s.pool_per_face())?;
+    let sampler = EnvSampler::for_settings(ctx, stream.face_size(), &s)?;
     let shader = Shader::new(ctx);
     let (mut builds, mut frame_ms, mut build_ms, mut shade_ms, mut gpu) =
         (0, Vec::new(), Vec::new(), Vec::new(), Vec::new());

@@ -488,12 +488,12 @@ fn offset(a: BenchArgs, dir: PathBuf) -> Result<()> {
         let idx: Vec<usize> = (0..gbuf.len()).filter(|&i| gbuf[i].is_some()).collect();
         let ref_mean = idx.iter().map(|&i| lum(reference[i])).sum::<f64>() / idx.len() as f64;
         for pool_mult in [1usize, 4] {
-            for pixel_offset in [false, true] {
+            for pool_layout in crate::render::PoolLayout::ALL {
                 let s = Settings {
                     light_samples: a.light_samples,
                     brdf_samples: a.brdf_samples,
                     pool_size: a.light_samples * pool_mult,
-                    pixel_offset,
+                    pool_layout,
                     ..Default::default()
                 };
                 let (mut relmse, mut means) = (0.0, Vec::new());
@@ -520,10 +520,10 @@ fn offset(a: BenchArgs, dir: PathBuf) -> Result<()> {
                 let (_, se) = crate::stats::mean_se(&means);
                 let mean_sd = se * (k as f64).sqrt() / ref_mean;
                 eprintln!(
-                    "  {mname:8} pool {:>3}/face offset {:5}: per-pixel relMSE {relmse:.4e}  image-mean rel. SD {mean_sd:.4e}",
-                    s.pool_size, pixel_offset
+                    "  {mname:8} pool {:>3}/face {:6}: per-pixel relMSE {relmse:.4e}  image-mean rel. SD {mean_sd:.4e}",
+                    s.pool_size, pool_layout
                 );
-                rows.push(serde_json::json!({ "material": mname, "pool_per_face": s.pool_size, "pixel_offset": pixel_offset, "relmse": relmse, "image_mean_rel_sd": mean_sd }));
+                rows.push(serde_json::json!({ "material": mname, "pool_per_face": s.pool_size, "pool_layout": pool_layout, "pool_blocks": s.pool_block_count(), "relmse": relmse, "image_mean_rel_sd": mean_sd }));
             }
         }
     }

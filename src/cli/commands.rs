@@ -5,7 +5,7 @@ use super::scene::{check_exr_path, setup};
 use crate::{BackendArg, CrossArgs, ReferenceArgs, RenderArgs};
 use envis::envmap::load::load_env;
 use envis::error::{Error, Result};
-use envis::render::{self, Settings, output, reference};
+use envis::render::{self, PoolLayout, Settings, output, reference};
 
 /// `envis render`.
 pub fn render(r: RenderArgs) -> Result<()> {
@@ -18,7 +18,12 @@ pub fn render(r: RenderArgs) -> Result<()> {
         counts: r.counts,
         mis: r.mis,
         seed: r.seed,
-        pixel_offset: r.pixel_offset,
+        pool_layout: if r.pixel_offset {
+            PoolLayout::Offset
+        } else {
+            r.pool_layout
+        },
+        pool_blocks: r.pool_blocks,
         material_budget: r.material_budget,
     };
     settings.validate()?;

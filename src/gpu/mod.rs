@@ -99,7 +99,7 @@ pub fn render_gpu(
 pub struct GpuRenderer<'c> {
     ctx: &'c GpuContext,
     shader: Shader,
-    samplers: std::collections::HashMap<(usize, usize, bool), EnvSampler>,
+    samplers: std::collections::HashMap<(usize, usize, usize, bool), EnvSampler>,
 }
 
 impl<'c> GpuRenderer<'c> {
@@ -138,12 +138,12 @@ impl<'c> GpuRenderer<'c> {
         s.validate()?;
         assert_eq!(gbuf.len(), width * height);
         let ctx = self.ctx;
-        let m = s.pool_per_face();
+        let (m, blocks) = (s.pool_slots(), s.pool_block_count());
         let global = s.strategy == Strategy::Global;
-        let key = (map.size, m, global);
+        let key = (map.size, m, blocks, global);
         let pixels: Vec<GpuGPixel> = gbuf.iter().map(GpuGPixel::from).collect();
         if !self.samplers.contains_key(&key) {
-            let mut sampler = EnvSampler::new(ctx, map.size, m)?;
+            let mut sampler = EnvSampler::for_settings(ctx, map.size, s)?;
             if global {
                 sampler.enable_global(&ctx.device, &ctx.queue)?;
             }

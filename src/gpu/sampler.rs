@@ -16,7 +16,7 @@ struct Params {
     n: u32,
     m: u32,
     seed: u32,
-    _pad: u32,
+    blocks: u32,
 }
 
 /// Offset of the column totals in the `totals` buffer (face energies come first).
@@ -37,10 +37,14 @@ struct GlobalBuild {
 }
 
 /// GPU buffers and pipelines of the per-frame build for faces of `n x n` texels and `m` pool
-/// samples per face. Re-create it when `n` or `m` change; re-upload and re-encode every frame.
+/// slots per face (in [`Self::blocks`] blocks). Re-create it when `n` or `m` change; re-upload
+/// and re-encode every frame.
 pub struct EnvSampler {
     pub n: usize,
     pub m: usize,
+    /// Independent stratified blocks the `m` slots are split into (`PoolLayout::Blocks`; 1: the
+    /// seed's pool). Set with [`Self::set_blocks`].
+    pub blocks: usize,
     /// Per texel `(r, g, b, pdf_area)`: radiance in, sanitised radiance + pdf table out.
     pub texels: wgpu::Buffer,
     pub weights: wgpu::Buffer,
@@ -89,6 +93,13 @@ pub fn check_binding(limits: &wgpu::Limits, what: &str, bytes: u64) -> Result<()
 impl EnvSampler {
     pub fn new(ctx: &GpuContext, n: usize, m: usize) -> Result<Self> {
         Self::with_device(&ctx.device, &ctx.queue, n, m, ctx.timestamps)
+    }
+
+    /// The sampler a render with settings `s` needs on faces of `n`: its pool's slots and blocks.
+    pub fn for_settings(ctx: &GpuContext, n: usize, s: &crate::render::Settings) -> Result<Self> {
+        let mut sampler = Self::new(ctx, n, s.pool_slots())?;
+        sampler.set_blocks(s.pool_block_count())?;
+        Ok(sampler)
     }
 
     /// Build on any device (the Bevy render world passes its own).
@@ -208,6 +219,7 @@ impl EnvSampler {
         Ok(EnvSampler {
             n,
             m,
+            blocks: 1,
             texels,
             weights,
             cdfs,
@@ -326,13 +338,26 @@ impl EnvSampler {
         queue.write_buffer(&self.texels, 0, bytemuck::cast_slice(&data));
     }
 
+    /// Split the pool into `blocks` blocks of `m / blocks` samples per face from the next
+    /// [`Self::set_seed`] on (the CPU twin's `LightPool::build_blocks`).
+    pub fn set_blocks(&mut self, blocks: usize) -> Result<()> {
+        if blocks == 0 || !self.m.is_multiple_of(blocks) {
+            return Err(Error::invalid(format!(
+                "a pool of {} per face does not split into {blocks} blocks",
+                self.m
+            )));
+        }
+        self.blocks = blocks;
+        Ok(())
+    }
+
     /// Set the pool seed for the next [`Self::encode`] (the CPU twin's `render::pool_seed`).
     pub fn set_seed(&self, queue: &wgpu::Queue, seed: u32) {
         let p = Params {
             n: self.n as u32,
             m: self.m as u32,
             seed,
-            _pad: 0,
+            blocks: self.blocks as u32,
         };
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
     }
@@ -472,6 +497,7 @@ impl EnvSampler {
         Ok(GpuTables {
             n,
             m,
+            blocks: self.blocks,
             weights: ctx.read(&self.weights, 0, 6 * n * n)?,
             cond_cdf: ctx.read(&self.cdfs, 0, 6 * n * (n + 1))?,
             marg_cdf: ctx.read(&self.cdfs, 6 * n * (n + 1), 6 * (n + 1))?,
@@ -496,6 +522,7 @@ impl EnvSampler {
 pub struct GpuTables {
     pub n: usize,
     pub m: usize,
+    pub blocks: usize,
     pub weights: Vec<f32>,
     /// Per (face, column) `n + 1` values.
     pub cond_cdf: Vec<f32>,
@@ -547,6 +574,7 @@ impl GpuTables {
     pub fn to_pool(&self) -> LightPool {
         LightPool {
             per_face: self.m,
+            block: self.m / self.blocks.max(1),
             samples: self.pool.clone(),
         }
     }

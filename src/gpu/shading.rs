@@ -4,7 +4,7 @@
 use super::sampler::{EnvSampler, TOTALS_COLUMNS, check_binding};
 use super::{GpuContext, dispatch_size, shaders};
 use crate::error::Result;
-use crate::render::{GPixel, Settings, Strategy};
+use crate::render::{GPixel, PoolLayout, Settings, Strategy};
 use crate::sampling::{Counts, Heuristic, Lobe};
 
 /// A G-buffer texel as the shader reads it: `n.w = 1` where there is geometry, `kd.w` = lobe kind
@@ -50,11 +50,15 @@ pub struct ShadeParams {
     pub counts: u32,
     pub mis: u32,
     pub seed: u32,
-    pub pixel_offset: u32,
+    /// `PoolLayout`: 0 shared, 1 offset, 2 blocks.
+    pub pool_layout: u32,
     pub pixel_count: u32,
     pub material_budget: u32,
     /// Nodes of the shadow-ray BVH; 0: no shadow rays.
     pub bvh_nodes: u32,
+    /// Blocks of the pool (1 unless `PoolLayout::Blocks`).
+    pub pool_blocks: u32,
+    pub _pad: [u32; 3],
 }
 
 impl ShadeParams {
@@ -75,10 +79,16 @@ impl ShadeParams {
             counts: (s.counts == Counts::Integer) as u32,
             mis: (s.mis == Heuristic::Power) as u32,
             seed: s.seed,
-            pixel_offset: s.pixel_offset as u32,
+            pool_layout: match s.pool_layout {
+                PoolLayout::Shared => 0,
+                PoolLayout::Offset => 1,
+                PoolLayout::Blocks => 2,
+            },
             pixel_count: pixel_count as u32,
             material_budget: s.material_budget as u32,
             bvh_nodes: 0,
+            pool_blocks: s.pool_block_count() as u32,
+            _pad: [0; 3],
         }
     }
 }

@@ -57,20 +57,22 @@ pub fn debug_pixel_at(
     let (estimate, _) = super::estimator::shade_pixel_at(fd, s, px, at, pixel_index);
     let shadow = fd.occluder.zip(at);
     let n = px.n.normalize_or_zero();
-    let m = fd.pool.per_face;
     let (nl, _) = s.budget(&px.material);
     let fw = face_weights(n, &fd.energies, s.strategy != Strategy::Light);
     let mut rng = Rng::new(s.seed, pixel_index);
-    let offset = super::estimator::pool_offset(&mut rng, s, m);
-    let mut samples = Vec::with_capacity(6 * m);
+    let window = super::estimator::pool_window(&mut rng, s, &fd.pool);
+    // The pixel's own part of the pool (one block with `PoolLayout::Blocks`): the slots it can
+    // take, as the seed's view shows them.
+    let mut samples = Vec::with_capacity(6 * window.len);
     let live = matches!(s.strategy, Strategy::Paper | Strategy::Light)
         && super::estimator::shading_directions(px).is_some();
     for f in 0..6 {
-        let c = face_count(fw.mu[f] * nl as f32, m, s.counts);
-        for j in 0..m {
+        let c = face_count(fw.mu[f] * nl as f32, window.len, s.counts);
+        for j in window.base..window.base + window.len {
             let ls = fd.pool.get(f, j);
-            let k = (j + m - offset) % m; // position of slot j in this pixel's order
-            let kind = if !live || k >= c.taken || ls.pdf <= 0.0 {
+            // Where slot j comes in this pixel's order.
+            let taken = window.position(j).is_some_and(|k| k < c.taken);
+            let kind = if !live || !taken || ls.pdf <= 0.0 {
                 SampleKind::Discarded
             } else if n.dot(ls.dir) <= 0.0 {
                 SampleKind::Wasted

@@ -2,7 +2,7 @@
 //! frame's light pool (or the global distribution) and the pixel's BRDF samples, combined by MIS.
 //! The twin of `shaders/shade.wgsl`.
 
-use super::{GPixel, PixelStats, Settings, Strategy, pool_seed};
+use super::{GPixel, PixelStats, PoolLayout, Settings, Strategy, pool_seed};
 use crate::envmap::CubeMap;
 use crate::sampling::rng::Rng;
 use crate::sampling::warp::Frame;
@@ -41,10 +41,17 @@ impl<'a> FrameData<'a> {
         let dist = CubeDistribution::build(map);
         let energies = dist.energies();
         let pool = if matches!(s.strategy, Strategy::Paper | Strategy::Light) {
-            LightPool::build(map, &dist, s.pool_per_face(), pool_seed(s.seed))
+            LightPool::build_blocks(
+                map,
+                &dist,
+                s.pool_per_face(),
+                s.pool_block_count(),
+                pool_seed(s.seed),
+            )
         } else {
             LightPool {
                 per_face: 0,
+                block: 0,
                 samples: Vec::new(),
             }
         };
@@ -278,19 +285,18 @@ fn light_pool_samples<B: LocalBsdf>(
 ) -> [f32; 6] {
     let (fd, s) = (px.fd, px.s);
     let mut density = [0.0f32; 6];
-    let m = fd.pool.per_face;
-    st.available = (6 * m) as u32;
+    let w = pool_window(rng, s, &fd.pool);
+    st.available = (6 * w.len) as u32;
     let fw = face_weights(px.n, &fd.energies, s.strategy == Strategy::Paper);
-    let offset = pool_offset(rng, s, m);
     for (f, dens) in density.iter_mut().enumerate() {
-        let c = face_count(fw.mu[f] * px.nl as f32, m, s.counts);
+        let c = face_count(fw.mu[f] * px.nl as f32, w.len, s.counts);
         *dens = c.density;
-        // Pool index (offset + k) mod m, kept in range without a division per sample.
-        let mut idx = offset;
+        // Window index (start + k) mod len, kept in range without a division per sample.
+        let mut idx = w.start;
         for k in 0..c.taken {
-            let ls = fd.pool.get(f, idx);
+            let ls = fd.pool.get(f, w.base + idx);
             idx += 1;
-            if idx == m {
+            if idx == w.len {
                 idx = 0;
             }
             if ls.pdf <= 0.0 {
@@ -314,14 +320,49 @@ pub(crate) fn shading_directions(px: &GPixel) -> Option<(Vec3, Vec3)> {
     (visible && !px.material.is_black()).then_some((n, o))
 }
 
-/// Where a pixel starts in each face's part of the pool (`m` slots): a random slot, drawn as the
-/// pixel's first random number, with `pixel_offset`; slot 0 otherwise.
+/// The part of each face's pool one pixel reads: slots `base .. base + len`, in order from
+/// `base + start`, wrapping.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct PoolWindow {
+    pub base: usize,
+    pub len: usize,
+    pub start: usize,
+}
+
+impl PoolWindow {
+    /// Where slot `j` of a face comes in this window's order, or `None` outside the window.
+    pub fn position(&self, j: usize) -> Option<usize> {
+        let i = j.checked_sub(self.base).filter(|&i| i < self.len)?;
+        Some((i + self.len - self.start) % self.len)
+    }
+}
+
+/// A pixel's window on the pool ([`PoolLayout`]), drawn as the pixel's first random number when
+/// the layout draws one: the whole pool from slot 0 (`shared`), from a random slot (`offset`),
+/// or one block drawn at random, from its slot 0 (`blocks`). A block is read from its start, as
+/// the seed reads its pool: a random start in the block decorrelates more but, measured over 400
+/// seeds on the furnace, costs 8% relMSE, as the `offset` layout's random start does
+/// (`docs/benchmarks.md`, "Pool layouts").
 #[inline(always)]
-pub(crate) fn pool_offset(rng: &mut Rng, s: &Settings, m: usize) -> usize {
-    if s.pixel_offset && m > 0 {
-        rng.next_u32() as usize % m
-    } else {
-        0
+pub(crate) fn pool_window(rng: &mut Rng, s: &Settings, pool: &LightPool) -> PoolWindow {
+    let (m, block) = (pool.per_face, pool.block);
+    let whole = PoolWindow {
+        base: 0,
+        len: m,
+        start: 0,
+    };
+    match s.pool_layout {
+        _ if m == 0 => whole,
+        PoolLayout::Shared => whole,
+        PoolLayout::Offset => PoolWindow {
+            start: rng.next_u32() as usize % m,
+            ..whole
+        },
+        PoolLayout::Blocks => PoolWindow {
+            base: (rng.next_u32() as usize % (m / block)) * block,
+            len: block,
+            start: 0,
+        },
     }
 }
 

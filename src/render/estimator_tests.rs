@@ -28,7 +28,8 @@ fn lambert_path_is_bit_identical() {
                 light_samples: 7,
                 brdf_samples: 5,
                 seed: 11,
-                pixel_offset: true,
+                pool_layout: PoolLayout::Blocks,
+                pool_blocks: 3,
                 ..Default::default()
             };
             let fd = FrameData::prepare(&map, &s);

@@ -25,7 +25,8 @@ pub use debug::{DebugSample, PixelDebug, SampleKind, debug_pixel, debug_pixel_at
 pub use estimator::{FrameData, shade_pixel};
 pub use scene::{GPixel, sphere_gbuffer};
 pub use settings::{
-    NEAR_MIRROR_ALPHA, NEAR_MIRROR_EXPONENT, Settings, Strategy, budget_for, pool_seed,
+    DEFAULT_POOL_BLOCKS, NEAR_MIRROR_ALPHA, NEAR_MIRROR_EXPONENT, PoolLayout, Settings, Strategy,
+    budget_for, pool_seed,
 };
 pub use stats::{PixelStats, RenderStats};
 
@@ -95,7 +96,7 @@ pub fn render_with(
         .collect();
     let shade_ms = t1.elapsed().as_secs_f64() * 1e3;
 
-    let mut stats = RenderStats::for_settings(width, height, s, fd.pool.per_face);
+    let mut stats = RenderStats::for_settings(width, height, s, fd.pool.block);
     stats.build_ms = build_ms;
     stats.shade_ms = shade_ms;
     let per_pixel: Vec<Option<PixelStats>> = out.iter().map(|(_, st)| *st).collect();

@@ -28,6 +28,38 @@ pub enum Strategy {
 
 crate::vocab::display_as_value_enum!(Strategy);
 
+/// How pixels share the per-frame light pool (`--pool-layout`, `pool_layout` in scene files and
+/// on the Bevy camera). Every layout is unbiased: each pixel's light samples are, one by one,
+/// distributed as the face pdfs. They differ in how the error is shared between pixels
+/// (`docs/benchmarks.md`, "Pool layouts").
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum,
+)]
+#[cfg_attr(feature = "app", derive(bevy::reflect::Reflect))]
+#[serde(rename_all = "lowercase")]
+pub enum PoolLayout {
+    /// The seed's: one pool of `M` samples per face, every pixel takes its first `N_f`. The
+    /// error is the same pattern in every pixel (whole-image flicker from frame to frame).
+    Shared,
+    /// One pool; each pixel starts at a random slot and wraps. With `M > N_L` pixels decorrelate,
+    /// but a window of a larger stratified pool is not itself stratified.
+    Offset,
+    /// `K` independent stratified pools ("blocks", `--pool-blocks K`) of `M` samples per face;
+    /// each pixel takes one block at random and reads it as the seed reads its pool. A pixel sees
+    /// exactly a seed pool, so its own error is the seed's, while the image averages `K` pools.
+    Blocks,
+}
+
+crate::vocab::display_as_value_enum!(PoolLayout);
+
+impl PoolLayout {
+    pub const ALL: [PoolLayout; 3] = [PoolLayout::Shared, PoolLayout::Offset, PoolLayout::Blocks];
+}
+
+/// Blocks of the `blocks` layout unless told otherwise: the fewest that bring the furnace's
+/// image-mean flicker under 1% (`envis bench --suite flicker`).
+pub const DEFAULT_POOL_BLOCKS: usize = 16;
+
 /// Sampling settings of a render.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct Settings {
@@ -41,8 +73,10 @@ pub struct Settings {
     pub counts: Counts,
     pub mis: Heuristic,
     pub seed: u32,
-    /// Start each pixel at a random offset into the pool (decorrelates pixels).
-    pub pixel_offset: bool,
+    /// How pixels share the pool.
+    pub pool_layout: PoolLayout,
+    /// `K`, the pool's blocks with [`PoolLayout::Blocks`] (ignored otherwise).
+    pub pool_blocks: usize,
     /// Let each pixel's material choose the split of the `N_L + N_B` budget (`paper` only): see
     /// [`budget_for`].
     pub material_budget: bool,
@@ -89,7 +123,10 @@ impl Default for Settings {
             counts: Counts::Fractional,
             mis: Heuristic::Balance,
             seed: 0,
-            pixel_offset: false,
+            // Not the seed's shared pool: blocks meet the FLIP and flicker targets at the seed's
+            // per-pixel error (`docs/benchmarks.md`, "Pool layouts"); `Shared` keeps the seed's.
+            pool_layout: PoolLayout::Blocks,
+            pool_blocks: DEFAULT_POOL_BLOCKS,
             material_budget: false,
         }
     }
@@ -108,6 +145,17 @@ impl Settings {
                 "sample counts above 65536 per pixel (or a pool above 2^20 per face) are refused",
             ));
         }
+        if self.pool_layout == PoolLayout::Blocks && !(1..=1024).contains(&self.pool_blocks) {
+            return Err(Error::invalid(format!(
+                "--pool-blocks {} is out of range (1 to 1024)",
+                self.pool_blocks
+            )));
+        }
+        if self.pool_slots() > 1 << 20 {
+            return Err(Error::invalid(
+                "a pool above 2^20 samples per face (M x blocks) is refused",
+            ));
+        }
         Ok(())
     }
     /// `(N_L, N_B)` for a pixel of material `m`: the strategy's split of the budget (and the
@@ -123,7 +171,8 @@ impl Settings {
         }
     }
 
-    /// M, the samples per face in the pool.
+    /// M, the pool samples per face a pixel can draw from (one block's, with
+    /// [`PoolLayout::Blocks`]).
     pub fn pool_per_face(&self) -> usize {
         let all = self.strategy == Strategy::Light
             || (self.strategy == Strategy::Paper && self.material_budget);
@@ -132,6 +181,19 @@ impl Settings {
         } else {
             self.light_samples.max(1) + if all { self.brdf_samples } else { 0 }
         }
+    }
+
+    /// Blocks in the pool: [`Settings::pool_blocks`] with [`PoolLayout::Blocks`], else 1.
+    pub fn pool_block_count(&self) -> usize {
+        match self.pool_layout {
+            PoolLayout::Blocks => self.pool_blocks.max(1),
+            PoolLayout::Shared | PoolLayout::Offset => 1,
+        }
+    }
+
+    /// Slots per face in the whole pool: `M` x blocks.
+    pub fn pool_slots(&self) -> usize {
+        self.pool_per_face() * self.pool_block_count()
     }
 }
 

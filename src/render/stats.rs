@@ -38,9 +38,12 @@ pub struct RenderStats {
     pub mis: String,
     pub light_samples: usize,
     pub brdf_samples: usize,
+    /// M, the pool samples per face one pixel draws from (one block's with `blocks`).
     pub pool_per_face: usize,
     pub seed: u32,
-    pub pixel_offset: bool,
+    /// `shared`, `offset` or `blocks`, and the pool's blocks (1 unless `blocks`).
+    pub pool_layout: String,
+    pub pool_blocks: usize,
     pub material_budget: bool,
     /// Distribution (CDF tables, face energies) + light-sample pool build, milliseconds.
     pub build_ms: f64,
@@ -85,7 +88,8 @@ impl RenderStats {
             brdf_samples: s.brdf_samples,
             pool_per_face,
             seed: s.seed,
-            pixel_offset: s.pixel_offset,
+            pool_layout: s.pool_layout.to_string(),
+            pool_blocks: s.pool_block_count(),
             material_budget: s.material_budget,
             ..Default::default()
         }

@@ -20,10 +20,14 @@ pub struct PoolSample {
     pub pdf: f32,
 }
 
-/// `M` samples per face, face-major: sample `i` of face `f` is `samples[f * M + i]`.
+/// `M` samples per face in each of `K` blocks (`K = 1`: the seed's pool), face-major: slot `j` of
+/// face `f` is `samples[f * per_face + j]`, and block `b` holds slots `b M .. (b + 1) M`.
 #[derive(Clone, Debug)]
 pub struct LightPool {
+    /// Slots per face, `K M`.
     pub per_face: usize,
+    /// `M`, the samples per face of one block.
+    pub block: usize,
     pub samples: Vec<PoolSample>,
 }
 
@@ -40,15 +44,46 @@ pub fn pool_point(seed: u32, face: u32, i: u32, m: u32) -> Vec2 {
     Vec2::new(u, v)
 }
 
+/// The seed of block `b` of a pool seeded `seed`: block 0 is the seed's pool itself, so a pool of
+/// one block is the same with or without blocks.
+#[inline]
+pub fn block_seed(seed: u32, b: u32) -> u32 {
+    if b == 0 {
+        seed
+    } else {
+        hash_combine(&[seed, b, 0xb10c])
+    }
+}
+
+/// The 2D point of slot `j` of face `face` in a pool of blocks of `m` samples: a Latin-hypercube
+/// point of its own block.
+#[inline]
+pub fn block_point(seed: u32, face: u32, j: u32, m: u32) -> Vec2 {
+    pool_point(block_seed(seed, j / m), face, j % m, m)
+}
+
 impl LightPool {
+    /// The seed's pool: `per_face` samples per face in one block.
     pub fn build(map: &CubeMap, dist: &CubeDistribution, per_face: usize, seed: u32) -> Self {
+        Self::build_blocks(map, dist, per_face, 1, seed)
+    }
+
+    /// `blocks` independent stratified pools of `per_face` samples per face
+    /// (`PoolLayout::Blocks`), each drawn with its own [`block_seed`].
+    pub fn build_blocks(
+        map: &CubeMap,
+        dist: &CubeDistribution,
+        per_face: usize,
+        blocks: usize,
+        seed: u32,
+    ) -> Self {
         use rayon::prelude::*;
-        let m = per_face;
-        let samples = (0..6 * m)
+        let (m, slots) = (per_face.max(1), per_face.max(1) * blocks.max(1));
+        let samples = (0..6 * slots)
             .into_par_iter()
             .map(|k| {
-                let (f, i) = (k / m.max(1), k % m.max(1));
-                let p = pool_point(seed, f as u32, i as u32, m as u32);
+                let (f, j) = (k / slots, k % slots);
+                let p = block_point(seed, f as u32, j as u32, m as u32);
                 match dist.faces[f].sample(f, p) {
                     Some(s) => PoolSample {
                         dir: s.dir,
@@ -60,7 +95,8 @@ impl LightPool {
             })
             .collect();
         LightPool {
-            per_face: m,
+            per_face: slots,
+            block: m,
             samples,
         }
     }

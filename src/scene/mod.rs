@@ -99,6 +99,11 @@ pub struct SamplingSpec {
     pub mis: Option<Heuristic>,
     pub seed: Option<u32>,
     pub pool: Option<usize>,
+    /// `shared`, `offset` or `blocks` (`--pool-layout`).
+    pub pool_layout: Option<crate::render::PoolLayout>,
+    /// K of `pool_layout = "blocks"`.
+    pub pool_blocks: Option<usize>,
+    /// `true`: the same as `pool_layout = "offset"` (files written before `pool_layout`).
     pub pixel_offset: Option<bool>,
     pub material_budget: Option<bool>,
     /// Shadow rays: `auto` (default), `on` or `off` (`--visibility` overrides it).
@@ -446,7 +451,12 @@ fn sampling_settings(path: &Path, s: &SamplingSpec) -> Result<Settings> {
     out.mis = s.mis.unwrap_or(out.mis);
     out.seed = s.seed.unwrap_or(0);
     out.pool_size = s.pool.unwrap_or(0);
-    out.pixel_offset = s.pixel_offset.unwrap_or(false);
+    out.pool_layout = match (s.pool_layout, s.pixel_offset) {
+        (Some(l), _) => l,
+        (None, Some(true)) => crate::render::PoolLayout::Offset,
+        (None, _) => out.pool_layout,
+    };
+    out.pool_blocks = s.pool_blocks.unwrap_or(out.pool_blocks);
     out.material_budget = s.material_budget.unwrap_or(false);
     out.validate()
         .map_err(|e| err(path, format!("[sampling]: {e}")))?;

@@ -481,7 +481,7 @@ fn hard_tiny_mu_and_pool_requests() {
             light_samples: 64,
             brdf_samples: 4,
             pool_size: 8,
-            pixel_offset: true,
+            pool_layout: envis::render::PoolLayout::Offset,
             ..Default::default()
         },
     ] {

@@ -32,6 +32,13 @@ pub(crate) fn assert_matches_cpu(name: &str, img: &[Vec3], cpu: &[Vec3], size: u
         rel(mb, mc) < 0.02,
         "{name}: mean over the sphere bevy {mb} cpu {mc}"
     );
+    assert_per_pixel_matches_cpu(name, img, cpu, size);
+}
+
+/// At least 90% of the sphere's pixels within 10% of the CPU render.
+pub(crate) fn assert_per_pixel_matches_cpu(name: &str, img: &[Vec3], cpu: &[Vec3], size: u32) {
+    let inside = on_sphere(size);
+    let idx: Vec<usize> = (0..img.len()).filter(|&i| inside(i)).collect();
     let close = idx
         .iter()
         .filter(|&&i| {

@@ -73,7 +73,7 @@ fn gpu_hard_maps_all_zero_one_face_single_texel_constant() {
         g.iter().all(|c| *c == Vec3::ZERO),
         "all-zero map must render black"
     );
-    let t = gpu_build(ctx, &zero, 8, 1);
+    let t = gpu_build(ctx, &zero, 8, 1, 1);
     assert!(t.pool.iter().all(|p| p.pdf == 0.0) && t.energies.iter().all(|&e| e == 0.0));
 
     // One face lit, five black; a single 1e6 texel at a face centre, on an edge, at a corner.
@@ -93,7 +93,7 @@ fn gpu_hard_maps_all_zero_one_face_single_texel_constant() {
         cases.push((format!("1e6 texel at {label}"), m));
     }
     for (label, map) in &cases {
-        let t = gpu_build(ctx, map, 64, 9);
+        let t = gpu_build(ctx, map, 64, 1, 9);
         for (k, p) in t.pool.iter().enumerate() {
             let lit = t.energies[k / 64] > 0.0;
             assert!(
@@ -147,7 +147,7 @@ fn gpu_hard_maps_all_zero_one_face_single_texel_constant() {
                 1,
                 &Settings {
                     seed,
-                    pixel_offset: true,
+                    pool_layout: envis::render::PoolLayout::Offset,
                     pool_size: 64,
                     ..s
                 },
@@ -245,7 +245,7 @@ fn gpu_hard_2048_faces_single_bright_texel_keeps_its_pdf() {
     let i = map.index(3, col, row);
     map.data[i] = Vec3::splat(1e6);
     let m = 4096;
-    let t = gpu_build(ctx, &map, m, 12);
+    let t = gpu_build(ctx, &map, m, 1, 12);
     let cpu = CubeDistribution::build(&map);
     let fd = &cpu.faces[3];
     let p_cpu = fd.texel_pmf(col, row) as f64;
@@ -368,7 +368,7 @@ fn gpu_hard_geometry_brdf_and_count_extremes() {
             light_samples: 7,
             brdf_samples: 3,
             mis: Heuristic::Power,
-            pixel_offset: true,
+            pool_layout: envis::render::PoolLayout::Offset,
             seed: 99,
             ..Default::default()
         },

@@ -81,7 +81,7 @@ fn gpu_shadows_match_cpu_same_seed() {
         light_samples: 16,
         brdf_samples: 16,
         seed: 5,
-        pixel_offset: true,
+        pool_layout: envis::render::PoolLayout::Offset,
         ..Default::default()
     };
     let extras = envis::render::Extras {
@@ -90,7 +90,7 @@ fn gpu_shadows_match_cpu_same_seed() {
     };
     let cpu = envis::render::render_with(&map, extras, &gbuf, size, size, &s).unwrap();
     let open = render(&map, &gbuf, size, size, &s).unwrap();
-    let sampler = EnvSampler::new(ctx, map.size, s.pool_per_face()).unwrap();
+    let sampler = EnvSampler::for_settings(ctx, map.size, &s).unwrap();
     sampler.upload(&ctx.queue, &map);
     ctx.wait(sampler.run(ctx, pool_seed(s.seed))).unwrap();
     let pixels: Vec<GpuGPixel> = gbuf.iter().map(GpuGPixel::from).collect();

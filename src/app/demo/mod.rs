@@ -15,7 +15,7 @@ use super::{
 };
 use crate::envmap::{CROSS_BLOCKS, CubeMap, dir_to_face_ab};
 use crate::prelude::{EnvironmentSampling, EnvisEnvironment, exposure_multiplier};
-use crate::render::{FrameData, PixelDebug, SampleKind, Settings, Strategy};
+use crate::render::{FrameData, PixelDebug, PoolLayout, SampleKind, Settings, Strategy};
 use crate::sampling::{Counts, Heuristic};
 use crate::stream::StreamSource;
 use bevy::core_pipeline::tonemapping::Tonemapping;

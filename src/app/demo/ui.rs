@@ -250,7 +250,19 @@ fn sampling_ui(ui: &mut egui::Ui, settings: &mut EnvironmentSampling) {
     });
     ui.horizontal(|ui| {
         ui.add(egui::DragValue::new(&mut s.seed).prefix("seed "));
-        ui.checkbox(&mut s.pixel_offset, "per-pixel pool offset");
+    });
+    ui.horizontal(|ui| {
+        ui.label("pool layout");
+        for &l in PoolLayout::value_variants() {
+            ui.selectable_value(&mut s.pool_layout, l, l.to_string());
+        }
+        if s.pool_layout == PoolLayout::Blocks {
+            ui.add(
+                egui::DragValue::new(&mut s.pool_blocks)
+                    .range(1..=64)
+                    .prefix("K "),
+            );
+        }
     });
     ui.checkbox(
         &mut s.material_budget,
