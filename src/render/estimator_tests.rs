@@ -5,56 +5,97 @@ use super::*;
 use crate::render::sphere_gbuffer;
 use crate::sampling::{Heuristic, Material};
 
-/// The `Lambert` specialisation of the hot loops gives the general `Material` path's values
-/// bit for bit, for every strategy and both heuristics.
+/// The `Lambert` and `Ggx` specialisations of the hot loops give the general `Material` path's
+/// values bit for bit, for every strategy and both heuristics.
 #[test]
-fn lambert_path_is_bit_identical() {
+fn specialised_paths_are_bit_identical() {
+    use crate::sampling::Lobe;
     let map = crate::envmap::sky::sky_cube(16, 10.0);
     let w = 24;
-    let mut gbuf = sphere_gbuffer(w, w, Material::diffuse(0.7));
-    for (i, px) in gbuf.iter_mut().flatten().enumerate() {
-        px.material.kd = Vec3::new(0.2 + 0.01 * (i % 50) as f32, 0.5, 0.9);
-    }
-    for strategy in [
-        Strategy::Paper,
-        Strategy::Global,
-        Strategy::Light,
-        Strategy::Brdf,
-    ] {
-        for mis in [Heuristic::Balance, Heuristic::Power] {
-            let s = Settings {
-                strategy,
-                mis,
-                light_samples: 7,
-                brdf_samples: 5,
-                seed: 11,
-                pool_layout: PoolLayout::Blocks,
-                pool_blocks: 3,
-                ..Default::default()
+    let lobes = [
+        Lobe::None,
+        Lobe::Ggx { alpha: 0.3 },
+        Lobe::Ggx { alpha: 0.05 },
+        Lobe::GgxSchlick { alpha: 0.2 },
+    ];
+    for lobe in lobes {
+        let mut gbuf = sphere_gbuffer(w, w, Material::diffuse(0.7));
+        for (i, px) in gbuf.iter_mut().flatten().enumerate() {
+            let c = Vec3::new(0.2 + 0.01 * (i % 50) as f32, 0.5, 0.9);
+            px.material = match lobe {
+                Lobe::None => Material {
+                    kd: c,
+                    ..Material::diffuse(1.0)
+                },
+                _ => Material {
+                    kd: Vec3::ZERO,
+                    ks: c,
+                    lobe,
+                },
             };
-            let fd = FrameData::prepare(&map, &s);
-            let mut lit = 0;
-            for (i, px) in gbuf.iter().enumerate() {
-                let Some(px) = px else { continue };
-                let (n, o) = (px.n.normalize(), px.o.normalize());
-                let lambert = px.material.as_lambert().unwrap();
-                let (a, sa) = shade_with(&fd, &s, &px.material, &lambert, (n, o, None), i as u32);
-                let (b, sb) =
-                    shade_with(&fd, &s, &px.material, &px.material, (n, o, None), i as u32);
-                assert_eq!(
-                    a.to_array().map(f32::to_bits),
-                    b.to_array().map(f32::to_bits),
-                    "{strategy:?} {mis:?} pixel {i}"
-                );
-                assert_eq!(
-                    (sa.green, sa.yellow, sa.brdf),
-                    (sb.green, sb.yellow, sb.brdf)
-                );
-                lit += (a.max_element() > 0.0) as usize;
+        }
+        for strategy in [
+            Strategy::Paper,
+            Strategy::Global,
+            Strategy::Light,
+            Strategy::Brdf,
+        ] {
+            for mis in [Heuristic::Balance, Heuristic::Power] {
+                let s = Settings {
+                    strategy,
+                    mis,
+                    light_samples: 7,
+                    brdf_samples: 21,
+                    seed: 11,
+                    pool_layout: PoolLayout::Blocks,
+                    pool_blocks: 3,
+                    ..Default::default()
+                };
+                let fd = FrameData::prepare(&map, &s);
+                let lit = gbuf
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(i, px)| Some((i, px.as_ref()?)))
+                    .filter(|&(i, px)| {
+                        let m = &px.material;
+                        match (m.as_lambert(), m.as_ggx()) {
+                            (Some(l), _) => same_as_material(&fd, &s, px, &l, i),
+                            (_, Some(g)) => same_as_material(&fd, &s, px, &g, i),
+                            _ => panic!("{m:?} has no specialised path"),
+                        }
+                    })
+                    .count();
+                assert!(lit > 100, "{lobe:?} {strategy:?}: only {lit} lit pixels");
             }
-            assert!(lit > 100, "{strategy:?}: only {lit} lit pixels");
         }
     }
+}
+
+/// Pixel `i` shaded through `bsdf` and through its `Material` agree bit for bit (asserted);
+/// whether it is lit.
+fn same_as_material<B: LocalBsdf>(
+    fd: &FrameData,
+    s: &Settings,
+    px: &GPixel,
+    bsdf: &B,
+    i: usize,
+) -> bool {
+    let (n, o) = (px.n.normalize(), px.o.normalize());
+    let m = &px.material;
+    let (a, sa) = shade_with(fd, s, m, bsdf, (n, o, None), i as u32);
+    let (b, sb) = shade_with(fd, s, m, m, (n, o, None), i as u32);
+    assert_eq!(
+        a.to_array().map(f32::to_bits),
+        b.to_array().map(f32::to_bits),
+        "{m:?} {:?} {:?} pixel {i}",
+        s.strategy,
+        s.mis
+    );
+    assert_eq!(
+        (sa.green, sa.yellow, sa.brdf),
+        (sb.green, sb.yellow, sb.brdf)
+    );
+    a.max_element() > 0.0
 }
 
 /// The dispatching `shade_pixel` (the AVX2 + FMA copy on CPUs that have them) and the

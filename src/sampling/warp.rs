@@ -139,14 +139,17 @@ pub fn ggx_g1(z: f32, alpha: f32) -> f32 {
 
 /// Visible-normal sampling by spherical caps (Dupuy & Benyoub 2023): view `o` (local, `o.z > 0`)
 /// -> microfacet normal `m`; the reflected direction has pdf
-/// `G1(o) D(m) / (4 o.z) = D(m) / (2 (o.z + s(o.z)))`.
+/// `G1(o) D(m) / (4 o.z) = D(m) / (2 (o.z + s(o.z)))`. Branch-free (the azimuth's sine and
+/// cosine by [`sin_cos_fast`], as `phi - pi` with the signs flipped), so a loop of samples
+/// vectorises.
 #[inline]
 pub fn sample_ggx_vndf(o: Vec3, alpha: f32, u: Vec2) -> Vec3 {
     let vh = Vec3::new(alpha * o.x, alpha * o.y, o.z).normalize();
-    let phi = 2.0 * PI * u.x;
+    // (sin, cos) of phi = 2 pi u.x: minus those of phi - pi, which lies in [-pi, pi].
+    let (s, c) = sin_cos_fast(2.0 * PI * u.x - PI);
     let z = (1.0 - u.y) * (1.0 + vh.z) - vh.z;
     let st = (1.0 - z * z).clamp(0.0, 1.0).sqrt();
-    let c = Vec3::new(st * phi.cos(), st * phi.sin(), z);
+    let c = Vec3::new(-(st * c), -(st * s), z);
     let h = c + vh;
     Vec3::new(alpha * h.x, alpha * h.y, h.z.max(0.0)).normalize_or(Vec3::Z)
 }
