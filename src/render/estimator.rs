@@ -213,14 +213,13 @@ impl<B: LocalBsdf> Pixel<'_, B> {
         }
         st.green += 1;
         let il = self.frame.to_local(dir);
-        let n_b = if self.nb > 0 {
-            self.nb as f32 * self.bsdf.pdf_local(self.ol, il)
+        let (f, n_b) = if self.nb > 0 {
+            let (f, p) = self.bsdf.eval_pdf_local(self.ol, il);
+            (f, self.nb as f32 * p)
         } else {
-            0.0
+            (self.bsdf.eval_local(self.ol, il), 0.0)
         };
-        *sum += self.bsdf.eval_local(self.ol, il)
-            * radiance()
-            * (weight * cos * mis::weight_over_density(self.s.mis, n_l, n_b));
+        *sum += f * radiance() * (weight * cos * mis::weight_over_density(self.s.mis, n_l, n_b));
     }
 }
 
@@ -450,7 +449,8 @@ fn brdf_samples<B: LocalBsdf>(
             if px.blocked(d, st) {
                 continue;
             }
-            *sum += mat.eval_local(ol, il)
+            // The value the sampler computed with the sample (`LocalBsdf::sample_lanes`).
+            *sum += smp.value(k)
                 * fd.radiance(d, t.truncate())
                 * (il.z * mis::weight_over_density(s.mis, nb_f * p, n_l));
         }

@@ -84,16 +84,26 @@ pub trait LocalBsdf {
     fn pdf_local(&self, ol: Vec3, il: Vec3) -> f32;
     /// `(i_local, pdf)` from `u`, or `None` for an invalid sample.
     fn sample_local(&self, ol: Vec3, u: Vec2) -> Option<(Vec3, f32)>;
+    /// `(f(o, i), pdf(i))` at once, the same values as [`LocalBsdf::eval_local`] and
+    /// [`LocalBsdf::pdf_local`]; a BRDF whose two share work (GGX: the half vector and `D`)
+    /// overrides it.
+    #[inline(always)]
+    fn eval_pdf_local(&self, ol: Vec3, il: Vec3) -> (Vec3, f32) {
+        (self.eval_local(ol, il), self.pdf_local(ol, il))
+    }
     /// `count` (at most [`LANES`]) samples, each from the next two draws of `rng` in order, into
     /// `out` (pdf 0 marks an invalid sample). The same values as `count` calls of
-    /// [`LocalBsdf::sample_local`]; a BRDF with a branch-free sampler overrides it with a loop
-    /// that vectorises.
+    /// [`LocalBsdf::sample_local`], each valid one with its [`LocalBsdf::eval_local`] value; a
+    /// BRDF with a branch-free sampler overrides it with a loop that vectorises.
     #[inline(always)]
     fn sample_lanes(&self, ol: Vec3, rng: &mut Rng, count: usize, out: &mut SampleLanes) {
         for k in 0..count {
             let u = Vec2::new(rng.next_f32(), rng.next_f32());
             let (il, p) = self.sample_local(ol, u).unwrap_or((Vec3::ZERO, 0.0));
             out.set(k, il, p);
+            if p > 0.0 {
+                out.set_value(k, self.eval_local(ol, il));
+            }
         }
     }
 }
@@ -109,6 +119,10 @@ pub struct SampleLanes {
     pub z: [f32; LANES],
     /// Solid-angle pdf; 0 for an invalid sample.
     pub pdf: [f32; LANES],
+    /// The BRDF value `f(o, i)` of each valid sample, by channel.
+    pub fr: [f32; LANES],
+    pub fg: [f32; LANES],
+    pub fb: [f32; LANES],
 }
 
 impl SampleLanes {
@@ -117,8 +131,16 @@ impl SampleLanes {
         (self.x[k], self.y[k], self.z[k], self.pdf[k]) = (il.x, il.y, il.z, pdf);
     }
     #[inline(always)]
+    pub fn set_value(&mut self, k: usize, f: Vec3) {
+        (self.fr[k], self.fg[k], self.fb[k]) = (f.x, f.y, f.z);
+    }
+    #[inline(always)]
     pub fn dir(&self, k: usize) -> Vec3 {
         Vec3::new(self.x[k], self.y[k], self.z[k])
+    }
+    #[inline(always)]
+    pub fn value(&self, k: usize) -> Vec3 {
+        Vec3::new(self.fr[k], self.fg[k], self.fb[k])
     }
 }
 
@@ -177,6 +199,8 @@ impl LocalBsdf for Lambert {
             let p = cosine_hemisphere_pdf(il);
             let ok = live & (il.z > 0.0) & (p > 0.0) & p.is_finite();
             out.set(k, il, if ok { p } else { 0.0 });
+            // eval_local's value wherever the sample is valid (o.z > 0 and i.z > 0 there).
+            out.set_value(k, self.kd * FRAC_1_PI);
         }
     }
 }
@@ -209,8 +233,37 @@ impl LocalBsdf for Ggx {
     }
     #[inline(always)]
     fn sample_local(&self, ol: Vec3, u: Vec2) -> Option<(Vec3, f32)> {
-        let (il, p) = self.sample_one(ol, u);
+        let (il, _, p) = self.sample_one(ol, u);
         (p > 0.0).then_some((il, p))
+    }
+    /// One half vector, one `D` and one `s(o.z)` for both; each value computed by the same
+    /// operations as [`ggx_value`] and [`ggx_vndf_reflect_pdf`], so bit-identical to them.
+    #[inline(always)]
+    fn eval_pdf_local(&self, ol: Vec3, il: Vec3) -> (Vec3, f32) {
+        if ol.z <= 0.0 || il.z <= 0.0 {
+            return (Vec3::ZERO, 0.0);
+        }
+        let alpha = self.alpha;
+        let m = (ol + il).normalize_or_zero();
+        let d = ggx_d(m, alpha);
+        let so = ggx_s(ol.z, alpha);
+        let pdf = if m == Vec3::ZERO {
+            0.0
+        } else {
+            d / (2.0 * (ol.z + so))
+        };
+        let den = 2.0 * (il.z * so + ol.z * ggx_s(il.z, alpha));
+        let f = if den > 0.0 {
+            let f = if self.schlick {
+                fresnel_schlick(self.ks, ol.dot(m))
+            } else {
+                self.ks
+            };
+            f * (d / den)
+        } else {
+            Vec3::ZERO
+        };
+        (f, pdf)
     }
     /// [`LocalBsdf::sample_local`] on all lanes at once: one jump-ahead fill of the random
     /// draws and a branch-free sampler, so the loop vectorises.
@@ -219,22 +272,24 @@ impl LocalBsdf for Ggx {
         let mut r = [0u32; 2 * LANES];
         rng.fill_u32(&mut r[..2 * count]);
         for k in 0..LANES {
-            let (il, p) = self.sample_one(ol, Vec2::new(to_unit(r[2 * k]), to_unit(r[2 * k + 1])));
+            let u = Vec2::new(to_unit(r[2 * k]), to_unit(r[2 * k + 1]));
+            let (il, f, p) = self.sample_one(ol, u);
             out.set(k, il, p);
+            out.set_value(k, f);
         }
     }
 }
 
 impl Ggx {
-    /// One visible-normal sample and its pdf, 0 for an invalid one ([`Material::sample_local`]
-    /// with `kd = 0`, written without branches).
+    /// One visible-normal sample, its BRDF value and its pdf, 0 for an invalid one
+    /// ([`Material::sample_local`] with `kd = 0`, written without branches).
     #[inline(always)]
-    fn sample_one(&self, ol: Vec3, u: Vec2) -> (Vec3, f32) {
+    fn sample_one(&self, ol: Vec3, u: Vec2) -> (Vec3, Vec3, f32) {
         let ux = u.x.clamp(0.0, ONE_MINUS_EPSILON);
         let il = reflect(ol, sample_ggx_vndf(ol, self.alpha, Vec2::new(ux, u.y)));
-        let p = ggx_vndf_reflect_pdf(ol, il, self.alpha);
+        let (f, p) = self.eval_pdf_local(ol, il);
         let ok = (ol.z > 0.0) & (il.z > 0.0) & (p > 0.0) & p.is_finite();
-        (il, if ok { p } else { 0.0 })
+        (il, f, if ok { p } else { 0.0 })
     }
 }
 
