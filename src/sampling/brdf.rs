@@ -237,7 +237,7 @@ impl LocalBsdf for Ggx {
         (p > 0.0).then_some((il, p))
     }
     /// One half vector, one `D` and one `s(o.z)` for both; each value computed by the same
-    /// operations as [`ggx_value`] and [`ggx_vndf_reflect_pdf`], so bit-identical to them.
+    /// operations as `ggx_value` and [`ggx_vndf_reflect_pdf`], so bit-identical to them.
     #[inline(always)]
     fn eval_pdf_local(&self, ol: Vec3, il: Vec3) -> (Vec3, f32) {
         if ol.z <= 0.0 || il.z <= 0.0 {
