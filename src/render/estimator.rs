@@ -157,14 +157,16 @@ fn shade_pixel_portable(
     let material = &px.material;
     // Shadow rays only where there is an occluder and a point to cast them from.
     let shadow = fd.occluder.zip(at);
-    // A diffuse-only or GGX-only pixel runs the same code compiled for `Lambert` or `Ggx` (no
-    // lobe dispatch per sample, BRDF samples drawn on all lanes at once); the results are
-    // bit-identical to the general `Material` path.
+    // A diffuse-, GGX- or Phong-only pixel runs the same code compiled for `Lambert`, `Ggx` or
+    // `Phong` (no lobe dispatch per sample; BRDF samples drawn on all lanes at once where the
+    // sampler is branch-free); the results are bit-identical to the general `Material` path.
     let dirs = (n, o, shadow);
     if let Some(lambert) = material.as_lambert() {
         shade_with(fd, s, material, &lambert, dirs, pixel_index)
     } else if let Some(ggx) = material.as_ggx() {
         shade_with(fd, s, material, &ggx, dirs, pixel_index)
+    } else if let Some(phong) = material.as_phong() {
+        shade_with(fd, s, material, &phong, dirs, pixel_index)
     } else {
         shade_with(fd, s, material, material, dirs, pixel_index)
     }

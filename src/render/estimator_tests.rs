@@ -5,7 +5,7 @@ use super::*;
 use crate::render::sphere_gbuffer;
 use crate::sampling::{Heuristic, Material};
 
-/// The `Lambert` and `Ggx` specialisations of the hot loops give the general `Material` path's
+/// The `Lambert`, `Ggx` and `Phong` specialisations of the hot loops give the general `Material` path's
 /// values bit for bit, for every strategy and both heuristics.
 #[test]
 fn specialised_paths_are_bit_identical() {
@@ -17,6 +17,8 @@ fn specialised_paths_are_bit_identical() {
         Lobe::Ggx { alpha: 0.3 },
         Lobe::Ggx { alpha: 0.05 },
         Lobe::GgxSchlick { alpha: 0.2 },
+        Lobe::Phong { exponent: 150.0 },
+        Lobe::Phong { exponent: 3.0 },
     ];
     for lobe in lobes {
         let mut gbuf = sphere_gbuffer(w, w, Material::diffuse(0.7));
@@ -58,10 +60,14 @@ fn specialised_paths_are_bit_identical() {
                     .filter_map(|(i, px)| Some((i, px.as_ref()?)))
                     .filter(|&(i, px)| {
                         let m = &px.material;
-                        match (m.as_lambert(), m.as_ggx()) {
-                            (Some(l), _) => same_as_material(&fd, &s, px, &l, i),
-                            (_, Some(g)) => same_as_material(&fd, &s, px, &g, i),
-                            _ => panic!("{m:?} has no specialised path"),
+                        if let Some(l) = m.as_lambert() {
+                            same_as_material(&fd, &s, px, &l, i)
+                        } else if let Some(g) = m.as_ggx() {
+                            same_as_material(&fd, &s, px, &g, i)
+                        } else if let Some(p) = m.as_phong() {
+                            same_as_material(&fd, &s, px, &p, i)
+                        } else {
+                            panic!("{m:?} has no specialised path")
                         }
                     })
                     .count();

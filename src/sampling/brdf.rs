@@ -293,6 +293,83 @@ impl Ggx {
     }
 }
 
+/// A Phong-only material (no diffuse part): [`Material`]'s Phong lobe with the lobe known at
+/// compile time, and one `powf` per sample for both the BRDF value and the pdf (they share
+/// `<r, i>^e`). Bit-identical to the `Material` path.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Phong {
+    pub ks: Vec3,
+    pub exponent: f32,
+}
+
+impl LocalBsdf for Phong {
+    #[inline(always)]
+    fn eval_local(&self, ol: Vec3, il: Vec3) -> Vec3 {
+        self.eval_pdf_local(ol, il).0
+    }
+    #[inline(always)]
+    fn pdf_local(&self, ol: Vec3, il: Vec3) -> f32 {
+        if ol.z <= 0.0 {
+            return 0.0;
+        }
+        phong_lobe_pdf(mirror_cos(ol, il), self.exponent)
+    }
+    #[inline(always)]
+    fn sample_local(&self, ol: Vec3, u: Vec2) -> Option<(Vec3, f32)> {
+        let (il, _, p) = self.sample_one(ol, u);
+        (p > 0.0).then_some((il, p))
+    }
+    /// `<r, i>^e` once for both; each value by the same operations as `Material`'s Phong
+    /// branch and [`phong_lobe_pdf`].
+    #[inline(always)]
+    fn eval_pdf_local(&self, ol: Vec3, il: Vec3) -> (Vec3, f32) {
+        if ol.z <= 0.0 {
+            return (Vec3::ZERO, 0.0);
+        }
+        let e = self.exponent;
+        let c = mirror_cos(ol, il);
+        if c <= 0.0 {
+            return (Vec3::ZERO, 0.0);
+        }
+        let ce = c.powf(e);
+        let pdf = (e + 1.0) * 0.5 * FRAC_1_PI * ce;
+        let f = if il.z <= 0.0 {
+            Vec3::ZERO
+        } else {
+            self.ks * ((e + 2.0) * 0.5 * FRAC_1_PI * ce)
+        };
+        (f, pdf)
+    }
+    #[inline(always)]
+    fn sample_lanes(&self, ol: Vec3, rng: &mut Rng, count: usize, out: &mut SampleLanes) {
+        let mut r = [0u32; 2 * LANES];
+        rng.fill_u32(&mut r[..2 * count]);
+        for k in 0..count {
+            let u = Vec2::new(to_unit(r[2 * k]), to_unit(r[2 * k + 1]));
+            let (il, f, p) = self.sample_one(ol, u);
+            out.set(k, il, p);
+            out.set_value(k, f);
+        }
+    }
+}
+
+impl Phong {
+    /// One lobe sample, its BRDF value and its pdf, 0 for an invalid one
+    /// ([`Material::sample_local`] with `kd = 0`).
+    #[inline(always)]
+    fn sample_one(&self, ol: Vec3, u: Vec2) -> (Vec3, Vec3, f32) {
+        if ol.z <= 0.0 {
+            return (Vec3::ZERO, Vec3::ZERO, 0.0);
+        }
+        let ux = u.x.clamp(0.0, ONE_MINUS_EPSILON);
+        let r = Frame::new(Vec3::new(-ol.x, -ol.y, ol.z));
+        let il = r.to_world(sample_phong_lobe(Vec2::new(ux, u.y), self.exponent));
+        let (f, p) = self.eval_pdf_local(ol, il);
+        let ok = (il.z > 0.0) & (p > 0.0) & p.is_finite();
+        (il, f, if ok { p } else { 0.0 })
+    }
+}
+
 /// The GGX lobe's `f(o, i)` for `o.z, i.z > 0`: `F D / (2 (i.z s(o.z) + o.z s(i.z)))`.
 #[inline(always)]
 fn ggx_value(ks: Vec3, alpha: f32, schlick: bool, ol: Vec3, il: Vec3) -> Vec3 {
@@ -334,6 +411,16 @@ impl Material {
     /// The material as a [`Lambert`] when it has no glossy lobe.
     pub fn as_lambert(&self) -> Option<Lambert> {
         (self.lobe == Lobe::None).then_some(Lambert { kd: self.kd })
+    }
+    /// The material as a [`Phong`] when it is a Phong lobe with no diffuse part.
+    pub fn as_phong(&self) -> Option<Phong> {
+        match self.lobe {
+            Lobe::Phong { exponent } if self.kd == Vec3::ZERO => Some(Phong {
+                ks: self.ks,
+                exponent,
+            }),
+            _ => None,
+        }
     }
     /// The material as a [`Ggx`] when it is a GGX lobe with no diffuse part.
     pub fn as_ggx(&self) -> Option<Ggx> {

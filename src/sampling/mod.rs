@@ -12,7 +12,7 @@ pub mod pool;
 pub mod rng;
 pub mod warp;
 
-pub use brdf::{Ggx, LANES, Lambert, Lobe, LocalBsdf, Material, SampleLanes};
+pub use brdf::{Ggx, LANES, Lambert, Lobe, LocalBsdf, Material, Phong, SampleLanes};
 pub use distribution::{CubeDistribution, Distribution1D, FaceDistribution};
 pub use faceweights::{Counts, FaceWeights, face_count, face_weights};
 pub use global::GlobalDistribution;
