@@ -1,7 +1,8 @@
 //! `envis bench --suite accuracy`: what accuracy costs in time (CPU backend).
 //!
 //! Sweep: strategies {paper-fractional, paper-offset (a random per-pixel start into the pool),
-//! paper-blocks (one of 16 independent pools per pixel, `PoolLayout::Blocks`),
+//! paper-blocks (one of 16 independent pools per pixel, `PoolLayout::Blocks`), the same with the
+//! power heuristic (paper-blocks-power),
 //! paper-integer, global (power MIS), light, brdf} x total
 //! sample budgets N = N_L + N_B (4..512; paper and global also at light fractions 1/4 and 3/4) x
 //! materials {diffuse, Phong 150, GGX 0.3, GGX 0.05} x environments (built-in sky at 8h, 12h, 17h,
@@ -132,6 +133,14 @@ fn strategies(n: usize) -> Vec<(String, Settings)> {
             "paper-blocks".to_string(),
             Settings {
                 pool_layout: crate::render::PoolLayout::Blocks,
+                ..half
+            },
+        ),
+        (
+            "paper-blocks-power".to_string(),
+            Settings {
+                pool_layout: crate::render::PoolLayout::Blocks,
+                mis: Heuristic::Power,
                 ..half
             },
         ),
@@ -470,6 +479,7 @@ pub fn report(cfg: &Config, pts: &[Point], command: &str, gpu_device: Option<&st
         "paper-fractional",
         "paper-offset",
         "paper-blocks",
+        "paper-blocks-power",
         "paper-integer",
         "global",
         "light",
@@ -501,8 +511,13 @@ pub fn report(cfg: &Config, pts: &[Point], command: &str, gpu_device: Option<&st
         });
         let (mut wins, mut cases) = (0, 0);
         // Issue 14's FLIP target: mean FLIP <= 0.8 x global's at N >= 16, per pool layout.
-        let layouts = ["paper-fractional", "paper-offset", "paper-blocks"];
-        let (mut flip_met, mut flip_cases) = ([0usize; 3], 0);
+        let layouts = [
+            "paper-fractional",
+            "paper-offset",
+            "paper-blocks",
+            "paper-blocks-power",
+        ];
+        let (mut flip_met, mut flip_cases) = ([0usize; 4], 0);
         for env in &cfg.envs {
             for &n in &cfg.budgets {
                 let get = |s: &str| {
@@ -525,8 +540,8 @@ pub fn report(cfg: &Config, pts: &[Point], command: &str, gpu_device: Option<&st
         }
         let _ = writeln!(
             md,
-            "\nMean FLIP at most 0.8 x global's, N >= 16: paper-fractional (shared pool) in **{} of {flip_cases}** cases, paper-offset in **{} of {flip_cases}**, paper-blocks (16 pools) in **{} of {flip_cases}**.",
-            flip_met[0], flip_met[1], flip_met[2]
+            "\nMean FLIP at most 0.8 x global's, N >= 16: paper-fractional (shared pool) in **{} of {flip_cases}** cases, paper-offset in **{} of {flip_cases}**, paper-blocks (16 pools) in **{} of {flip_cases}**, paper-blocks-power (power MIS) in **{} of {flip_cases}**.",
+            flip_met[0], flip_met[1], flip_met[2], flip_met[3]
         );
         let wasted = |s: &str| {
             100.0
@@ -595,10 +610,11 @@ pub fn csv(pts: &[Point]) -> String {
 
 pub use super::chart::{Chart, Series};
 
-const MAIN: [(&str, &str); 7] = [
+const MAIN: [(&str, &str); 8] = [
     ("paper-fractional", "#d62728"),
     ("paper-offset", "#8c564b"),
     ("paper-blocks", "#17becf"),
+    ("paper-blocks-power", "#bcbd22"),
     ("paper-integer", "#ff9896"),
     ("global", "#1f77b4"),
     ("light", "#2ca02c"),
