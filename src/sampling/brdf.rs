@@ -236,8 +236,8 @@ impl LocalBsdf for Ggx {
         let (il, _, p) = self.sample_one(ol, u);
         (p > 0.0).then_some((il, p))
     }
-    /// One half vector, one `D` and one `s(o.z)` for both; each value computed by the same
-    /// operations as `ggx_value` and [`ggx_vndf_reflect_pdf`], so bit-identical to them.
+    /// One half vector, one `D` and one `s(o.z)` for both; the pdf computed by the same
+    /// operations as [`ggx_vndf_reflect_pdf`], so bit-identical to it.
     #[inline(always)]
     fn eval_pdf_local(&self, ol: Vec3, il: Vec3) -> (Vec3, f32) {
         if ol.z <= 0.0 || il.z <= 0.0 {
@@ -252,17 +252,7 @@ impl LocalBsdf for Ggx {
         } else {
             d / (2.0 * (ol.z + so))
         };
-        let den = 2.0 * (il.z * so + ol.z * ggx_s(il.z, alpha));
-        let f = if den > 0.0 {
-            let f = if self.schlick {
-                fresnel_schlick(self.ks, ol.dot(m))
-            } else {
-                self.ks
-            };
-            f * (d / den)
-        } else {
-            Vec3::ZERO
-        };
+        let f = ggx_value_given(self.ks, alpha, self.schlick, (ol, il), (m, d, so));
         (f, pdf)
     }
     /// [`LocalBsdf::sample_local`] on all lanes at once: one jump-ahead fill of the random
@@ -289,8 +279,9 @@ impl Ggx {
     fn sample_one(&self, ol: Vec3, u: Vec2) -> (Vec3, Vec3, f32) {
         let ux = u.x.clamp(0.0, ONE_MINUS_EPSILON);
         let il = reflect(ol, sample_ggx_vndf(ol, self.alpha, Vec2::new(ux, u.y)));
+        // eval_pdf_local's pdf is 0 unless o.z > 0 and i.z > 0.
         let (f, p) = self.eval_pdf_local(ol, il);
-        let ok = (ol.z > 0.0) & (il.z > 0.0) & (p > 0.0) & p.is_finite();
+        let ok = (p > 0.0) & p.is_finite();
         (il, f, if ok { p } else { 0.0 })
     }
 }
@@ -338,7 +329,7 @@ impl LocalBsdf for Phong {
         let f = if il.z <= 0.0 {
             Vec3::ZERO
         } else {
-            self.ks * ((e + 2.0) * 0.5 * FRAC_1_PI * ce)
+            phong_value(self.ks, e, ce)
         };
         (f, pdf)
     }
@@ -376,18 +367,37 @@ impl Phong {
 #[inline(always)]
 fn ggx_value(ks: Vec3, alpha: f32, schlick: bool, ol: Vec3, il: Vec3) -> Vec3 {
     let m = (ol + il).normalize_or_zero();
+    let (d, so) = (ggx_d(m, alpha), ggx_s(ol.z, alpha));
+    ggx_value_given(ks, alpha, schlick, (ol, il), (m, d, so))
+}
+
+/// [`ggx_value`] given the half vector `m`, `D(m)` and `s(o.z)` (which the pdf shares).
+#[inline(always)]
+fn ggx_value_given(
+    ks: Vec3,
+    alpha: f32,
+    schlick: bool,
+    (ol, il): (Vec3, Vec3),
+    (m, d, so): (Vec3, f32, f32),
+) -> Vec3 {
     // f = D G2 / (4 o.z i.z) = D / (2 (i.z s(o.z) + o.z s(i.z)))
-    let den = 2.0 * (il.z * ggx_s(ol.z, alpha) + ol.z * ggx_s(il.z, alpha));
+    let den = 2.0 * (il.z * so + ol.z * ggx_s(il.z, alpha));
     if den > 0.0 {
         let f = if schlick {
             fresnel_schlick(ks, ol.dot(m))
         } else {
             ks
         };
-        f * (ggx_d(m, alpha) / den)
+        f * (d / den)
     } else {
         Vec3::ZERO
     }
+}
+
+/// The normalised Phong lobe's `f` given `<r, i>^e`: `ks (e + 2) / (2 pi) <r, i>^e`.
+#[inline(always)]
+fn phong_value(ks: Vec3, e: f32, cos_pow_e: f32) -> Vec3 {
+    ks * ((e + 2.0) * 0.5 * FRAC_1_PI * cos_pow_e)
 }
 
 impl LocalBsdf for Material {
@@ -511,7 +521,7 @@ impl Material {
             Lobe::Phong { exponent: e } => {
                 let c = mirror_cos(ol, il);
                 if c > 0.0 {
-                    v += self.ks * ((e + 2.0) * 0.5 * FRAC_1_PI * c.powf(e));
+                    v += phong_value(self.ks, e, c.powf(e));
                 }
             }
             Lobe::Ggx { alpha } => v += ggx_value(self.ks, alpha, false, ol, il),
