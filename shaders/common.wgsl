@@ -182,3 +182,26 @@ fn dir_to_texel(d: vec3<f32>, n: u32) -> TexelHit {
 fn linear_id(gid: vec3<u32>, nwg: vec3<u32>, wg_size: u32) -> u32 {
     return gid.x + gid.y * nwg.x * wg_size;
 }
+
+// sampling::tiles::TileGrid: tile i of a side of n texels cut into k starts at ceil(i n / k), and
+// texel x lies in tile floor(x k / n).
+fn tile_bound(i: u32, n: u32, k: u32) -> u32 {
+    return (i * n + k - 1u) / k;
+}
+
+fn tile_of(x: u32, n: u32, k: u32) -> u32 {
+    return x * k / n;
+}
+
+// TileGrid::region: the region (face-major, then tile row, then tile column) of texel (col, row).
+fn tile_region(face: u32, col: u32, row: u32, n: u32, k: u32) -> u32 {
+    return face * k * k + tile_of(row, n, k) * k + tile_of(col, n, k);
+}
+
+// TileGrid::span: the texel columns (x, y) and rows (z, w) of region r, half-open.
+fn region_span(r: u32, n: u32, k: u32) -> vec4<u32> {
+    let t = r % (k * k);
+    let tx = t % k;
+    let ty = t / k;
+    return vec4(tile_bound(tx, n, k), tile_bound(tx + 1u, n, k), tile_bound(ty, n, k), tile_bound(ty + 1u, n, k));
+}

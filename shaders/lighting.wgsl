@@ -38,7 +38,8 @@ struct LightingView {
 @group(0) @binding(1) var depth_tex: texture_depth_2d;
 @group(0) @binding(2) var<storage, read> texels: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> pool: array<vec4<f32>>;
-@group(0) @binding(4) var<storage, read> face_energy: array<f32>;
+// Per region (face, or tile) four vec4: its corners (xyz), its energy in the first one's w.
+@group(0) @binding(4) var<storage, read> regions: array<vec4<f32>>;
 @group(0) @binding(5) var<uniform> sp: ShadeParams;
 @group(0) @binding(6) var<uniform> lv: LightingView;
 // The probed pixel, for the sample-debug view: n, o, kd, ks (as GPixel), estimate, (x, y, index,

@@ -221,52 +221,6 @@ fn mis_weight_over_density(h: u32, na: f32, nb: f32) -> f32 {
     return a / (m * (a * a + b * b));
 }
 
-// sampling::faceweights: C_f = sum over the face's 4 corners of max(0, <n, corner>), F_f = C_f / sum C,
-// mu_f = F_f I_f / sum F I. With use_cosine false, F_f = 1/6 (the `light` baseline).
-fn corner_dir(i: u32) -> vec3<f32> {
-    let s = vec3(select(1.0, -1.0, (i & 1u) != 0u), select(1.0, -1.0, (i & 2u) != 0u), select(1.0, -1.0, (i & 4u) != 0u));
-    return s / sqrt(3.0);
-}
-fn face_weights(n: vec3<f32>, energy: array<f32, 6>, use_cosine: bool) -> array<f32, 6> {
-    var cos8: array<f32, 8>;
-    for (var i = 0u; i < 8u; i++) {
-        cos8[i] = max(dot(n, corner_dir(i)), 0.0);
-    }
-    var c: array<f32, 6>;
-    if (use_cosine) {
-        c[0] = cos8[0] + cos8[2] + cos8[4] + cos8[6];
-        c[1] = cos8[1] + cos8[3] + cos8[5] + cos8[7];
-        c[2] = cos8[0] + cos8[1] + cos8[4] + cos8[5];
-        c[3] = cos8[2] + cos8[3] + cos8[6] + cos8[7];
-        c[4] = cos8[0] + cos8[1] + cos8[2] + cos8[3];
-        c[5] = cos8[4] + cos8[5] + cos8[6] + cos8[7];
-    } else {
-        for (var f = 0u; f < 6u; f++) {
-            c[f] = 1.0;
-        }
-    }
-    var csum = 0.0;
-    for (var f = 0u; f < 6u; f++) {
-        csum += c[f];
-    }
-    var mu: array<f32, 6>;
-    if (csum <= 0.0) {
-        return mu;
-    }
-    var fi: array<f32, 6>;
-    var total = 0.0;
-    for (var f = 0u; f < 6u; f++) {
-        fi[f] = (c[f] / csum) * energy[f];
-        total += fi[f];
-    }
-    if (total > 0.0) {
-        for (var f = 0u; f < 6u; f++) {
-            mu[f] = fi[f] / total;
-        }
-    }
-    return mu;
-}
-
 // sampling::faceweights::face_count: N_f -> (taken, weight of the last, density).
 const COUNTS_FRACTIONAL: u32 = 0u;
 const COUNTS_INTEGER: u32 = 1u;

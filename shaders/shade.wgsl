@@ -1,6 +1,6 @@
 // envis — per-pixel face-weighted MIS shading (twin of render::shade_pixel). Needs common.wgsl and
 // sampling.wgsl before it, and a module that declares the resources `shade` reads (the frame's
-// texel table `texels`, the light `pool`, `face_energy`, and the uniform `sp`) and
+// texel table `texels`, the light `pool`, the `regions`' corners and energies, and the uniform `sp`) and
 // `env_radiance(d, coarse)`, the radiance in direction d given the texel table's value there
 // (render::FrameData::radiance), and `sample_blocked(px, pixel_index, d)`, whether a shadow ray
 // from the pixel's surface point is blocked (render::estimator's `Pixel::blocked`):
@@ -28,9 +28,96 @@ struct ShadeParams {
     // Nodes of the shadow-ray BVH (visibility.wgsl); 0: no shadow rays.
     bvh_nodes: u32,
     pool_blocks: u32,
-    _pad0: u32,
-    _pad1: u32,
+    // Tiles per face side K (sampling::tiles; 1: whole faces). Regions: 6 K^2.
+    tiles: u32,
+    // 1: sampling::TileCounts::Face (counts per face, each sample drawing its tile); 0: per tile.
+    tile_counts: u32,
     _pad2: u32,
+}
+
+// sampling::TileWeights::masses for one region: C_t I_t (C_t = 1 without the cosine).
+fn region_mass(n: vec3<f32>, r: u32, use_cosine: bool) -> f32 {
+    let e = regions[4u * r].w;
+    if (!use_cosine) {
+        return e;
+    }
+    var c = 0.0;
+    for (var j = 0u; j < 4u; j++) {
+        let d = regions[4u * r + j].xyz;
+        c += max(n.x * d.x + n.y * d.y + n.z * d.z, 0.0);
+    }
+    return c * e;
+}
+
+// The sum over regions of region_mass, in region order (the CPU's order).
+fn total_mass(n: vec3<f32>, use_cosine: bool) -> f32 {
+    var total = 0.0;
+    for (var r = 0u; r < 6u * sp.tiles * sp.tiles; r++) {
+        total += region_mass(n, r, use_cosine);
+    }
+    return total;
+}
+
+// The sum of region_mass over face f's tiles, in tile order.
+fn face_mass(n: vec3<f32>, f: u32, use_cosine: bool) -> f32 {
+    let k2 = sp.tiles * sp.tiles;
+    var s = 0.0;
+    for (var t = 0u; t < k2; t++) {
+        s += region_mass(n, f * k2 + t, use_cosine);
+    }
+    return s;
+}
+
+// sampling::tiles::draw_tile over face f's tiles: the first tile of positive mass whose running
+// sum exceeds u * fm, else the last tile of positive mass (k2 when none).
+fn draw_tile(n: vec3<f32>, f: u32, fm: f32, u: f32, use_cosine: bool) -> u32 {
+    let k2 = sp.tiles * sp.tiles;
+    let x = u * fm;
+    var acc = 0.0;
+    var last = k2;
+    for (var t = 0u; t < k2; t++) {
+        let m = region_mass(n, f * k2 + t, use_cosine);
+        if (m > 0.0) {
+            acc += m;
+            last = t;
+            if (acc > x) {
+                return t;
+            }
+        }
+    }
+    return last;
+}
+
+fn face_tile_counts() -> bool {
+    return sp.tiles > 1u && sp.tile_counts == 1u;
+}
+
+// The light density N_t of region r (render::estimator: the `density` table the light loop
+// writes): per tile, or with counts per face N_f C_t I_t / (sum over the face).
+fn region_density(n: vec3<f32>, r: u32, total: f32, nl: u32, len: u32, counts: u32, use_cosine: bool) -> f32 {
+    if (!face_tile_counts()) {
+        return face_count(region_count(n, r, total, nl, use_cosine), len, counts).density;
+    }
+    let fm = face_mass(n, r / (sp.tiles * sp.tiles), use_cosine);
+    if (fm <= 0.0) {
+        return 0.0;
+    }
+    var mu = 0.0;
+    if (total > 0.0) {
+        mu = fm / total;
+    }
+    let c = face_count(mu * f32(nl), len, counts);
+    return c.density * (region_mass(n, r, use_cosine) / fm);
+}
+
+// N_t of region r for a pixel with normal n (render::estimator's light_pool_samples), before
+// face_count clamps it: mu_t N_L.
+fn region_count(n: vec3<f32>, r: u32, total: f32, nl: u32, use_cosine: bool) -> f32 {
+    var mu = 0.0;
+    if (total > 0.0) {
+        mu = region_mass(n, r, use_cosine) / total;
+    }
+    return mu * f32(nl);
 }
 
 const POOL_OFFSET: u32 = 1u;
@@ -125,7 +212,14 @@ fn shade_counts(px: GPixel, pixel_index: u32, counts: u32) -> Shaded {
     let nb_f = f32(nb);
     let size = sp.n;
     let m = sp.m;
-    var density: array<f32, 6>;
+    // The light samples' per-region densities are recomputed where a BRDF sample needs one
+    // (a table of 6 K^2 per pixel would not fit in registers).
+    let use_cosine = sp.strategy == STRATEGY_PAPER;
+    var total = 0.0;
+    var window_len = 0u;
+    // With whole faces (K = 1) the light loop keeps each face's density, as the seed's shader
+    // did; with tiles a BRDF sample recomputes its tile's (region_density).
+    var face_density: array<f32, 6>;
 
     // Section `global_samples` of render/estimator.rs.
     if (sp.strategy == STRATEGY_GLOBAL) {
@@ -159,18 +253,61 @@ fn shade_counts(px: GPixel, pixel_index: u32, counts: u32) -> Shaded {
     } else if (sp.strategy != STRATEGY_BRDF) {
         // Section `light_pool_samples` of render/estimator.rs.
         let w = pool_window(&rng, m);
-        res.stats.x = 6u * w.len;
-        var energy: array<f32, 6>;
-        for (var f = 0u; f < 6u; f++) {
-            energy[f] = face_energy[f];
+        let region_count_all = 6u * sp.tiles * sp.tiles;
+        res.stats.x = region_count_all * w.len;
+        window_len = w.len;
+        // With whole faces the six masses are kept (each is four corner loads); with tiles they
+        // are recomputed where needed (6 K^2 would not fit in registers).
+        var mass6: array<f32, 6>;
+        if (sp.tiles == 1u) {
+            for (var f = 0u; f < 6u; f++) {
+                mass6[f] = region_mass(n, f, use_cosine);
+                total += mass6[f];
+            }
+        } else {
+            total = total_mass(n, use_cosine);
         }
-        let mu = face_weights(n, energy, sp.strategy == STRATEGY_PAPER);
-        for (var f = 0u; f < 6u; f++) {
-            let c = face_count(mu[f] * f32(nl), w.len, counts);
-            density[f] = c.density;
+        // Per region (render::estimator's light_pool_samples), or per face with each sample
+        // drawing its tile (face_tile_samples).
+        let face_mode = face_tile_counts();
+        let k2 = sp.tiles * sp.tiles;
+        for (var f = 0u; f < select(region_count_all, 6u, face_mode); f++) {
+            var fm = 0.0;
+            var c: FaceCount;
+            if (face_mode) {
+                fm = face_mass(n, f, use_cosine);
+                var mu = 0.0;
+                if (total > 0.0) {
+                    mu = fm / total;
+                }
+                c = face_count(mu * f32(nl), w.len, counts);
+            } else {
+                var mu = 0.0;
+                if (total > 0.0) {
+                    if (sp.tiles == 1u) {
+                        mu = mass6[f] / total;
+                    } else {
+                        mu = region_mass(n, f, use_cosine) / total;
+                    }
+                }
+                c = face_count(mu * f32(nl), w.len, counts);
+            }
+            if (sp.tiles == 1u) {
+                face_density[f] = c.density;
+            }
             var idx = w.start;
             for (var k = 0u; k < c.taken; k++) {
-                let s = f * m + w.base + idx;
+                var region = f;
+                var density = c.density;
+                if (face_mode) {
+                    let t = draw_tile(n, f, fm, rng_next_f32(&rng), use_cosine);
+                    if (t == k2) {
+                        break;
+                    }
+                    region = f * k2 + t;
+                    density = c.density * (region_mass(n, region, use_cosine) / fm);
+                }
+                let s = region * m + w.base + idx;
                 idx += 1u;
                 if (idx == w.len) {
                     idx = 0u;
@@ -191,7 +328,7 @@ fn shade_counts(px: GPixel, pixel_index: u32, counts: u32) -> Shaded {
                 res.stats.y += 1u;
                 let weight = select(1.0, c.last_weight, k + 1u == c.taken);
                 let il = to_local(fr, dp.xyz);
-                let n_l = c.density * dp.w;
+                let n_l = density * dp.w;
                 var n_b = 0.0;
                 if (nb > 0u) {
                     n_b = nb_f * brdf_pdf(mat, ol, il);
@@ -221,7 +358,12 @@ fn shade_counts(px: GPixel, pixel_index: u32, counts: u32) -> Shaded {
         let q = 1.0 + hit.a * hit.a + hit.b * hit.b;
         var n_l = 0.0;
         if (sp.strategy == STRATEGY_PAPER) {
-            n_l = density[hit.face] * t.w * (q * sqrt(q));
+            var density = face_density[hit.face];
+            if (sp.tiles > 1u) {
+                let r = tile_region(hit.face, hit.col, hit.row, size, sp.tiles);
+                density = region_density(n, r, total, nl, window_len, counts, use_cosine);
+            }
+            n_l = density * t.w * (q * sqrt(q));
         } else if (sp.strategy == STRATEGY_GLOBAL) {
             n_l = f32(nl) * global_pdf(size, d);
         }

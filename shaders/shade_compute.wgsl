@@ -3,7 +3,8 @@
 
 @group(0) @binding(0) var<storage, read> texels: array<vec4<f32>>;
 @group(0) @binding(1) var<storage, read> pool: array<vec4<f32>>;
-@group(0) @binding(2) var<storage, read> face_energy: array<f32>;
+// Per region (face, or tile) four vec4: its corners (xyz), its energy in the first one's w.
+@group(0) @binding(2) var<storage, read> regions: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> gbuf: array<GPixel>;
 // Per pixel: (r, g, b, 1 where shaded).
 @group(0) @binding(4) var<storage, read_write> out_color: array<vec4<f32>>;

@@ -151,6 +151,14 @@ struct RenderArgs {
     /// The same as `--pool-layout offset` (kept for scripts written before `--pool-layout`).
     #[arg(long, hide = true, conflicts_with = "pool_layout")]
     pixel_offset: bool,
+    /// K: cut each cube face into K x K tiles, each weighted and sampled on its own (1: the
+    /// seed's whole faces). Tiles differ by one texel when K does not divide the face size.
+    #[arg(long, default_value_t = Settings::default().tiles)]
+    tiles: usize,
+    /// With tiles: `face` (the seed's counts per face, each sample drawing its tile) or `tile`
+    /// (the seed's counts per tile: at least one sample per lit tile).
+    #[arg(long, value_enum, default_value_t = Settings::default().tile_counts)]
+    tile_counts: envis::sampling::TileCounts,
     /// Let each pixel's material choose the light / BRDF split of the budget (`paper` only):
     /// diffuse -> light samples only, near-mirror -> BRDF samples only.
     #[arg(long)]

@@ -347,7 +347,7 @@ fn face_distribution_chi2_texel_domain() {
         Chi2Test::new(name, Discrete(n * n), 100_000, 6)
             .run(
                 || {
-                    let s = fd.sample(f, rng_vec2(&mut r)).unwrap();
+                    let s = fd.sample(f, 0, rng_vec2(&mut r)).unwrap();
                     assert!(s.pdf > 0.0 && s.pdf.is_finite());
                     assert!(s.row != 1 && s.col != 2, "sampled a zero texel");
                     Some(s.row * n + s.col)
@@ -379,7 +379,7 @@ fn face_distribution_strips_match_column_distributions() {
                 .collect();
             let want = Distribution1D::new(w);
             let got = &fd.conditional;
-            let (ta, tb) = (got.total(c), want.total);
+            let (ta, tb) = (got.total(0, c), want.total);
             assert!(
                 (ta - tb).abs() <= 1e-12 * tb,
                 "face {f} column {c} total {ta} vs {tb}"
@@ -396,7 +396,7 @@ fn face_distribution_strips_match_column_distributions() {
             }
             for _ in 0..20 {
                 let u = r.next_f32();
-                let (a, b) = (got.sample(c, u), want.sample(u));
+                let (a, b) = (got.sample(c, 0, u), want.sample(u));
                 // The same row, unless u sits within rounding of a boundary.
                 let near = (0..=n).any(|k| (want.cdf[k] - u).abs() < 1e-6);
                 assert!(
@@ -410,8 +410,8 @@ fn face_distribution_strips_match_column_distributions() {
     frame.rebuild(&map);
     for (a, b) in frame.faces.iter().zip(&dist.faces) {
         assert_eq!(a.energy, b.energy);
-        assert_eq!(a.area_scale, b.area_scale);
-        assert_eq!(a.marginal.cdf, b.marginal.cdf);
+        assert_eq!(a.tiles[0].area_scale, b.tiles[0].area_scale);
+        assert_eq!(a.tiles[0].marginal.cdf, b.tiles[0].marginal.cdf);
         for c in 0..n {
             for row in 0..=n {
                 assert_eq!(a.conditional.cdf(c, row), b.conditional.cdf(c, row));
@@ -428,7 +428,7 @@ fn face_distribution_invert_round_trips() {
     for f in 0..6 {
         for _ in 0..1000 {
             let u = rng_vec2(&mut r);
-            let s = dist.faces[f].sample(f, u).unwrap();
+            let s = dist.faces[f].sample(f, 0, u).unwrap();
             let (g, a, b) = dir_to_face_ab(s.dir);
             assert_eq!(g, f);
             let back = dist.faces[f].invert(a, b);
@@ -457,7 +457,7 @@ fn face_distribution_solid_angle_pdf_chi2() {
         };
         Chi2Test::new(name, domain, 200_000, 6)
             .run(
-                || dist.faces[f].sample(f, rng_vec2(&mut r)).map(|s| s.dir),
+                || dist.faces[f].sample(f, 0, rng_vec2(&mut r)).map(|s| s.dir),
                 |d| {
                     let (g, p) = dist.face_pdf(d);
                     assert_eq!(g, f);
@@ -498,7 +498,7 @@ fn face_weighted_mixture_chi2_for_several_normals() {
         .run(
             || {
                 let (f, _) = mix.sample(r.next_f32());
-                let s = dist.faces[f].sample(f, rng_vec2(&mut r)).unwrap();
+                let s = dist.faces[f].sample(f, 0, rng_vec2(&mut r)).unwrap();
                 Some((f * n + s.row) * n + s.col)
             },
             |i| {
@@ -532,7 +532,7 @@ fn face_weighted_mixture_chi2_for_several_normals() {
             200_000,
             |r| {
                 let (f, _) = mix.sample(r.next_f32());
-                dist.faces[f].sample(f, rng_vec2(r)).map(|s| s.dir)
+                dist.faces[f].sample(f, 0, rng_vec2(r)).map(|s| s.dir)
             },
             |d| {
                 let (f, p) = dist.face_pdf(d);
@@ -540,6 +540,79 @@ fn face_weighted_mixture_chi2_for_several_normals() {
             },
             100 + k as u32,
         );
+    }
+}
+
+/// Sub-face tiles (`--tiles K`): the per-pixel mixture over `6 K^2` tiles, each sampled from its
+/// own CDFs, has the pmf `mu_t P(texel | t)` in the (face, texel) domain and the solid-angle pdf
+/// `mu_t p_t(w)` over the sphere; a tile wholly below the horizon gets no weight, and every
+/// other lit tile some. `K = 3` on faces of 8 does not divide them (tiles of 3, 3 and 2 texels).
+#[test]
+fn tile_mixture_chi2_for_several_normals() {
+    use envis::sampling::{MAX_REGIONS, TileWeights};
+    let (n, k) = (8, 3);
+    let normals = [
+        Vec3::Y,
+        Vec3::new(1.0, 1.0, 1.0),
+        Vec3::new(0.3, -0.8, 0.2),
+        Vec3::new(1.0, 0.0, 0.0),
+    ];
+    let checks = 2 * normals.len();
+    for (map, sphere) in [(structured_cube(n), false), (smooth_cube(n), true)] {
+        let dist = CubeDistribution::build_tiled(&map, k);
+        let (grid, e) = (dist.grid, dist.region_energies());
+        assert_eq!(grid.regions(), 6 * k * k);
+        let tiles = TileWeights::new(grid, &e);
+        for (j, &nrm) in normals.iter().enumerate() {
+            let nrm = nrm.normalize();
+            let mut mass = [0.0f32; MAX_REGIONS];
+            let total = tiles.masses(nrm, true, &mut mass);
+            let mu: Vec<f32> = mass[..grid.regions()].iter().map(|m| m / total).collect();
+            for (r, &m) in mu.iter().enumerate() {
+                let up = grid.corners(r).iter().any(|c| nrm.dot(*c) > 0.0);
+                assert_eq!(m > 0.0, up && e[r] > 0.0, "normal {nrm} region {r}");
+            }
+            let mix = Distribution1D::new(mu.clone());
+            let draw = |r: &mut Rng| {
+                let (t, _) = mix.sample(r.next_f32());
+                dist.sample_region(t, rng_vec2(r))
+            };
+            if sphere {
+                chi2_sphere(
+                    format!("tiles K={k} sphere normal {nrm}"),
+                    checks,
+                    nrm,
+                    200_000,
+                    |r| draw(r).map(|s| s.dir),
+                    |d| {
+                        let t = envis::envmap::dir_to_texel(d, n);
+                        let (f, p) = dist.face_pdf(d);
+                        mu[grid.region(f, t.col, t.row)] * p
+                    },
+                    300 + j as u32,
+                );
+                continue;
+            }
+            let mut r = Rng::new(31, j as u32);
+            Chi2Test::new(
+                format!("tiles K={k} texels normal {nrm}"),
+                Discrete(6 * n * n),
+                100_000,
+                checks,
+            )
+            .run(
+                || {
+                    let s = draw(&mut r)?;
+                    let (f, _, _) = envis::envmap::dir_to_face_ab(s.dir);
+                    Some((f * n + s.row) * n + s.col)
+                },
+                |i| {
+                    let (f, col, row) = (i / (n * n), i % n, (i / n) % n);
+                    mu[grid.region(f, col, row)] as f64 * dist.faces[f].texel_pmf(col, row) as f64
+                },
+            )
+            .assert();
+        }
     }
 }
 
@@ -615,7 +688,7 @@ fn pool_blocks_are_independent_seed_pools() {
     let dist = CubeDistribution::build(&map);
     let (m, k, seed) = (6usize, 4usize, 77u32);
     let blocks = LightPool::build_blocks(&map, &dist, m, k, seed);
-    assert_eq!((blocks.per_face, blocks.block), (k * m, m));
+    assert_eq!((blocks.per_region, blocks.block), (k * m, m));
     for b in 0..k {
         let one = LightPool::build(&map, &dist, m, block_seed(seed, b as u32));
         for f in 0..6 {
@@ -811,7 +884,7 @@ fn degenerate_maps_have_defined_behaviour() {
     assert!(
         dist.faces
             .iter()
-            .all(|f| f.energy == 0.0 && f.sample(0, Vec2::new(0.3, 0.7)).is_none())
+            .all(|f| f.energy == 0.0 && f.sample(0, 0, Vec2::new(0.3, 0.7)).is_none())
     );
     let gbuf = sphere_gbuffer(8, 8, Material::diffuse(1.0));
     for strategy in [
@@ -1207,6 +1280,33 @@ fn estimators_are_unbiased() {
             Settings {
                 brdf_samples: 0,
                 light_samples: 6,
+                ..base
+            },
+        ),
+        // Tiles of 6, 5 and 5 texels (3 does not divide 16) on the seed's shared pool, and 2 x 2
+        // tiles on blocks, with counts per face (each sample drawing its tile); then counts per
+        // tile.
+        (
+            "paper tiles K=3 shared",
+            Settings {
+                tiles: 3,
+                pool_layout: envis::render::PoolLayout::Shared,
+                ..base
+            },
+        ),
+        (
+            "paper tiles K=2 blocks K=4",
+            Settings {
+                tiles: 2,
+                pool_blocks: 4,
+                ..base
+            },
+        ),
+        (
+            "paper tiles K=3 counts per tile",
+            Settings {
+                tiles: 3,
+                tile_counts: envis::sampling::TileCounts::Tile,
                 ..base
             },
         ),
@@ -2046,6 +2146,20 @@ fn debug_pixel_matches_the_estimator() {
             strategy: Strategy::Light,
             pool_layout: envis::render::PoolLayout::Blocks,
             pool_blocks: 3,
+            ..Default::default()
+        },
+        // Tiles: counts per face (each sample drawing its tile) and per tile.
+        Settings {
+            light_samples: 24,
+            brdf_samples: 8,
+            tiles: 3,
+            ..Default::default()
+        },
+        Settings {
+            light_samples: 12,
+            brdf_samples: 8,
+            tiles: 4,
+            tile_counts: envis::sampling::TileCounts::Tile,
             ..Default::default()
         },
     ] {

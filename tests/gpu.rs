@@ -89,7 +89,27 @@ fn gpu_build(
     blocks: usize,
     seed: u32,
 ) -> envis::gpu::GpuTables {
-    let mut s = EnvSampler::new(ctx, map.size, m * blocks).unwrap();
+    gpu_build_tiled(ctx, map, 1, m, blocks, seed)
+}
+
+/// [`gpu_build`] with `tiles x tiles` tiles per face.
+fn gpu_build_tiled(
+    ctx: &GpuContext,
+    map: &CubeMap,
+    tiles: usize,
+    m: usize,
+    blocks: usize,
+    seed: u32,
+) -> envis::gpu::GpuTables {
+    let s = Settings {
+        light_samples: m,
+        brdf_samples: 0,
+        tiles,
+        pool_layout: PoolLayout::Blocks,
+        pool_blocks: blocks,
+        ..Default::default()
+    };
+    let mut s = EnvSampler::for_settings(ctx, map.size, &s).unwrap();
     s.set_blocks(blocks).unwrap();
     s.upload(&ctx.queue, map);
     ctx.wait(s.run(ctx, seed)).unwrap();
@@ -236,56 +256,73 @@ fn gpu_distribution_matches_cpu() {
                 },
             )
         }) {
-            let cpu = CubeDistribution::build(&map);
-            let w_cpu = envis::sampling::distribution::texel_weights(&map);
-            let g = gpu_build(ctx, &map, 8, 1, 1);
-            let nn = map.size * map.size;
-            for (i, (&a, &b)) in g.weights.iter().zip(&w_cpu).enumerate() {
+            for tiles in [1, 3].into_iter().filter(|&k| k <= map.size) {
+                check_distribution_twin(ctx, &format!("{name} K={tiles}"), &map, tiles);
+            }
+        }
+    }
+}
+
+/// The GPU's distribution of `map` with `tiles x tiles` tiles per face against the CPU's: the
+/// weights, every region's energy, corners and CDF over its columns, every column band's CDF,
+/// and the pdf table.
+fn check_distribution_twin(ctx: &GpuContext, name: &str, map: &CubeMap, tiles: usize) {
+    let cpu = CubeDistribution::build_tiled(map, tiles);
+    let w_cpu = envis::sampling::distribution::texel_weights(map);
+    let g = gpu_build_tiled(ctx, map, tiles, 8, 1, 1);
+    let (n, grid) = (map.size, cpu.grid);
+    let nn = n * n;
+    for (i, (&a, &b)) in g.weights.iter().zip(&w_cpu).enumerate() {
+        assert!(
+            rel(a as f64, b as f64) < 1e-6,
+            "{name} n={n}: weight {i}: gpu {a} cpu {b}"
+        );
+    }
+    for r in 0..grid.regions() {
+        let (f, t) = (r / grid.per_face(), r % grid.per_face());
+        let tile = &cpu.faces[f].tiles[t];
+        assert!(
+            rel(g.energies[r] as f64, tile.energy) < 2e-5,
+            "{name}: I_{r}: gpu {} cpu {}",
+            g.energies[r],
+            tile.energy
+        );
+        for (j, c) in grid.corners(r).iter().enumerate() {
+            assert!(
+                (g.corners[r][j] - *c).length() < 1e-6,
+                "{name}: region {r} corner {j}: gpu {} cpu {c}",
+                g.corners[r][j]
+            );
+        }
+        for (c, &want) in tile.marginal.cdf.iter().enumerate() {
+            let v = g.marg_cdf[r * (n + 1) + c];
+            assert!(
+                (v - want).abs() < 2e-6,
+                "{name}: region {r} CDF(u)[{c}]: gpu {v} cpu {want}"
+            );
+        }
+    }
+    for f in 0..6 {
+        let fd = &cpu.faces[f];
+        for col in 0..n {
+            let base = (f * n + col) * (n + grid.k);
+            for (r, &v) in g.cond_cdf[base..base + n + grid.k].iter().enumerate() {
+                let want = fd.conditional.cdf(col, r);
                 assert!(
-                    rel(a as f64, b as f64) < 1e-6,
-                    "{name} n={n}: weight {i}: gpu {a} cpu {b}"
+                    (v - want).abs() < 2e-6,
+                    "{name}: face {f} CDF(v|u={col})[{r}]: gpu {v} cpu {want}"
                 );
             }
-            for f in 0..6 {
-                let fd = &cpu.faces[f];
-                assert!(
-                    rel(g.energies[f] as f64, fd.energy) < 2e-5,
-                    "{name}: I_{f}: gpu {} cpu {}",
-                    g.energies[f],
-                    fd.energy
-                );
-                let n = map.size;
-                for (c, &v) in g.marg_cdf[f * (n + 1)..(f + 1) * (n + 1)]
-                    .iter()
-                    .enumerate()
-                {
-                    assert!(
-                        (v - fd.marginal.cdf[c]).abs() < 2e-6,
-                        "{name}: face {f} CDF(u)[{c}]: gpu {v} cpu {}",
-                        fd.marginal.cdf[c]
-                    );
-                }
-                for col in 0..n {
-                    let base = (f * n + col) * (n + 1);
-                    for (r, &v) in g.cond_cdf[base..base + n + 1].iter().enumerate() {
-                        let want = fd.conditional.cdf(col, r);
-                        assert!(
-                            (v - want).abs() < 2e-6,
-                            "{name}: face {f} CDF(v|u={col})[{r}]: gpu {v} cpu {want}"
-                        );
-                    }
-                }
-                for t in 0..nn {
-                    let (a, b) = (
-                        g.pdf_area[f * nn + t] as f64,
-                        fd.pdf_area(t % n, t / n) as f64,
-                    );
-                    assert!(
-                        rel(a, b) < 2e-5 || (a - b).abs() < 1e-30,
-                        "{name}: face {f} pdf_area[{t}]: gpu {a} cpu {b}"
-                    );
-                }
-            }
+        }
+        for t in 0..nn {
+            let (a, b) = (
+                g.pdf_area[f * nn + t] as f64,
+                fd.pdf_area(t % n, t / n) as f64,
+            );
+            assert!(
+                rel(a, b) < 2e-5 || (a - b).abs() < 1e-30,
+                "{name}: face {f} pdf_area[{t}]: gpu {a} cpu {b}"
+            );
         }
     }
 }
@@ -343,9 +380,15 @@ fn gpu_global_distribution_matches_cpu() {
 fn gpu_pool_matches_cpu_twin() {
     let Some(ctx) = gpu() else { return };
     for (name, map) in stage_maps(32) {
-        for (m, blocks) in [(1usize, 1usize), (37, 1), (256, 1), (12, 5)] {
+        for (m, blocks, tiles) in [
+            (1usize, 1usize, 1usize),
+            (37, 1, 1),
+            (256, 1, 1),
+            (12, 5, 1),
+            (9, 2, 3),
+        ] {
             let seed = pool_seed(5);
-            let g = gpu_build(ctx, &map, m, blocks, seed);
+            let g = gpu_build_tiled(ctx, &map, tiles, m, blocks, seed);
             let cpu = LightPool::build_blocks(&g.to_map(), &g.to_distribution(), m, blocks, seed);
             assert_eq!(cpu.samples.len(), g.pool.len());
             let mut worst_dir = 0.0f32;
@@ -379,6 +422,7 @@ fn gpu_pool_matches_cpu_twin() {
                     seed: 5,
                     pool_layout: PoolLayout::Blocks,
                     pool_blocks: blocks,
+                    tiles,
                     ..Default::default()
                 },
             );
@@ -425,41 +469,22 @@ fn gpu_render_matches_cpu_same_seed() {
             },
         ),
     ];
+    // (strategy, counts, MIS, pool layout, tiles per face side): tiles of 11 and 10 texels
+    // (3 does not divide 32) and of 8; 4 x 4 with counts per tile, the others per face.
+    use Counts::{Fractional, Integer};
+    use Heuristic::{Balance, Power};
     let strategies = [
-        (
-            Strategy::Paper,
-            Counts::Fractional,
-            Heuristic::Balance,
-            PoolLayout::Shared,
-        ),
-        (
-            Strategy::Paper,
-            Counts::Integer,
-            Heuristic::Power,
-            PoolLayout::Offset,
-        ),
-        (
-            Strategy::Light,
-            Counts::Fractional,
-            Heuristic::Balance,
-            PoolLayout::Blocks,
-        ),
-        (
-            Strategy::Brdf,
-            Counts::Fractional,
-            Heuristic::Balance,
-            PoolLayout::Shared,
-        ),
-        (
-            Strategy::Global,
-            Counts::Fractional,
-            Heuristic::Power,
-            PoolLayout::Shared,
-        ),
+        (Strategy::Paper, Fractional, Balance, PoolLayout::Shared, 1),
+        (Strategy::Paper, Integer, Power, PoolLayout::Offset, 1),
+        (Strategy::Paper, Fractional, Balance, PoolLayout::Blocks, 3),
+        (Strategy::Paper, Integer, Power, PoolLayout::Shared, 4),
+        (Strategy::Light, Fractional, Balance, PoolLayout::Blocks, 2),
+        (Strategy::Brdf, Fractional, Balance, PoolLayout::Shared, 1),
+        (Strategy::Global, Fractional, Power, PoolLayout::Shared, 1),
     ];
     for (mname, mat) in mats {
         let gbuf = sphere_gbuffer(size, size, mat);
-        for (strategy, counts, mis, pool_layout) in strategies {
+        for (strategy, counts, mis, pool_layout, tiles) in strategies {
             let s = Settings {
                 light_samples: 8,
                 brdf_samples: 8,
@@ -469,11 +494,18 @@ fn gpu_render_matches_cpu_same_seed() {
                 pool_layout,
                 pool_blocks: 4,
                 seed: 11,
+                tiles,
+                tile_counts: if tiles == 4 {
+                    TileCounts::Tile
+                } else {
+                    TileCounts::Face
+                },
                 ..Default::default()
             };
             let cpu = render(&map, &gbuf, size, size, &s).unwrap();
             let (gpu_img, timings) = render_gpu(ctx, &map, &gbuf, size, size, &s).unwrap();
-            let label = format!("{mname} {strategy:?} {counts:?} {mis:?} pool={pool_layout}");
+            let label =
+                format!("{mname} {strategy:?} {counts:?} {mis:?} pool={pool_layout} tiles={tiles}");
             // Per pixel: near-identical. A handful of pixels may take a different branch where a
             // cosine or a CDF comparison sits within rounding of its threshold.
             let mut off = 0;

@@ -42,6 +42,12 @@ pub struct EnvironmentSampling {
     /// Let each pixel's material split the budget (diffuse: all light samples; near-mirror: all
     /// BRDF samples); `paper` only.
     pub material_budget: bool,
+    /// `K`: each cube face cut into `K x K` tiles, each weighted and sampled on its own (1: the
+    /// seed's whole faces; at most [`crate::sampling::MAX_TILES`]).
+    pub tiles: u32,
+    /// With tiles: `Face` (the seed's counts per face, each sample drawing its tile) or `Tile`
+    /// (counts per tile).
+    pub tile_counts: crate::sampling::TileCounts,
     /// Random seed of the pool and the per-pixel streams.
     pub seed: u32,
     /// Average frames while nothing changes (camera, settings, map, viewport size).
@@ -71,6 +77,8 @@ impl Default for EnvironmentSampling {
             pool_layout: PoolLayout::Blocks,
             pool_blocks: crate::render::DEFAULT_POOL_BLOCKS as u32,
             material_budget: false,
+            tiles: Settings::default().tiles as u32,
+            tile_counts: Settings::default().tile_counts,
             seed: 0,
             accumulate: false,
             overlay: Overlay::None,
@@ -95,6 +103,8 @@ impl EnvironmentSampling {
             pool_layout: self.pool_layout,
             pool_blocks: self.pool_blocks as usize,
             material_budget: self.material_budget,
+            tiles: self.tiles as usize,
+            tile_counts: self.tile_counts,
         }
     }
 
@@ -110,6 +120,8 @@ impl EnvironmentSampling {
         self.pool_layout = s.pool_layout;
         self.pool_blocks = s.pool_blocks as u32;
         self.material_budget = s.material_budget;
+        self.tiles = s.tiles as u32;
+        self.tile_counts = s.tile_counts;
     }
 
     /// `N_L + N_B`.

@@ -373,18 +373,13 @@ fn mis_lighting(
         ubuf("envis shade params", bytemuck::bytes_of(&params)),
         ubuf("envis lighting view", bytemuck::bytes_of(&lv)),
     );
-    let energies = wgpu::BufferBinding {
-        buffer: &sampler.totals,
-        offset: 0,
-        size: wgpu::BufferSize::new(crate::gpu::sampler::TOTALS_COLUMNS as u64 * 4),
-    };
     use wgpu::BindingResource as R;
     let resources = [
         R::TextureView(deferred),
         R::TextureView(depth),
         sampler.texels.as_entire_binding(),
         sampler.pool.as_entire_binding(),
-        R::Buffer(energies),
+        R::Buffer(sampler.regions_binding()),
         pbuf.as_entire_binding(),
         vbuf.as_entire_binding(),
         pipes.probe.as_entire_binding(),

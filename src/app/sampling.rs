@@ -69,7 +69,9 @@ pub enum SeedOwner {
 pub struct SamplerKey {
     pub image: AssetId<Image>,
     pub face_size: usize,
-    /// Slots per face (`M` x blocks) and the blocks they split into.
+    /// Tiles per face side (`K`, already clamped to the face size).
+    pub tiles: usize,
+    /// Slots per region (`M` x blocks) and the blocks they split into.
     pub pool_slots: usize,
     pub pool_blocks: usize,
     pub seed: SeedOwner,
@@ -273,6 +275,7 @@ pub fn prepare_samplers(
         let key = SamplerKey {
             image: env.image.id(),
             face_size,
+            tiles: crate::sampling::TileGrid::new(face_size, settings.tiles).k,
             pool_slots: settings.pool_slots(),
             pool_blocks: settings.pool_block_count(),
             seed: if sampling.accumulate {
@@ -394,9 +397,9 @@ fn slot_for<'a>(
         Entry::Occupied(e) => return Some(e.into_mut()),
         Entry::Vacant(v) => v,
     };
-    let (n, m) = (key.face_size, key.pool_slots);
-    let built =
-        EnvSampler::with_device(device.wgpu_device(), queue, n, m, false).and_then(|mut s| {
+    let grid = crate::sampling::TileGrid::new(key.face_size, key.tiles);
+    let built = EnvSampler::with_device(device.wgpu_device(), queue, grid, key.pool_slots, false)
+        .and_then(|mut s| {
             s.set_blocks(key.pool_blocks)?;
             Ok(s)
         });

@@ -2,7 +2,8 @@
 //!
 //! Sweep: strategies {paper-fractional, paper-offset (a random per-pixel start into the pool),
 //! paper-blocks (one of 16 independent pools per pixel, `PoolLayout::Blocks`), the same with the
-//! power heuristic (paper-blocks-power),
+//! power heuristic (paper-blocks-power), paper-blocks with 2 x 2 and 4 x 4 tiles per face
+//! (paper-blocks-tiles2, paper-blocks-tiles4),
 //! paper-integer, global (power MIS), light, brdf} x total
 //! sample budgets N = N_L + N_B (4..512; paper and global also at light fractions 1/4 and 3/4) x
 //! materials {diffuse, Phong 150, GGX 0.3, GGX 0.05} x environments (built-in sky at 8h, 12h, 17h,
@@ -151,6 +152,19 @@ fn strategies(n: usize) -> Vec<(String, Settings)> {
                 ..half
             },
         ),
+    ];
+    // Sub-face tiles on the default pool layout (`--tiles K`): against paper-blocks (K = 1).
+    for k in super::tiles::SWEPT {
+        v.push((
+            super::tiles::label(k),
+            Settings {
+                pool_layout: crate::render::PoolLayout::Blocks,
+                tiles: k,
+                ..half
+            },
+        ));
+    }
+    v.extend([
         (
             "global".to_string(),
             Settings {
@@ -173,7 +187,7 @@ fn strategies(n: usize) -> Vec<(String, Settings)> {
                 ..half
             },
         ),
-    ];
+    ]);
     if n >= 8 {
         for (tag, nl) in [("L1/4", n / 4), ("L3/4", 3 * n / 4)] {
             let s = Settings {
@@ -381,7 +395,7 @@ fn geomean(xs: impl Iterator<Item = f64>) -> f64 {
     if n > 0.0 { (s / n).exp() } else { f64::NAN }
 }
 
-fn mean(xs: impl Iterator<Item = f64>) -> f64 {
+pub(super) fn mean(xs: impl Iterator<Item = f64>) -> f64 {
     let (mut s, mut n) = (0.0, 0.0);
     for x in xs {
         s += x;
@@ -391,7 +405,7 @@ fn mean(xs: impl Iterator<Item = f64>) -> f64 {
 }
 
 /// Points of one material pooled over environments (geometric means), one per (strategy, N).
-fn pooled(pts: &[Point], material: &str) -> Vec<Point> {
+pub(super) fn pooled(pts: &[Point], material: &str) -> Vec<Point> {
     let keys: std::collections::BTreeSet<(String, usize)> = pts
         .iter()
         .filter(|p| p.material == material)
@@ -576,6 +590,7 @@ pub fn report(cfg: &Config, pts: &[Point], command: &str, gpu_device: Option<&st
         }
         md.push('\n');
     }
+    super::tiles::report(&mut md, cfg, pts);
     md
 }
 
@@ -610,11 +625,13 @@ pub fn csv(pts: &[Point]) -> String {
 
 pub use super::chart::{Chart, Series};
 
-const MAIN: [(&str, &str); 8] = [
+const MAIN: [(&str, &str); 10] = [
     ("paper-fractional", "#d62728"),
     ("paper-offset", "#8c564b"),
     ("paper-blocks", "#17becf"),
     ("paper-blocks-power", "#bcbd22"),
+    ("paper-blocks-tiles2", "#e377c2"),
+    ("paper-blocks-tiles4", "#7f7f7f"),
     ("paper-integer", "#ff9896"),
     ("global", "#1f77b4"),
     ("light", "#2ca02c"),

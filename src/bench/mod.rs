@@ -25,6 +25,7 @@ pub mod flicker;
 pub mod flip;
 #[cfg(feature = "gpu")]
 pub mod gpu;
+pub mod tiles;
 pub mod visibility;
 
 use crate::envmap::{CubeMap, load::load_env, luminance};

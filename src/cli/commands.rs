@@ -25,6 +25,8 @@ pub fn render(r: RenderArgs) -> Result<()> {
         },
         pool_blocks: r.pool_blocks,
         material_budget: r.material_budget,
+        tiles: r.tiles,
+        tile_counts: r.tile_counts,
     };
     settings.validate()?;
     let su = setup(&r.scene)?;

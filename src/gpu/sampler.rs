@@ -5,9 +5,9 @@ use super::{GpuContext, dispatch_size, shaders};
 use crate::envmap::{CubeMap, SanitizeReport};
 use crate::error::{Error, Result};
 use crate::sampling::distribution::{
-    Conditionals, Distribution1D, FaceDistribution, face_solid_angles,
+    Conditionals, Distribution1D, FaceDistribution, TileDistribution, face_solid_angles,
 };
-use crate::sampling::{CubeDistribution, LightPool, PoolSample};
+use crate::sampling::{CubeDistribution, LightPool, PoolSample, TileGrid};
 use glam::Vec3;
 
 #[repr(C)]
@@ -17,10 +17,19 @@ struct Params {
     m: u32,
     seed: u32,
     blocks: u32,
+    tiles: u32,
+    _pad: [u32; 3],
 }
 
-/// Offset of the column totals in the `totals` buffer (face energies come first).
-pub const TOTALS_COLUMNS: usize = 8;
+/// Floats of one region's record at the start of the `totals` buffer: four corner directions
+/// (`xyz`), the region's energy in the first corner's `w`.
+pub const REGION_RECORD: usize = 16;
+
+/// Offset of the column totals in the `totals` buffer for `k x k` tiles per face (the regions'
+/// records come first).
+pub fn totals_columns(k: usize) -> usize {
+    REGION_RECORD * 6 * k * k
+}
 
 /// Floats in the `global` distribution buffer for N x N faces (`glen` in global_layout.wgsl):
 /// `[marg: h + 1][rows: h (w + 1)][pdf: w h][rowtot: h][misc: 4]`, `w = 4N`, `h = 2N`.
@@ -36,22 +45,26 @@ struct GlobalBuild {
     _params: wgpu::Buffer,
 }
 
-/// GPU buffers and pipelines of the per-frame build for faces of `n x n` texels and `m` pool
-/// slots per face (in [`Self::blocks`] blocks). Re-create it when `n` or `m` change; re-upload
-/// and re-encode every frame.
+/// GPU buffers and pipelines of the per-frame build for faces of `n x n` texels cut into
+/// [`Self::tiles`]` x `[`Self::tiles`] tiles, and `m` pool slots per region (face, or tile; in
+/// [`Self::blocks`] blocks). Re-create it when `n`, `m` or the tiles change; re-upload and
+/// re-encode every frame.
 pub struct EnvSampler {
     pub n: usize,
     pub m: usize,
+    /// Tiles per face side `K` (1: the seed's whole faces).
+    pub tiles: usize,
     /// Independent stratified blocks the `m` slots are split into (`PoolLayout::Blocks`; 1: the
     /// seed's pool). Set with [`Self::set_blocks`].
     pub blocks: usize,
     /// Per texel `(r, g, b, pdf_area)`: radiance in, sanitised radiance + pdf table out.
     pub texels: wgpu::Buffer,
     pub weights: wgpu::Buffer,
-    /// All CDFs: per (face, column) the conditional over rows, then per face the marginal over
-    /// columns (each `n + 1` values).
+    /// All CDFs: per (face, column) the conditionals over the rows of its `K` bands (`n + K`
+    /// values), then per region the marginal over its columns (`n + 1` values reserved).
     pub cdfs: wgpu::Buffer,
-    /// Face energies at `[0, 6)`, column totals from [`TOTALS_COLUMNS`].
+    /// Per region a record of [`REGION_RECORD`] floats (corners, energy), then per (face, band,
+    /// column) the column's total in the band from [`totals_columns`].
     pub totals: wgpu::Buffer,
     /// Two `vec4` per sample: `(dir, pdf)`, `(radiance, 0)`.
     pub pool: wgpu::Buffer,
@@ -91,25 +104,42 @@ pub fn check_binding(limits: &wgpu::Limits, what: &str, bytes: u64) -> Result<()
 }
 
 impl EnvSampler {
+    /// The seed's sampler: whole faces, `m` pool slots per face.
     pub fn new(ctx: &GpuContext, n: usize, m: usize) -> Result<Self> {
-        Self::with_device(&ctx.device, &ctx.queue, n, m, ctx.timestamps)
+        Self::with_device(
+            &ctx.device,
+            &ctx.queue,
+            TileGrid::new(n, 1),
+            m,
+            ctx.timestamps,
+        )
     }
 
-    /// The sampler a render with settings `s` needs on faces of `n`: its pool's slots and blocks.
+    /// The sampler a render with settings `s` needs on faces of `n`: its tiles, its pool's slots
+    /// and blocks.
     pub fn for_settings(ctx: &GpuContext, n: usize, s: &crate::render::Settings) -> Result<Self> {
-        let mut sampler = Self::new(ctx, n, s.pool_slots())?;
+        s.validate_for(n)?;
+        let grid = TileGrid::new(n, s.tiles);
+        let mut sampler = Self::with_device(
+            &ctx.device,
+            &ctx.queue,
+            grid,
+            s.pool_slots(),
+            ctx.timestamps,
+        )?;
         sampler.set_blocks(s.pool_block_count())?;
         Ok(sampler)
     }
 
-    /// Build on any device (the Bevy render world passes its own).
+    /// Build on any device (the Bevy render world passes its own), for faces and tiles `grid`.
     pub fn with_device(
         device: &wgpu::Device,
         queue: &wgpu::Queue,
-        n: usize,
+        grid: TileGrid,
         m: usize,
         timestamps: bool,
     ) -> Result<Self> {
+        let (n, k) = (grid.size, grid.k);
         if n == 0 || m == 0 {
             return Err(Error::invalid(
                 "GPU sampler: face size and pool size must be positive",
@@ -122,22 +152,23 @@ impl EnvSampler {
             "the texel table (6 N^2 x 16 bytes)",
             texel_count as u64 * 16,
         )?;
-        check_binding(
-            &limits,
-            "the CDF tables",
-            (6 * (n + 1) * (n + 1)) as u64 * 4,
-        )?;
-        check_binding(&limits, "the light pool", (6 * m) as u64 * 32)?;
+        let cdf_len = 6 * n * (n + k) + grid.regions() * (n + 1);
+        check_binding(&limits, "the CDF tables", cdf_len as u64 * 4)?;
+        check_binding(&limits, "the light pool", (grid.regions() * m) as u64 * 32)?;
         let texels = storage(device, "envis texels", texel_count as u64 * 16);
         let solid_angle = storage(device, "envis solid angles", (n * n) as u64 * 4);
         let weights = storage(device, "envis weights", texel_count as u64 * 4);
-        let cdfs = storage(device, "envis cdfs", (6 * (n + 1) * (n + 1)) as u64 * 4);
-        let totals = storage(device, "envis totals", (TOTALS_COLUMNS + 6 * n) as u64 * 4);
-        let pool = storage(device, "envis pool", (6 * m) as u64 * 32);
+        let cdfs = storage(device, "envis cdfs", cdf_len as u64 * 4);
+        let totals = storage(
+            device,
+            "envis totals",
+            (totals_columns(k) + 6 * k * n) as u64 * 4,
+        );
+        let pool = storage(device, "envis pool", (grid.regions() * m) as u64 * 32);
         let problems = storage(device, "envis sanitise counters", 16);
         let params = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("envis build params"),
-            size: 16,
+            size: std::mem::size_of::<Params>() as u64,
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
@@ -219,6 +250,7 @@ impl EnvSampler {
         Ok(EnvSampler {
             n,
             m,
+            tiles: k,
             blocks: 1,
             texels,
             weights,
@@ -331,6 +363,16 @@ impl EnvSampler {
         )
     }
 
+    /// The regions' records (corners and energies) at the start of `totals`: what the shading
+    /// passes bind as `regions`.
+    pub fn regions_binding(&self) -> wgpu::BufferBinding<'_> {
+        wgpu::BufferBinding {
+            buffer: &self.totals,
+            offset: 0,
+            size: wgpu::BufferSize::new(totals_columns(self.tiles) as u64 * 4),
+        }
+    }
+
     /// Upload a frame's radiance (the `w` channel is written by the build).
     pub fn upload(&self, queue: &wgpu::Queue, map: &CubeMap) {
         assert_eq!(map.size, self.n, "EnvSampler built for another face size");
@@ -338,7 +380,7 @@ impl EnvSampler {
         queue.write_buffer(&self.texels, 0, bytemuck::cast_slice(&data));
     }
 
-    /// Split the pool into `blocks` blocks of `m / blocks` samples per face from the next
+    /// Split the pool into `blocks` blocks of `m / blocks` samples per region from the next
     /// [`Self::set_seed`] on (the CPU twin's `LightPool::build_blocks`).
     pub fn set_blocks(&mut self, blocks: usize) -> Result<()> {
         if blocks == 0 || !self.m.is_multiple_of(blocks) {
@@ -358,6 +400,8 @@ impl EnvSampler {
             m: self.m as u32,
             seed,
             blocks: self.blocks as u32,
+            tiles: self.tiles as u32,
+            _pad: [0; 3],
         };
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
     }
@@ -384,7 +428,7 @@ impl EnvSampler {
         dist_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
         pool_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) {
-        let n = self.n as u32;
+        let (n, k) = (self.n as u32, self.tiles as u32);
         let texels = 6 * n * n;
         enc.clear_buffer(&self.problems, 0, None);
         let grid = |pass: &mut wgpu::ComputePass, p: &wgpu::ComputePipeline, (x, y): (u32, u32)| {
@@ -398,8 +442,8 @@ impl EnvSampler {
             });
             pass.set_bind_group(0, &self.bind_group, &[]);
             grid(&mut pass, &self.pipelines[0], dispatch_size(texels, 256));
-            grid(&mut pass, &self.pipelines[1], dispatch_size(6 * n, 1));
-            grid(&mut pass, &self.pipelines[2], (6, 1));
+            grid(&mut pass, &self.pipelines[1], dispatch_size(6 * n * k, 1));
+            grid(&mut pass, &self.pipelines[2], dispatch_size(6 * k * k, 1));
             grid(&mut pass, &self.pipelines[3], dispatch_size(texels, 256));
             if let Some(g) = &self.global {
                 let (w, h) = (4 * n, 2 * n);
@@ -421,7 +465,7 @@ impl EnvSampler {
             grid(
                 &mut pass,
                 &self.pipelines[4],
-                dispatch_size(6 * self.m as u32, 64),
+                dispatch_size(6 * k * k * self.m as u32, 64),
             );
         }
     }
@@ -490,19 +534,25 @@ impl EnvSampler {
 
     /// Read every table back (tests and debugging only; the frame path never does this).
     pub fn read_tables(&self, ctx: &GpuContext) -> Result<GpuTables> {
-        let (n, m) = (self.n, self.m);
+        let (n, m, k) = (self.n, self.m, self.tiles);
+        let grid = TileGrid::new(n, k);
+        let regions = grid.regions();
         let texels: Vec<[f32; 4]> = ctx.read(&self.texels, 0, 6 * n * n)?;
-        let totals: Vec<f32> = ctx.read(&self.totals, 0, TOTALS_COLUMNS + 6 * n)?;
-        let pool: Vec<[f32; 4]> = ctx.read(&self.pool, 0, 12 * m)?;
+        let totals: Vec<f32> = ctx.read(&self.totals, 0, totals_columns(k) + 6 * k * n)?;
+        let pool: Vec<[f32; 4]> = ctx.read(&self.pool, 0, regions * m * 2)?;
+        let record = |r: usize| &totals[REGION_RECORD * r..][..REGION_RECORD];
         Ok(GpuTables {
-            n,
+            grid,
             m,
             blocks: self.blocks,
             weights: ctx.read(&self.weights, 0, 6 * n * n)?,
-            cond_cdf: ctx.read(&self.cdfs, 0, 6 * n * (n + 1))?,
-            marg_cdf: ctx.read(&self.cdfs, 6 * n * (n + 1), 6 * (n + 1))?,
-            energies: std::array::from_fn(|f| totals[f]),
-            col_totals: totals[TOTALS_COLUMNS..].to_vec(),
+            cond_cdf: ctx.read(&self.cdfs, 0, 6 * n * (n + k))?,
+            marg_cdf: ctx.read(&self.cdfs, 6 * n * (n + k), regions * (n + 1))?,
+            energies: (0..regions).map(|r| record(r)[3]).collect(),
+            corners: (0..regions)
+                .map(|r| std::array::from_fn(|j| Vec3::from_slice(&record(r)[4 * j..])))
+                .collect(),
+            col_totals: totals[totals_columns(k)..].to_vec(),
             radiance: texels.iter().map(|t| Vec3::new(t[0], t[1], t[2])).collect(),
             pdf_area: texels.iter().map(|t| t[3]).collect(),
             pool: pool
@@ -520,15 +570,20 @@ impl EnvSampler {
 /// Everything the GPU build wrote, on the CPU.
 #[derive(Clone, Debug)]
 pub struct GpuTables {
-    pub n: usize,
+    /// Face size and tiles.
+    pub grid: TileGrid,
     pub m: usize,
     pub blocks: usize,
     pub weights: Vec<f32>,
-    /// Per (face, column) `n + 1` values.
+    /// Per (face, column) `n + K` values: the CDFs of its `K` bands.
     pub cond_cdf: Vec<f32>,
-    /// Per face `n + 1` values.
+    /// Per region `n + 1` values (its columns + 1 used).
     pub marg_cdf: Vec<f32>,
-    pub energies: [f32; 6],
+    /// Per region (face, or tile), its energy.
+    pub energies: Vec<f32>,
+    /// Per region, its corner directions (as [`TileGrid::corners`]).
+    pub corners: Vec<[Vec3; 4]>,
+    /// Per (face, band, column), the column's total in the band.
     pub col_totals: Vec<f32>,
     pub radiance: Vec<Vec3>,
     pub pdf_area: Vec<f32>,
@@ -539,41 +594,65 @@ impl GpuTables {
     /// The GPU's tables as a CPU [`CubeDistribution`], so the CPU twin of a later stage (the pool,
     /// the shading) can be run on exactly the GPU's input and compared stage by stage.
     pub fn to_distribution(&self) -> CubeDistribution {
-        let n = self.n;
+        let (g, n, k) = (self.grid, self.grid.size, self.grid.k);
         let faces = (0..6)
             .map(|f| {
-                let cols = f * n..(f + 1) * n;
+                let totals: Vec<f64> = self.col_totals[f * k * n..(f + 1) * k * n]
+                    .iter()
+                    .map(|&t| t as f64)
+                    .collect();
                 let conditional = Conditionals::from_columns(
-                    n,
+                    g,
                     &self.weights[f * n * n..(f + 1) * n * n],
-                    &self.cond_cdf[cols.start * (n + 1)..cols.end * (n + 1)],
-                    self.col_totals[cols].iter().map(|&t| t as f64).collect(),
+                    &self.cond_cdf[f * n * (n + k)..(f + 1) * n * (n + k)],
+                    totals,
                 );
+                let tiles = (0..g.per_face())
+                    .map(|t| self.tile(f * g.per_face() + t))
+                    .collect::<Vec<_>>();
                 FaceDistribution {
                     size: n,
-                    marginal: Distribution1D {
-                        func: self.col_totals[f * n..(f + 1) * n].to_vec(),
-                        cdf: self.marg_cdf[f * (n + 1)..(f + 1) * (n + 1)].to_vec(),
-                        total: self.energies[f] as f64,
-                    },
+                    energy: tiles.iter().map(|t| t.energy).sum(),
                     conditional,
-                    energy: self.energies[f] as f64,
-                    // `pdf_table`'s scale, computed as it does (in f32).
-                    area_scale: if self.energies[f] > 0.0 {
-                        (n * n) as f32 * 0.25 / self.energies[f]
-                    } else {
-                        0.0
-                    },
+                    tiles,
                 }
             })
             .collect();
-        CubeDistribution { size: n, faces }
+        CubeDistribution {
+            size: n,
+            grid: g,
+            faces,
+        }
+    }
+
+    /// Region `r`'s tile as the GPU built it.
+    fn tile(&self, r: usize) -> TileDistribution {
+        let (g, n) = (self.grid, self.grid.size);
+        let (f, _, ty) = g.split(r);
+        let (c0, c1, _, _) = g.span(r);
+        let e = self.energies[r];
+        TileDistribution {
+            col0: c0,
+            band: ty,
+            marginal: Distribution1D {
+                func: self.col_totals[(f * g.k + ty) * n..][c0..c1].to_vec(),
+                cdf: self.marg_cdf[r * (n + 1)..][..c1 - c0 + 1].to_vec(),
+                total: e as f64,
+            },
+            energy: e as f64,
+            // `pdf_table`'s scale, computed as it does (in f32).
+            area_scale: if e > 0.0 {
+                (n * n) as f32 * 0.25 / e
+            } else {
+                0.0
+            },
+        }
     }
 
     /// The pool as a CPU [`LightPool`].
     pub fn to_pool(&self) -> LightPool {
         LightPool {
-            per_face: self.m,
+            per_region: self.m,
             block: self.m / self.blocks.max(1),
             samples: self.pool.clone(),
         }
@@ -582,7 +661,7 @@ impl GpuTables {
     /// The sanitised radiance as a cube map.
     pub fn to_map(&self) -> CubeMap {
         CubeMap {
-            size: self.n,
+            size: self.grid.size,
             data: self.radiance.clone(),
         }
     }

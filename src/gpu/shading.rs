@@ -1,7 +1,7 @@
 //! Per-pixel face-weighted MIS shading on the GPU (`shaders/shade.wgsl`), twin of
 //! [`crate::render::shade_pixel`].
 
-use super::sampler::{EnvSampler, TOTALS_COLUMNS, check_binding};
+use super::sampler::{EnvSampler, check_binding};
 use super::{GpuContext, dispatch_size, shaders};
 use crate::error::Result;
 use crate::render::{GPixel, PoolLayout, Settings, Strategy};
@@ -58,7 +58,11 @@ pub struct ShadeParams {
     pub bvh_nodes: u32,
     /// Blocks of the pool (1 unless `PoolLayout::Blocks`).
     pub pool_blocks: u32,
-    pub _pad: [u32; 3],
+    /// Tiles per face side `K` (1: the seed's whole faces).
+    pub tiles: u32,
+    /// 1: [`crate::sampling::TileCounts::Face`].
+    pub tile_counts: u32,
+    pub _pad: u32,
 }
 
 impl ShadeParams {
@@ -88,7 +92,9 @@ impl ShadeParams {
             material_budget: s.material_budget as u32,
             bvh_nodes: 0,
             pool_blocks: s.pool_block_count() as u32,
-            _pad: [0; 3],
+            tiles: crate::sampling::TileGrid::new(n, s.tiles).k as u32,
+            tile_counts: (s.tile_counts == crate::sampling::TileCounts::Face) as u32,
+            _pad: 0,
         }
     }
 }
@@ -296,11 +302,7 @@ impl Shader {
                 },
                 wgpu::BindGroupEntry {
                     binding: 2,
-                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                        buffer: &sampler.totals,
-                        offset: 0,
-                        size: wgpu::BufferSize::new(TOTALS_COLUMNS as u64 * 4),
-                    }),
+                    resource: wgpu::BindingResource::Buffer(sampler.regions_binding()),
                 },
                 wgpu::BindGroupEntry {
                     binding: 3,

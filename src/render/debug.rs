@@ -4,13 +4,15 @@
 
 use super::{FrameData, GPixel, Settings, Strategy};
 use crate::sampling::rng::Rng;
-use crate::sampling::{face_count, face_weights};
+use crate::sampling::tiles::draw_tile;
+use crate::sampling::{MAX_REGIONS, TileCounts, face_count};
 use glam::Vec3;
 
 /// How one pool sample serves a pixel (the seed's sample-debug colours).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 pub enum SampleKind {
-    /// Red: not taken, discarded by face weighting (beyond the face's `ceil(N_f)`, or an empty slot).
+    /// Red: not taken, discarded by face weighting (beyond the face's (or tile's) `ceil(N_f)`, or
+    /// an empty slot).
     Discarded,
     /// Green: taken, positive cosine.
     Used,
@@ -24,6 +26,8 @@ pub enum SampleKind {
 #[derive(Clone, Copy, Debug, serde::Serialize)]
 pub struct DebugSample {
     pub face: usize,
+    /// The sample's region: its face, or with tiles its tile ([`crate::sampling::TileGrid`]).
+    pub region: usize,
     pub dir: Vec3,
     pub kind: SampleKind,
 }
@@ -32,9 +36,15 @@ pub struct DebugSample {
 /// the estimate.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct PixelDebug {
+    /// `mu_f`, summed over each face's tiles.
     pub mu: [f32; 6],
-    /// `N_f = mu_f N_L` (before clamping to the pool).
+    /// `N_f = mu_f N_L` (before clamping to the pool), summed over each face's tiles.
     pub n_f: [f32; 6],
+    /// Tiles per side `K` (1: whole faces) of faces of `face_size` texels.
+    pub tiles: usize,
+    pub face_size: usize,
+    /// `N_t = mu_t N_L` per region (face-major, [`crate::sampling::TileGrid::region`]).
+    pub n_t: Vec<f32>,
     pub samples: Vec<DebugSample>,
     pub estimate: Vec3,
 }
@@ -58,21 +68,34 @@ pub fn debug_pixel_at(
     let shadow = fd.occluder.zip(at);
     let n = px.n.normalize_or_zero();
     let (nl, _) = s.budget(&px.material);
-    let fw = face_weights(n, &fd.energies, s.strategy != Strategy::Light);
+    let mut mass = [0.0f32; MAX_REGIONS];
+    let total = fd.tiles.masses(n, s.strategy != Strategy::Light, &mut mass);
+    let regions = fd.tiles.len();
+    let mu: Vec<f32> = mass[..regions]
+        .iter()
+        .map(|&m| if total > 0.0 { m / total } else { 0.0 })
+        .collect();
     let mut rng = Rng::new(s.seed, pixel_index);
     let window = super::estimator::pool_window(&mut rng, s, &fd.pool);
     // The pixel's own part of the pool (one block with `PoolLayout::Blocks`): the slots it can
     // take, as the seed's view shows them.
-    let mut samples = Vec::with_capacity(6 * window.len);
+    let mut samples = Vec::with_capacity(regions * window.len);
     let live = matches!(s.strategy, Strategy::Paper | Strategy::Light)
         && super::estimator::shading_directions(px).is_some();
-    for f in 0..6 {
-        let c = face_count(fw.mu[f] * nl as f32, window.len, s.counts);
+    let k2 = fd.dist.grid.per_face();
+    let taken = if live {
+        taken_positions(s, nl, &mass[..regions], total, window.len, k2, &mut rng)
+    } else {
+        vec![false; regions * window.len]
+    };
+    for r in 0..regions {
         for j in window.base..window.base + window.len {
-            let ls = fd.pool.get(f, j);
+            let ls = fd.pool.get(r, j);
             // Where slot j comes in this pixel's order.
-            let taken = window.position(j).is_some_and(|k| k < c.taken);
-            let kind = if !live || !taken || ls.pdf <= 0.0 {
+            let taken = window
+                .position(j)
+                .is_some_and(|k| taken[r * window.len + k]);
+            let kind = if !taken || ls.pdf <= 0.0 {
                 SampleKind::Discarded
             } else if n.dot(ls.dir) <= 0.0 {
                 SampleKind::Wasted
@@ -82,16 +105,54 @@ pub fn debug_pixel_at(
                 SampleKind::Used
             };
             samples.push(DebugSample {
-                face: f,
+                face: r / k2,
+                region: r,
                 dir: ls.dir,
                 kind,
             });
         }
     }
+    let per_face = |f: usize| mu[f * k2..(f + 1) * k2].iter().sum::<f32>();
     PixelDebug {
-        mu: fw.mu,
-        n_f: std::array::from_fn(|f| fw.mu[f] * nl as f32),
+        mu: std::array::from_fn(per_face),
+        n_f: std::array::from_fn(|f| per_face(f) * nl as f32),
+        tiles: fd.dist.grid.k,
+        face_size: fd.dist.size,
+        n_t: mu.iter().map(|m| m * nl as f32).collect(),
         samples,
         estimate,
     }
+}
+
+/// Which positions of each region's window (`region * len + position`) the estimator's light
+/// loop takes, from the regions' masses `C_t I_t` (sum `total`), drawing from `rng` as it does:
+/// the first `N_t` per region, or with [`TileCounts::Face`] the face's `N_f`, each drawing a tile.
+fn taken_positions(
+    s: &Settings,
+    nl: usize,
+    mass: &[f32],
+    total: f32,
+    len: usize,
+    k2: usize,
+    rng: &mut Rng,
+) -> Vec<bool> {
+    let mut taken = vec![false; mass.len() * len];
+    let share = |m: f32| if total > 0.0 { m / total } else { 0.0 };
+    if k2 > 1 && s.tile_counts == TileCounts::Face {
+        for (f, tiles) in mass.chunks(k2).enumerate() {
+            let face_mass: f32 = tiles.iter().sum();
+            let c = face_count(share(face_mass) * nl as f32, len, s.counts);
+            for k in 0..c.taken {
+                if let Some(t) = draw_tile(tiles, face_mass, rng.next_f32()) {
+                    taken[(f * k2 + t) * len + k] = true;
+                }
+            }
+        }
+    } else {
+        for (r, &m) in mass.iter().enumerate() {
+            let c = face_count(share(m) * nl as f32, len, s.counts);
+            taken[r * len..][..c.taken].fill(true);
+        }
+    }
+    taken
 }

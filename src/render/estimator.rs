@@ -5,10 +5,11 @@
 use super::{GPixel, PixelStats, PoolLayout, Settings, Strategy, pool_seed};
 use crate::envmap::CubeMap;
 use crate::sampling::rng::Rng;
+use crate::sampling::tiles::draw_tile;
 use crate::sampling::warp::Frame;
 use crate::sampling::{
-    CubeDistribution, GlobalDistribution, LANES, LightPool, LocalBsdf, face_count, face_weights,
-    mis,
+    CubeDistribution, GlobalDistribution, LANES, LightPool, LocalBsdf, MAX_REGIONS, MAX_TILES,
+    TileCounts, TileWeights, face_count, mis,
 };
 use glam::{Vec2, Vec3};
 
@@ -28,7 +29,8 @@ pub struct FrameData<'a> {
     /// nothing occludes (no rays are cast).
     pub occluder: Option<&'a dyn crate::visibility::Occluder>,
     pub dist: CubeDistribution,
-    pub energies: [f64; 6],
+    /// The corners and energies of the faces' tiles (`K = 1`: the faces): the per-pixel weights.
+    pub tiles: TileWeights,
     pub pool: LightPool,
     pub global: Option<GlobalDistribution>,
     /// Per cube texel, radiance and `pdf_area` interleaved (`(r, g, b, p)`), so a BRDF-sampled
@@ -38,8 +40,8 @@ pub struct FrameData<'a> {
 
 impl<'a> FrameData<'a> {
     pub fn prepare(map: &'a CubeMap, s: &Settings) -> Self {
-        let dist = CubeDistribution::build(map);
-        let energies = dist.energies();
+        let dist = CubeDistribution::build_tiled(map, s.tiles);
+        let tiles = TileWeights::new(dist.grid, &dist.region_energies());
         let pool = if matches!(s.strategy, Strategy::Paper | Strategy::Light) {
             LightPool::build_blocks(
                 map,
@@ -50,7 +52,7 @@ impl<'a> FrameData<'a> {
             )
         } else {
             LightPool {
-                per_face: 0,
+                per_region: 0,
                 block: 0,
                 samples: Vec::new(),
             }
@@ -72,7 +74,7 @@ impl<'a> FrameData<'a> {
             fine: None,
             occluder: None,
             dist,
-            energies,
+            tiles,
             pool,
             global,
             texels,
@@ -266,11 +268,11 @@ fn shade_with<B: LocalBsdf>(
     let mut st = PixelStats::default();
     let mut rng = Rng::new(s.seed, pixel_index);
     let mut sum = Vec3::ZERO;
-    // Light-sample density on each face (N_f, clamped to the pool): `n_L(w) = density[f] p_f(w)`.
-    let mut density = [0.0f32; 6];
+    // Light-sample density on each region (N_t, clamped to the pool): `n_L(w) = density[t] p_t(w)`.
+    let mut density = [0.0f32; MAX_REGIONS];
     match s.strategy {
         Strategy::Paper | Strategy::Light => {
-            density = light_pool_samples(&px, &mut rng, &mut sum, &mut st);
+            light_pool_samples(&px, &mut rng, &mut density, &mut sum, &mut st);
         }
         Strategy::Global => global_samples(&px, &mut rng, &mut sum, &mut st),
         Strategy::Brdf => {}
@@ -279,41 +281,99 @@ fn shade_with<B: LocalBsdf>(
     (sum, st)
 }
 
-/// The seed's light samples: each face weighted by `mu_f`, `N_f = mu_f N_L` samples taken from
-/// its part of the shared pool (from the pixel's offset, wrapping), fractional or integer
-/// counts. Returns the per-face densities `N_f` the BRDF samples' MIS weights need.
+/// The seed's light samples: each region (face, or tile) weighted by `mu_t`, `N_t = mu_t N_L`,
+/// fractional or integer counts, taken from its part of the pool (from the pixel's window,
+/// wrapping): per tile, or with [`TileCounts::Face`] per face, each sample drawing its tile.
+/// Writes the per-region densities the BRDF samples' MIS weights need.
 #[inline(always)]
 fn light_pool_samples<B: LocalBsdf>(
     px: &Pixel<B>,
     rng: &mut Rng,
+    density: &mut [f32; MAX_REGIONS],
     sum: &mut Vec3,
     st: &mut PixelStats,
-) -> [f32; 6] {
+) {
     let (fd, s) = (px.fd, px.s);
-    let mut density = [0.0f32; 6];
     let w = pool_window(rng, s, &fd.pool);
-    st.available = (6 * w.len) as u32;
-    let fw = face_weights(px.n, &fd.energies, s.strategy == Strategy::Paper);
-    for (f, dens) in density.iter_mut().enumerate() {
-        let c = face_count(fw.mu[f] * px.nl as f32, w.len, s.counts);
+    let regions = fd.tiles.len();
+    st.available = (regions * w.len) as u32;
+    // `C_t I_t` per region, then `N_t = C_t I_t / sum * N_L` (the WGSL's order).
+    let total = fd
+        .tiles
+        .masses(px.n, s.strategy == Strategy::Paper, density);
+    let k2 = fd.dist.grid.per_face();
+    if k2 > 1 && s.tile_counts == TileCounts::Face {
+        for f in 0..6 {
+            face_tile_samples(px, rng, w, f, total, &mut density[f * k2..][..k2], sum, st);
+        }
+        return;
+    }
+    for (r, dens) in density[..regions].iter_mut().enumerate() {
+        let mu = if total > 0.0 { *dens / total } else { 0.0 };
+        let c = face_count(mu * px.nl as f32, w.len, s.counts);
         *dens = c.density;
-        // Window index (start + k) mod len, kept in range without a division per sample.
-        let mut idx = w.start;
-        for k in 0..c.taken {
-            let ls = fd.pool.get(f, w.base + idx);
-            idx += 1;
-            if idx == w.len {
-                idx = 0;
-            }
-            if ls.pdf <= 0.0 {
-                continue;
-            }
+        for (k, slot) in w.slots().take(c.taken).enumerate() {
             let weight = if k + 1 == c.taken { c.last_weight } else { 1.0 };
-            let radiance = || px.fd.radiance(ls.dir, ls.radiance);
-            px.light_sample(ls.dir, radiance, weight, c.density * ls.pdf, sum, st);
+            pool_sample(px, r, slot, weight, c.density, sum, st);
         }
     }
-    density
+}
+
+/// [`TileCounts::Face`] for face `f`, whose tiles' masses `C_t I_t` are `tiles` (overwritten by
+/// their densities `N_f C_t I_t / sum over the face`): the face's count `N_f`, each sample's tile
+/// drawn with one random number ([`draw_tile`]), the tile's next slot in the window.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn face_tile_samples<B: LocalBsdf>(
+    px: &Pixel<B>,
+    rng: &mut Rng,
+    w: PoolWindow,
+    f: usize,
+    total: f32,
+    tiles: &mut [f32],
+    sum: &mut Vec3,
+    st: &mut PixelStats,
+) {
+    let k2 = tiles.len();
+    let mut mass = [0.0f32; MAX_TILES * MAX_TILES];
+    mass[..k2].copy_from_slice(tiles);
+    let face_mass: f32 = tiles.iter().sum();
+    let mu = if total > 0.0 { face_mass / total } else { 0.0 };
+    let c = face_count(mu * px.nl as f32, w.len, px.s.counts);
+    for (d, &m) in tiles.iter_mut().zip(&mass) {
+        *d = if face_mass > 0.0 {
+            c.density * (m / face_mass)
+        } else {
+            0.0
+        };
+    }
+    for (k, slot) in w.slots().take(c.taken).enumerate() {
+        let Some(t) = draw_tile(&mass[..k2], face_mass, rng.next_f32()) else {
+            return;
+        };
+        let weight = if k + 1 == c.taken { c.last_weight } else { 1.0 };
+        pool_sample(px, f * k2 + t, slot, weight, tiles[t], sum, st);
+    }
+}
+
+/// Pool slot `slot` of region `r` as a light sample of weight `weight` from a region sampled
+/// with density `density` (`N_t`); an empty slot contributes nothing.
+#[inline(always)]
+fn pool_sample<B: LocalBsdf>(
+    px: &Pixel<B>,
+    r: usize,
+    slot: usize,
+    weight: f32,
+    density: f32,
+    sum: &mut Vec3,
+    st: &mut PixelStats,
+) {
+    let ls = px.fd.pool.get(r, slot);
+    if ls.pdf <= 0.0 {
+        return;
+    }
+    let radiance = || px.fd.radiance(ls.dir, ls.radiance);
+    px.light_sample(ls.dir, radiance, weight, density * ls.pdf, sum, st);
 }
 
 /// The unit normal and view of a pixel that reflects anything (both non-zero, the view in front
@@ -336,7 +396,23 @@ pub(crate) struct PoolWindow {
 }
 
 impl PoolWindow {
-    /// Where slot `j` of a face comes in this window's order, or `None` outside the window.
+    /// The window's slots in the order a pixel takes them, wrapping (counts are clamped to the
+    /// window, so no slot is taken twice).
+    #[inline(always)]
+    pub fn slots(self) -> impl Iterator<Item = usize> {
+        let mut idx = self.start;
+        std::iter::repeat_with(move || {
+            let j = self.base + idx;
+            // (start + k) mod len, kept in range without a division per sample.
+            idx += 1;
+            if idx == self.len {
+                idx = 0;
+            }
+            j
+        })
+    }
+
+    /// Where slot `j` of a region comes in this window's order, or `None` outside the window.
     pub fn position(&self, j: usize) -> Option<usize> {
         let i = j.checked_sub(self.base).filter(|&i| i < self.len)?;
         Some((i + self.len - self.start) % self.len)
@@ -351,7 +427,7 @@ impl PoolWindow {
 /// (`docs/benchmarks.md`, "Pool layouts").
 #[inline(always)]
 pub(crate) fn pool_window(rng: &mut Rng, s: &Settings, pool: &LightPool) -> PoolWindow {
-    let (m, block) = (pool.per_face, pool.block);
+    let (m, block) = (pool.per_region, pool.block);
     let whole = PoolWindow {
         base: 0,
         len: m,
@@ -404,7 +480,7 @@ fn global_samples<B: LocalBsdf>(px: &Pixel<B>, rng: &mut Rng, sum: &mut Vec3, st
 fn brdf_samples<B: LocalBsdf>(
     px: &Pixel<B>,
     rng: &mut Rng,
-    density: &[f32; 6],
+    density: &[f32; MAX_REGIONS],
     sum: &mut Vec3,
     st: &mut PixelStats,
 ) {
@@ -413,6 +489,7 @@ fn brdf_samples<B: LocalBsdf>(
     let mut smp = crate::sampling::SampleLanes::default();
     let mut hit = HitLanes::default();
     let n_size = fd.map.size as u32;
+    let tiles_k = fd.dist.grid.k as u32;
     let mut left = px.nb;
     while left > 0 {
         let count = left.min(LANES);
@@ -437,7 +514,14 @@ fn brdf_samples<B: LocalBsdf>(
             // One texel gives both the radiance and the light density of the direction.
             let t = fd.texels[hit.texel[k] as usize];
             let n_l = match s.strategy {
-                Strategy::Paper => density[hit.face[k] as usize] * t.w * hit.jac[k],
+                Strategy::Paper => {
+                    // With one tile per face the region is the face (no divisions).
+                    let r = match tiles_k {
+                        1 => hit.face[k],
+                        _ => region_of_texel(hit.texel[k], n_size, tiles_k),
+                    };
+                    density[r as usize] * t.w * hit.jac[k]
+                }
                 Strategy::Global => {
                     px.nl as f32
                         * fd.global
@@ -468,6 +552,15 @@ struct HitLanes {
     face: [u32; LANES],
     texel: [u32; LANES],
     jac: [f32; LANES],
+}
+
+/// The region ([`crate::sampling::TileGrid::region`]) of cube texel `texel` (index into the map's
+/// data) of faces `n` texels wide cut into `k x k` tiles.
+#[inline(always)]
+fn region_of_texel(texel: u32, n: u32, k: u32) -> u32 {
+    let (face, rest) = (texel / (n * n), texel % (n * n));
+    let (row, col) = (rest / n, rest % n);
+    face * k * k + (row * k / n) * k + col * k / n
 }
 
 /// Hint the CPU to start loading `x`'s cache line (no effect on results; a no-op off x86-64).

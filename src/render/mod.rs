@@ -66,7 +66,7 @@ pub fn render_with(
     height: usize,
     s: &Settings,
 ) -> Result<Rendered> {
-    s.validate()?;
+    s.validate_for(map.size)?;
     assert_eq!(gbuf.len(), width * height);
     if let Some((_, points)) = extras.shadows {
         assert_eq!(

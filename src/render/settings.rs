@@ -80,6 +80,11 @@ pub struct Settings {
     /// Let each pixel's material choose the split of the `N_L + N_B` budget (`paper` only): see
     /// [`budget_for`].
     pub material_budget: bool,
+    /// `K`: each face cut into `K x K` tiles, each weighted and sampled on its own
+    /// (`--tiles`; `1` is the seed's whole faces; [`crate::sampling::tiles`]).
+    pub tiles: usize,
+    /// How the light samples are spread over tiles (`--tile-counts`; no effect with one tile).
+    pub tile_counts: crate::sampling::TileCounts,
 }
 
 /// Phong exponents from here up, and GGX roughness from here down, count as near-mirror lobes.
@@ -128,6 +133,8 @@ impl Default for Settings {
             pool_layout: PoolLayout::Blocks,
             pool_blocks: DEFAULT_POOL_BLOCKS,
             material_budget: false,
+            tiles: 1,
+            tile_counts: crate::sampling::TileCounts::Face,
         }
     }
 }
@@ -151,13 +158,33 @@ impl Settings {
                 self.pool_blocks
             )));
         }
+        if !(1..=crate::sampling::MAX_TILES).contains(&self.tiles) {
+            return Err(Error::invalid(format!(
+                "--tiles {} is out of range (1 to {})",
+                self.tiles,
+                crate::sampling::MAX_TILES
+            )));
+        }
         if self.pool_slots() > 1 << 20 {
             return Err(Error::invalid(
-                "a pool above 2^20 samples per face (M x blocks) is refused",
+                "a pool above 2^20 samples per face or tile (M x blocks) is refused",
             ));
         }
         Ok(())
     }
+
+    /// [`Self::validate`] against a map of face size `n`: a tile must hold a texel.
+    pub fn validate_for(&self, n: usize) -> Result<()> {
+        self.validate()?;
+        if self.tiles > n {
+            return Err(Error::invalid(format!(
+                "--tiles {} needs faces of at least {} texels (these have {n})",
+                self.tiles, self.tiles
+            )));
+        }
+        Ok(())
+    }
+
     /// `(N_L, N_B)` for a pixel of material `m`: the strategy's split of the budget (and the
     /// material's, with [`Settings::material_budget`]).
     pub fn budget(&self, m: &crate::sampling::Material) -> (usize, usize) {
@@ -171,7 +198,7 @@ impl Settings {
         }
     }
 
-    /// M, the pool samples per face a pixel can draw from (one block's, with
+    /// M, the pool samples per region (face, or tile) a pixel can draw from (one block's, with
     /// [`PoolLayout::Blocks`]).
     pub fn pool_per_face(&self) -> usize {
         let all = self.strategy == Strategy::Light
@@ -191,7 +218,7 @@ impl Settings {
         }
     }
 
-    /// Slots per face in the whole pool: `M` x blocks.
+    /// Slots per region (face, or tile) in the whole pool: `M` x blocks.
     pub fn pool_slots(&self) -> usize {
         self.pool_per_face() * self.pool_block_count()
     }

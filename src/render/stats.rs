@@ -6,7 +6,7 @@ use super::Settings;
 /// Per-pixel sample accounting (the seed's red / green / yellow).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct PixelStats {
-    /// Light samples available to the pixel (6 M for the pool, N_L for `global`).
+    /// Light samples available to the pixel (6 K^2 M for the pool, N_L for `global`).
     pub available: u32,
     /// Light samples used with a positive cosine (and not blocked).
     pub green: u32,
@@ -38,12 +38,17 @@ pub struct RenderStats {
     pub mis: String,
     pub light_samples: usize,
     pub brdf_samples: usize,
-    /// M, the pool samples per face one pixel draws from (one block's with `blocks`).
+    /// M, the pool samples per face (per tile, with tiles) one pixel draws from (one block's
+    /// with `blocks`).
     pub pool_per_face: usize,
     pub seed: u32,
     /// `shared`, `offset` or `blocks`, and the pool's blocks (1 unless `blocks`).
     pub pool_layout: String,
     pub pool_blocks: usize,
+    /// `K`: tiles per face side (1: the seed's whole faces).
+    pub tiles: usize,
+    /// `face` or `tile` ([`crate::sampling::TileCounts`]).
+    pub tile_counts: String,
     pub material_budget: bool,
     /// Distribution (CDF tables, face energies) + light-sample pool build, milliseconds.
     pub build_ms: f64,
@@ -90,6 +95,8 @@ impl RenderStats {
             seed: s.seed,
             pool_layout: s.pool_layout.to_string(),
             pool_blocks: s.pool_block_count(),
+            tiles: s.tiles,
+            tile_counts: s.tile_counts.to_string(),
             material_budget: s.material_budget,
             ..Default::default()
         }

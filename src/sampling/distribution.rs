@@ -1,18 +1,19 @@
 //! Tabulated distributions of light intensity, built every frame from the current cube map.
 //!
-//! Per face: texel weight `w(c, r) = Y(c, r) * Omega(c, r)` (luminance x texel solid angle);
-//! marginal CDF over columns `u` and, per column, a conditional CDF over rows `v` (the seed's
-//! CDF(u) and CDF(v|u)). Sums are accumulated in f64 and stored normalised in f32, so a single
+//! Per face (or, with `--tiles K`, per tile of a face: [`super::tiles`]): texel weight
+//! `w(c, r) = Y(c, r) * Omega(c, r)` (luminance x texel solid angle); marginal CDF over columns `u`
+//! and, per column, a conditional CDF over rows `v` (the seed's CDF(u) and CDF(v|u)). Sums are accumulated in f64 and stored normalised in f32, so a single
 //! bright texel among millions is still found with the right probability. Inside the chosen texel
 //! the direction is uniform in face coordinates; the returned pdf is per unit *solid angle*:
 //! `p(w) = P(texel) / A_texel * (1 + a^2 + b^2)^(3/2)` with `A_texel = (2/N)^2` (cube-face Jacobian).
 //!
-//! Degenerate input has defined behaviour: a zero column is never chosen, a zero face reports
-//! `energy() == 0` and is never asked to sample (its pdf is 0 everywhere), an all-zero map gives
+//! Degenerate input has defined behaviour: a zero column is never chosen, a zero tile reports
+//! `energy == 0` and is never asked to sample (its pdf is 0 everywhere), an all-zero map gives
 //! six empty faces.
 
 pub use super::conditionals::{Conditionals, STRIP};
 use super::rng::ONE_MINUS_EPSILON;
+use super::tiles::TileGrid;
 use crate::envmap::{CubeMap, face_ab_to_vec, luminance, texel_solid_angle};
 use glam::{Vec2, Vec3};
 
@@ -93,19 +94,34 @@ impl Distribution1D {
     }
 }
 
-/// The tabulated distribution of one cube face.
+/// One tile's share of a face distribution: its marginal over its own columns and its energy.
+#[derive(Clone, Debug)]
+pub struct TileDistribution {
+    /// First column of the tile.
+    pub col0: usize,
+    /// The tile's band of rows in the face's [`Conditionals`].
+    pub band: usize,
+    /// Marginal over the tile's columns (weights = the columns' sums within the tile).
+    pub marginal: Distribution1D,
+    /// `I_t`: sum of luminance x solid angle over the tile (f64-accumulated).
+    pub energy: f64,
+    /// `(N/2)^2 / I_t`: a texel's weight times this is its pdf per unit face area
+    /// ([`FaceDistribution::pdf_area`]).
+    pub area_scale: f32,
+}
+
+/// The tabulated distribution of one cube face, as `K x K` tiles (`K = 1`: the seed's, one
+/// distribution per face), each with its own marginal over its columns and, in the shared
+/// [`Conditionals`], its own band of each column.
 #[derive(Clone, Debug)]
 pub struct FaceDistribution {
     pub size: usize,
-    /// Marginal over columns (weights = column sums).
-    pub marginal: Distribution1D,
-    /// One conditional over rows per column.
+    /// One band of rows in every column per tile row.
     pub conditional: Conditionals,
-    /// `I_f`: sum of luminance x solid angle over the face (f64-accumulated).
+    /// The tiles, row-major (`ty K + tx`).
+    pub tiles: Vec<TileDistribution>,
+    /// `I_f`: the face's energy, the sum of its tiles' (f64-accumulated).
     pub energy: f64,
-    /// `(N/2)^2 / I_f`: a texel's weight times this is its pdf per unit face area
-    /// ([`Self::pdf_area`]).
-    pub area_scale: f32,
 }
 
 /// One sample drawn from a face: direction, face coordinates and solid-angle pdf.
@@ -118,66 +134,93 @@ pub struct FaceSample {
 }
 
 impl FaceDistribution {
-    /// Build from one face's radiance and texel solid angles (both row-major, `n x n`).
-    pub fn build(n: usize, face: &[Vec3], omega: &[f32]) -> Self {
-        Self::from_conditionals(n, Conditionals::build(n, face, omega))
+    /// Build from one face's radiance and texel solid angles (both row-major, `n x n`), one
+    /// distribution per tile of `grid`.
+    pub fn build(grid: TileGrid, face: &[Vec3], omega: &[f32]) -> Self {
+        Self::from_conditionals(Conditionals::build(grid, face, omega))
     }
 
-    /// [`Self::build`] into this distribution's memory (same size).
+    /// [`Self::build`] into this distribution's memory (same size and tiles).
     pub fn rebuild(&mut self, face: &[Vec3], omega: &[f32]) {
         self.conditional.rebuild(face, omega);
-        (self.marginal, self.energy, self.area_scale) = Self::summary(&self.conditional);
+        (self.tiles, self.energy) = Self::summary(&self.conditional);
     }
 
     /// The distribution of `conditional`'s face.
-    pub fn from_conditionals(n: usize, conditional: Conditionals) -> Self {
-        let (marginal, energy, area_scale) = Self::summary(&conditional);
+    pub fn from_conditionals(conditional: Conditionals) -> Self {
+        let (tiles, energy) = Self::summary(&conditional);
         FaceDistribution {
-            size: n,
-            marginal,
+            size: conditional.size,
             conditional,
+            tiles,
             energy,
-            area_scale,
         }
     }
 
-    /// The marginal over columns, the energy and the area pdf scale of a face's conditionals.
-    fn summary(c: &Conditionals) -> (Distribution1D, f64, f32) {
-        let n = c.size;
-        let marginal = Distribution1D::new(c.totals.iter().map(|&t| t as f32).collect());
-        let energy: f64 = c.totals.iter().sum();
-        let area_scale = if energy > 0.0 {
-            ((n * n) as f64 * 0.25 / energy) as f32
-        } else {
-            0.0
-        };
-        (marginal, energy, area_scale)
+    /// The tiles (marginal over columns, energy, area pdf scale) of a face's conditionals, and
+    /// the face's energy.
+    fn summary(c: &Conditionals) -> (Vec<TileDistribution>, f64) {
+        let (n, g) = (c.size, c.grid);
+        let tiles: Vec<TileDistribution> = (0..g.per_face())
+            .map(|t| {
+                let (c0, c1, _, _) = g.span(t);
+                let band = t / g.k;
+                let totals = &c.totals[band * n..][c0..c1];
+                let marginal = Distribution1D::new(totals.iter().map(|&t| t as f32).collect());
+                let energy: f64 = totals.iter().sum();
+                let area_scale = if energy > 0.0 {
+                    ((n * n) as f64 * 0.25 / energy) as f32
+                } else {
+                    0.0
+                };
+                TileDistribution {
+                    col0: c0,
+                    band,
+                    marginal,
+                    energy,
+                    area_scale,
+                }
+            })
+            .collect();
+        let energy = tiles.iter().map(|t| t.energy).sum();
+        (tiles, energy)
     }
 
-    /// Texel (`col`, `row`)'s `P(texel) * (N/2)^2`: the pdf per unit face area, so that
+    /// The tile holding texel (`col`, `row`).
+    #[inline]
+    pub fn tile(&self, col: usize, row: usize) -> &TileDistribution {
+        let g = self.conditional.grid;
+        &self.tiles[g.of(row) * g.k + g.of(col)]
+    }
+
+    /// Texel (`col`, `row`)'s `P(texel | its tile) * (N/2)^2`: the pdf per unit face area, so that
     /// `p(w) = pdf_area * (1 + a^2 + b^2)^(3/2)`. A product, not a stored table: the pass that
     /// needs every texel's (the estimator's texel table) computes it on its way.
     #[inline]
     pub fn pdf_area(&self, col: usize, row: usize) -> f32 {
-        self.conditional.weight(col, row) * self.area_scale
+        self.conditional.weight(col, row) * self.tile(col, row).area_scale
     }
 
-    /// Discrete probability of texel `(col, row)`.
+    /// Discrete probability of texel `(col, row)` within its tile.
     #[inline]
     pub fn texel_pmf(&self, col: usize, row: usize) -> f32 {
-        self.marginal.bin_pmf(col) * self.conditional.bin_pmf(col, row)
+        let t = self.tile(col, row);
+        t.marginal.bin_pmf(col - t.col0) * self.conditional.bin_pmf(col, row)
     }
 
-    /// `u -> (col, du)` via CDF(u), then `v -> (row, dv)` via CDF(v|u); uniform in face coordinates
-    /// inside the texel. Returns `None` on an empty face.
+    /// A sample of tile `tile` (`0` with one tile per face): `u -> (col, du)` via the tile's
+    /// CDF(u), then `v -> (row, dv)` via its band of CDF(v|u); uniform in face coordinates inside
+    /// the texel. Returns `None` on an empty tile.
     #[inline]
-    pub fn sample(&self, face: usize, u: Vec2) -> Option<FaceSample> {
-        if self.energy <= 0.0 {
+    pub fn sample(&self, face: usize, tile: usize, u: Vec2) -> Option<FaceSample> {
+        let t = &self.tiles[tile];
+        if t.energy <= 0.0 {
             return None;
         }
         let n = self.size;
-        let (col, du) = self.marginal.sample(u.x);
-        let (row, dv) = self.conditional.sample(col, u.y);
+        let (c, du) = t.marginal.sample(u.x);
+        let col = t.col0 + c;
+        let (row, dv) = self.conditional.sample(col, t.band, u.y);
         let h = 2.0 / n as f32;
         let a = -1.0 + (col as f32 + du) * h;
         let b = -1.0 + (row as f32 + dv) * h;
@@ -190,31 +233,35 @@ impl FaceDistribution {
         })
     }
 
-    /// Solid-angle pdf at face coordinates `(a, b)` in texel `(col, row)`:
-    /// `P(texel) / (2/N)^2 * (1 + a^2 + b^2)^(3/2)`.
+    /// Solid-angle pdf of the tile holding texel `(col, row)` at face coordinates `(a, b)` in
+    /// that texel: `P(texel) / (2/N)^2 * (1 + a^2 + b^2)^(3/2)`.
     #[inline]
     pub fn pdf_ab(&self, col: usize, row: usize, a: f32, b: f32) -> f32 {
         let q = 1.0 + a * a + b * b;
         self.pdf_area(col, row) * q * q.sqrt()
     }
 
-    /// Invert: the `u` that [`Self::sample`] maps to face coordinates `(a, b)`.
+    /// Invert: the `u` that [`Self::sample`] of the tile holding face coordinates `(a, b)` maps
+    /// to them.
     pub fn invert(&self, a: f32, b: f32) -> Vec2 {
         let n = self.size;
         let x = ((a + 1.0) * 0.5 * n as f32).clamp(0.0, n as f32 - 1e-3);
         let y = ((b + 1.0) * 0.5 * n as f32).clamp(0.0, n as f32 - 1e-3);
         let (col, row) = (x as usize, y as usize);
+        let t = self.tile(col, row);
         Vec2::new(
-            self.marginal.invert(col, x - col as f32),
+            t.marginal.invert(col - t.col0, x - col as f32),
             self.conditional.invert(col, row, y - row as f32),
         )
     }
 }
 
-/// The six face distributions of one frame plus the face energies `I_f`.
+/// The six face distributions of one frame (each in `K x K` tiles).
 #[derive(Clone, Debug)]
 pub struct CubeDistribution {
     pub size: usize,
+    /// The tiles of every face.
+    pub grid: TileGrid,
     pub faces: Vec<FaceDistribution>,
 }
 
@@ -257,25 +304,36 @@ pub fn texel_weights(map: &CubeMap) -> Vec<f32> {
 }
 
 impl CubeDistribution {
+    /// The seed's distribution: one per face.
     pub fn build(map: &CubeMap) -> Self {
+        Self::build_tiled(map, 1)
+    }
+
+    /// One distribution per tile, `k x k` tiles per face (clamped to `1..=min(N, MAX_TILES)`).
+    pub fn build_tiled(map: &CubeMap, k: usize) -> Self {
         use rayon::prelude::*;
         let n = map.size;
+        let grid = TileGrid::new(n, k);
         let omega = face_solid_angles(n);
         // The faces in parallel, and within each its strips of columns (Conditionals::build).
         let faces = map
             .data
             .par_chunks(n * n)
-            .map(|face| FaceDistribution::build(n, face, &omega))
+            .map(|face| FaceDistribution::build(grid, face, &omega))
             .collect();
-        CubeDistribution { size: n, faces }
+        CubeDistribution {
+            size: n,
+            grid,
+            faces,
+        }
     }
 
     /// The next frame's distribution into this one's memory: what a stream does every frame.
-    /// A map of another size is built anew.
+    /// A map of another size is built anew (with as many tiles, where it can hold them).
     pub fn rebuild(&mut self, map: &CubeMap) {
         use rayon::prelude::*;
         if map.size != self.size {
-            *self = Self::build(map);
+            *self = Self::build_tiled(map, self.grid.k);
             return;
         }
         let n = map.size;
@@ -286,19 +344,34 @@ impl CubeDistribution {
             .for_each(|(fd, face)| fd.rebuild(face, &omega));
     }
 
+    /// Region (tile over the cube, [`TileGrid::region`]) energies `I_t`.
+    pub fn region_energies(&self) -> Vec<f64> {
+        self.faces
+            .iter()
+            .flat_map(|f| f.tiles.iter().map(|t| t.energy))
+            .collect()
+    }
+
+    /// A sample of region `r` ([`FaceDistribution::sample`] of its face and tile).
+    #[inline]
+    pub fn sample_region(&self, r: usize, u: Vec2) -> Option<FaceSample> {
+        let k2 = self.grid.per_face();
+        self.faces[r / k2].sample(r / k2, r % k2, u)
+    }
+
     /// Face energies `I_f`.
     pub fn energies(&self) -> [f64; 6] {
         std::array::from_fn(|f| self.faces[f].energy)
     }
 
-    /// Per-face solid-angle pdf `p_f(w)` of direction `d` (0 on an empty face), and its face.
+    /// Per-tile solid-angle pdf `p_t(w)` of direction `d` (0 on an empty tile), and its face.
     #[inline]
     pub fn face_pdf(&self, d: Vec3) -> (usize, f32) {
         let (f, _, p) = self.locate(d);
         (f, p)
     }
 
-    /// Face, texel index into the cube map's `data`, and per-face solid-angle pdf of direction
+    /// Face, texel index into the cube map's `data`, and per-tile solid-angle pdf of direction
     /// `d`: one face/texel lookup serves both the pdf and the radiance.
     #[inline]
     pub fn locate(&self, d: Vec3) -> (usize, usize, f32) {

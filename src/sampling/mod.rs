@@ -10,11 +10,13 @@ pub mod global;
 pub mod mis;
 pub mod pool;
 pub mod rng;
+pub mod tiles;
 pub mod warp;
 
 pub use brdf::{Ggx, LANES, Lambert, Lobe, LocalBsdf, Material, Phong, SampleLanes};
-pub use distribution::{CubeDistribution, Distribution1D, FaceDistribution};
+pub use distribution::{CubeDistribution, Distribution1D, FaceDistribution, TileDistribution};
 pub use faceweights::{Counts, FaceWeights, face_count, face_weights};
 pub use global::GlobalDistribution;
 pub use mis::Heuristic;
 pub use pool::{LightPool, PoolSample};
+pub use tiles::{MAX_REGIONS, MAX_TILES, TileCounts, TileGrid, TileWeights};

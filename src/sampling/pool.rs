@@ -1,6 +1,7 @@
-//! The per-frame light-sample pool: the same number `M` of samples on every face.
+//! The per-frame light-sample pool: the same number `M` of samples on every face (on every tile,
+//! with `--tiles K`: a region is a face or a tile, [`super::tiles`]).
 //!
-//! Sample `i` of face `f` uses Latin-hypercube stratification with hash permutations:
+//! Sample `i` of region `f` uses Latin-hypercube stratification with hash permutations:
 //! `u = (perm_u(i) + xi_u) / M`, `v = (perm_v(i) + xi_v) / M`. Every sample is, on its own,
 //! distributed exactly as the face pdf `p_f` (its stratum is uniformly random), so a pixel that
 //! uses only the first `k` samples — or `k` samples from a random start offset — stays unbiased,
@@ -20,13 +21,14 @@ pub struct PoolSample {
     pub pdf: f32,
 }
 
-/// `M` samples per face in each of `K` blocks (`K = 1`: the seed's pool), face-major: slot `j` of
-/// face `f` is `samples[f * per_face + j]`, and block `b` holds slots `b M .. (b + 1) M`.
+/// `M` samples per region (face, or tile) in each of `B` blocks (`B = 1`: the seed's pool),
+/// region-major: slot `j` of region `r` is `samples[r * per_region + j]`, and block `b` holds slots
+/// `b M .. (b + 1) M`.
 #[derive(Clone, Debug)]
 pub struct LightPool {
-    /// Slots per face, `K M`.
-    pub per_face: usize,
-    /// `M`, the samples per face of one block.
+    /// Slots per region, `B M`.
+    pub per_region: usize,
+    /// `M`, the samples per region of one block.
     pub block: usize,
     pub samples: Vec<PoolSample>,
 }
@@ -63,13 +65,13 @@ pub fn block_point(seed: u32, face: u32, j: u32, m: u32) -> Vec2 {
 }
 
 impl LightPool {
-    /// The seed's pool: `per_face` samples per face in one block.
+    /// The seed's pool: `per_face` samples per region in one block.
     pub fn build(map: &CubeMap, dist: &CubeDistribution, per_face: usize, seed: u32) -> Self {
         Self::build_blocks(map, dist, per_face, 1, seed)
     }
 
-    /// `blocks` independent stratified pools of `per_face` samples per face
-    /// (`PoolLayout::Blocks`), each drawn with its own [`block_seed`].
+    /// `blocks` independent stratified pools of `per_face` samples per region (face or tile of
+    /// `dist`) (`PoolLayout::Blocks`), each drawn with its own [`block_seed`].
     pub fn build_blocks(
         map: &CubeMap,
         dist: &CubeDistribution,
@@ -79,15 +81,16 @@ impl LightPool {
     ) -> Self {
         use rayon::prelude::*;
         let (m, slots) = (per_face.max(1), per_face.max(1) * blocks.max(1));
-        let samples = (0..6 * slots)
+        let k2 = dist.grid.per_face();
+        let samples = (0..dist.grid.regions() * slots)
             .into_par_iter()
             .map(|k| {
-                let (f, j) = (k / slots, k % slots);
-                let p = block_point(seed, f as u32, j as u32, m as u32);
-                match dist.faces[f].sample(f, p) {
+                let (r, j) = (k / slots, k % slots);
+                let p = block_point(seed, r as u32, j as u32, m as u32);
+                match dist.sample_region(r, p) {
                     Some(s) => PoolSample {
                         dir: s.dir,
-                        radiance: map.texel(f, s.col, s.row),
+                        radiance: map.texel(r / k2, s.col, s.row),
                         pdf: s.pdf,
                     },
                     None => PoolSample::default(),
@@ -95,14 +98,15 @@ impl LightPool {
             })
             .collect();
         LightPool {
-            per_face: slots,
+            per_region: slots,
             block: m,
             samples,
         }
     }
 
+    /// Slot `i` of region `r`.
     #[inline]
-    pub fn get(&self, face: usize, i: usize) -> &PoolSample {
-        &self.samples[face * self.per_face + i]
+    pub fn get(&self, r: usize, i: usize) -> &PoolSample {
+        &self.samples[r * self.per_region + i]
     }
 }

@@ -106,6 +106,10 @@ pub struct SamplingSpec {
     /// `true`: the same as `pool_layout = "offset"` (files written before `pool_layout`).
     pub pixel_offset: Option<bool>,
     pub material_budget: Option<bool>,
+    /// K x K tiles per cube face (`--tiles`).
+    pub tiles: Option<usize>,
+    /// `face` or `tile` (`--tile-counts`).
+    pub tile_counts: Option<crate::sampling::TileCounts>,
     /// Shadow rays: `auto` (default), `on` or `off` (`--visibility` overrides it).
     pub visibility: Option<crate::visibility::Visibility>,
 }
@@ -458,6 +462,8 @@ fn sampling_settings(path: &Path, s: &SamplingSpec) -> Result<Settings> {
     };
     out.pool_blocks = s.pool_blocks.unwrap_or(out.pool_blocks);
     out.material_budget = s.material_budget.unwrap_or(false);
+    out.tiles = s.tiles.unwrap_or(out.tiles);
+    out.tile_counts = s.tile_counts.unwrap_or(out.tile_counts);
     out.validate()
         .map_err(|e| err(path, format!("[sampling]: {e}")))?;
     Ok(out)

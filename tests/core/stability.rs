@@ -80,7 +80,7 @@ fn hard_single_bright_texel_centre_edge_corner() {
         hit_rate
             .run(
                 || {
-                    let s = fd.sample(4, rng_vec2(&mut r)).unwrap();
+                    let s = fd.sample(4, 0, rng_vec2(&mut r)).unwrap();
                     assert!(s.pdf > 0.0 && s.pdf.is_finite(), "{label}: pdf {}", s.pdf);
                     Some((s.col == col && s.row == row) as usize)
                 },
@@ -244,8 +244,9 @@ fn hard_2048_faces_single_bright_texel_keeps_its_pdf() {
     let want = w / fd.energy; // I_f includes the texel itself
     assert!((p - want).abs() < 1e-4 * want, "pmf {p} vs {want}");
     // The marginal CDF gives that column exactly its share.
-    let col_share = (fd.marginal.cdf[col + 1] - fd.marginal.cdf[col]) as f64;
-    let col_want = fd.conditional.total(col) / fd.marginal.total;
+    let marginal = &fd.tiles[0].marginal;
+    let col_share = (marginal.cdf[col + 1] - marginal.cdf[col]) as f64;
+    let col_want = fd.conditional.total(0, col) / marginal.total;
     assert!(
         (col_share - col_want).abs() < 1e-5,
         "column share {col_share} vs {col_want}"
@@ -255,7 +256,7 @@ fn hard_2048_faces_single_bright_texel_keeps_its_pdf() {
     hit_rate
         .run(
             || {
-                let s = fd.sample(2, rng_vec2(&mut r)).unwrap();
+                let s = fd.sample(2, 0, rng_vec2(&mut r)).unwrap();
                 assert!(s.pdf > 0.0 && s.pdf.is_finite());
                 let hit = s.col == col && s.row == row;
                 if hit {

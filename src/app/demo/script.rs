@@ -12,6 +12,7 @@ enum Step {
     Counts(Counts),
     Overlay(Overlay),
     /// Overlays off, fractional counts, probe a pixel on the sphere and show the debug view.
+    /// Whole faces: with tiles a probed pixel may have no yellow (wasted) sample left to show.
     Probe,
     /// Show or hide the debug view.
     Debug(bool),

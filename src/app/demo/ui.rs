@@ -264,6 +264,16 @@ fn sampling_ui(ui: &mut egui::Ui, settings: &mut EnvironmentSampling) {
             );
         }
     });
+    ui.horizontal(|ui| {
+        ui.label("tiles per face side");
+        ui.add(egui::DragValue::new(&mut s.tiles).range(1..=crate::sampling::MAX_TILES));
+        if s.tiles > 1 {
+            ui.label("counts per");
+            for &c in crate::sampling::TileCounts::value_variants() {
+                ui.selectable_value(&mut s.tile_counts, c, c.to_string());
+            }
+        }
+    });
     ui.checkbox(
         &mut s.material_budget,
         "material budget (diffuse: light only, mirror: BRDF only)",
@@ -430,6 +440,7 @@ fn debug_ui(ui: &mut egui::Ui, settings: &mut EnvironmentSampling, state: &mut D
             egui::StrokeKind::Inside,
         );
     }
+    draw_tiles(&painter, rect.min, block, d);
     for s in &d.samples {
         let (f, a, b) = dir_to_face_ab(s.dir);
         let (bx, by) = CROSS_BLOCKS[f];
@@ -439,5 +450,38 @@ fn debug_ui(ui: &mut egui::Ui, settings: &mut EnvironmentSampling, state: &mut D
                 (by as f32 + 0.5 * (b + 1.0)) * block,
             );
         painter.circle_filled(p, 2.5, egui_kind_color(s.kind));
+    }
+}
+
+/// The tiles of each face on the cube cross (`--tiles K`): the tiles the pixel weights
+/// (`N_t > 0`) outlined in white, the ones it skips (wholly below its horizon, or dark) in grey.
+fn draw_tiles(painter: &egui::Painter, origin: egui::Pos2, block: f32, d: &PixelDebug) {
+    if d.tiles <= 1 {
+        return;
+    }
+    let grid = crate::sampling::TileGrid::new(d.face_size, d.tiles);
+    let n = d.face_size as f32;
+    for (r, &n_t) in d.n_t.iter().enumerate() {
+        let (f, _, _) = grid.split(r);
+        let (c0, c1, r0, r1) = grid.span(r);
+        let (bx, by) = CROSS_BLOCKS[f];
+        let at = |c: usize, r: usize| {
+            origin
+                + egui::vec2(
+                    (bx as f32 + c as f32 / n) * block,
+                    (by as f32 + r as f32 / n) * block,
+                )
+        };
+        let stroke = if n_t > 0.0 {
+            egui::Stroke::new(1.0, egui::Color32::WHITE)
+        } else {
+            egui::Stroke::new(0.5, egui::Color32::DARK_GRAY)
+        };
+        painter.rect_stroke(
+            egui::Rect::from_two_pos(at(c0, r0), at(c1, r1)),
+            0.0,
+            stroke,
+            egui::StrokeKind::Inside,
+        );
     }
 }
