@@ -78,8 +78,10 @@ fn demo_scripted_under_xvfb() {
     let dir = std::env::temp_dir().join(format!("envis-demo-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let t0 = std::time::Instant::now();
+    // About a minute per scripted step on lavapipe with 2 cores (shadow rays in the lighting
+    // pass): the script's 16 steps take 10–11 minutes there.
     let out = std::process::Command::new("timeout")
-        .args(["600", "xvfb-run", "-a", "-s", "-screen 0 1280x800x24"])
+        .args(["900", "xvfb-run", "-a", "-s", "-screen 0 1280x800x24"])
         .arg(env!("CARGO_BIN_EXE_envis"))
         .args([
             "--window",
