@@ -333,14 +333,23 @@ impl LocalBsdf for Phong {
         };
         (f, pdf)
     }
+    /// [`LocalBsdf::sample_local`] on all lanes at once: one jump-ahead fill of the random
+    /// draws, then the directions by the branch-free warp ([`sample_phong_lobe`]) in a loop
+    /// that vectorises, then each value and pdf by [`LocalBsdf::eval_pdf_local`]. The pdf keeps
+    /// libm's `powf`, the call every other path makes, so it stays bit-identical to theirs;
+    /// the vectorised `pow_unit` there measured no faster.
     #[inline(always)]
     fn sample_lanes(&self, ol: Vec3, rng: &mut Rng, count: usize, out: &mut SampleLanes) {
         let mut r = [0u32; 2 * LANES];
         rng.fill_u32(&mut r[..2 * count]);
-        for k in 0..count {
+        let axis = self.axis(ol);
+        for k in 0..LANES {
             let u = Vec2::new(to_unit(r[2 * k]), to_unit(r[2 * k + 1]));
-            let (il, f, p) = self.sample_one(ol, u);
-            out.set(k, il, p);
+            out.set(k, self.direction(&axis, u), 0.0);
+        }
+        for k in 0..count {
+            let (f, p) = self.value_pdf(ol, out.dir(k));
+            out.pdf[k] = p;
             out.set_value(k, f);
         }
     }
@@ -351,15 +360,30 @@ impl Phong {
     /// ([`Material::sample_local`] with `kd = 0`).
     #[inline(always)]
     fn sample_one(&self, ol: Vec3, u: Vec2) -> (Vec3, Vec3, f32) {
-        if ol.z <= 0.0 {
-            return (Vec3::ZERO, Vec3::ZERO, 0.0);
-        }
+        let il = self.direction(&self.axis(ol), u);
+        let (f, p) = self.value_pdf(ol, il);
+        (il, f, p)
+    }
+
+    /// The frame around the mirror direction of `ol`, the lobe's axis.
+    #[inline(always)]
+    fn axis(&self, ol: Vec3) -> Frame {
+        Frame::new(Vec3::new(-ol.x, -ol.y, ol.z))
+    }
+
+    /// The lobe's direction for `u`, branch-free.
+    #[inline(always)]
+    fn direction(&self, axis: &Frame, u: Vec2) -> Vec3 {
         let ux = u.x.clamp(0.0, ONE_MINUS_EPSILON);
-        let r = Frame::new(Vec3::new(-ol.x, -ol.y, ol.z));
-        let il = r.to_world(sample_phong_lobe(Vec2::new(ux, u.y), self.exponent));
+        axis.to_world(sample_phong_lobe(Vec2::new(ux, u.y), self.exponent))
+    }
+
+    /// A sampled direction's BRDF value and pdf, the pdf 0 where the sample is invalid.
+    #[inline(always)]
+    fn value_pdf(&self, ol: Vec3, il: Vec3) -> (Vec3, f32) {
         let (f, p) = self.eval_pdf_local(ol, il);
         let ok = (il.z > 0.0) & (p > 0.0) & p.is_finite();
-        (il, f, if ok { p } else { 0.0 })
+        (f, if ok { p } else { 0.0 })
     }
 }
 

@@ -6,6 +6,7 @@ pub mod brdf;
 pub mod conditionals;
 pub mod distribution;
 pub mod faceweights;
+pub mod fastmath;
 pub mod global;
 pub mod mis;
 pub mod pool;
