@@ -157,8 +157,12 @@ fn shade_pixel_portable(
         return (Vec3::ZERO, PixelStats::default());
     };
     let material = &px.material;
-    // Shadow rays only where there is an occluder and a point to cast them from.
-    let shadow = fd.occluder.zip(at);
+    // Shadow rays only where there is an occluder and a point to cast them from; what the
+    // pixel's rays share is set up once here.
+    let shadow = fd
+        .occluder
+        .zip(at)
+        .map(|(occ, p)| (occ, occ.at_point(p, n)));
     // A diffuse-, GGX- or Phong-only pixel runs the same code compiled for `Lambert`, `Ggx` or
     // `Phong` (no lobe dispatch per sample; BRDF samples drawn on all lanes at once where the
     // sampler is branch-free); the results are bit-identical to the general `Material` path.
@@ -175,7 +179,10 @@ fn shade_pixel_portable(
 }
 
 /// A shadow-casting scene and the point its rays leave from.
-type Shadow<'a> = Option<(&'a dyn crate::visibility::Occluder, Vec3)>;
+type Shadow<'a> = Option<(
+    &'a dyn crate::visibility::Occluder,
+    crate::visibility::ShadowPoint,
+)>;
 
 /// What the sample loops of one visible pixel share.
 struct Pixel<'a, B> {
@@ -231,11 +238,11 @@ impl<B> Pixel<'_, B> {
     /// Whether the scene blocks direction `dir` (a shadow ray, counted; never with no occluder).
     #[inline(always)]
     fn blocked(&self, dir: Vec3, st: &mut PixelStats) -> bool {
-        let Some((occ, p)) = self.shadow else {
+        let Some((occ, at)) = &self.shadow else {
             return false;
         };
         st.shadow_rays += 1;
-        occ.occluded(p, self.n, dir)
+        occ.occluded_from(at, dir)
     }
 }
 

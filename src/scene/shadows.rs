@@ -4,7 +4,8 @@
 
 use super::{Scene, Shape, TriMesh, sphere_mesh, square_mesh};
 use crate::visibility::{
-    FlatBlas, FlatBvh, FlatInstance, ObjectFromWorld, Occluder, Tlas, Visibility, shadow_origin,
+    Bounds, FlatBlas, FlatBvh, FlatInstance, ObjectFromWorld, Occluder, Reach, ShadowPoint, Tlas,
+    Visibility, inverse, shadow_origin, slab_hit,
 };
 use glam::Vec3;
 use std::sync::Arc;
@@ -15,6 +16,10 @@ use std::sync::Arc;
 pub struct Occluders<'a> {
     pub shapes: Vec<&'a Shape>,
     tlas: Tlas,
+    /// A sphere `(shape, centre, radius)` around each shape, for a point's [`Reach`].
+    spheres: Vec<(u32, Vec3, f32)>,
+    /// Each shape's box, as the top level holds it.
+    bounds: Vec<Bounds>,
 }
 
 impl<'a> Occluders<'a> {
@@ -22,7 +27,35 @@ impl<'a> Occluders<'a> {
         let bounds: Vec<_> = shapes.iter().map(|s| s.bounds()).collect();
         Occluders {
             tlas: Tlas::build(&bounds),
+            spheres: shapes
+                .iter()
+                .zip(&bounds)
+                .enumerate()
+                .map(|(i, (s, b))| {
+                    let (c, r) = bounding_sphere(s, *b);
+                    (i as u32, c, r)
+                })
+                .collect(),
+            bounds,
             shapes,
+        }
+    }
+
+    /// Whether shape `i` blocks the ray from `o` (in world space; `local` in the shape's own
+    /// space, for a mesh) towards `d`: the exact test both paths of [`Occluder`] end in.
+    #[inline(always)]
+    fn blocks(&self, i: usize, o: Vec3, local: Vec3, d: Vec3) -> bool {
+        match self.shapes[i] {
+            Shape::Mesh(m) => m.mesh.occluded(local, m.to_object.vector(d), f32::INFINITY),
+            s => s.intersect(o, d, f32::INFINITY).is_some(),
+        }
+    }
+
+    /// Where the world point `o` lies in shape `i`'s own space (a mesh's; others use `o`).
+    fn local(&self, i: usize, o: Vec3) -> Vec3 {
+        match self.shapes[i] {
+            Shape::Mesh(m) => m.to_object.point(o),
+            _ => o,
         }
     }
 
@@ -64,11 +97,54 @@ impl<'a> Occluders<'a> {
 impl Occluder for Occluders<'_> {
     fn occluded(&self, p: Vec3, n: Vec3, d: Vec3) -> bool {
         let o = shadow_origin(p, n, d);
-        self.tlas
-            .any(o, d, f32::INFINITY, |i| match self.shapes[i] {
-                Shape::Mesh(m) => m.occluded(o, d, f32::INFINITY),
-                s => s.intersect(o, d, f32::INFINITY).is_some(),
-            })
+        self.tlas.any(o, d, f32::INFINITY, |i| {
+            self.blocks(i, o, self.local(i, o), d)
+        })
+    }
+
+    fn at_point(&self, p: Vec3, n: Vec3) -> ShadowPoint {
+        let mut at = ShadowPoint::new(p, n);
+        let o = at.origin;
+        at.reach = Reach::new(o, n, self.spheres.iter().copied(), |i| self.local(i, o));
+        at
+    }
+
+    /// Through the point's [`Reach`]: only the shapes whose cone holds `d`, in the order the
+    /// shapes are listed. The answer is [`Self::occluded`]'s (any hit is a hit, whichever shape
+    /// gives it first).
+    fn occluded_from(&self, at: &ShadowPoint, d: Vec3) -> bool {
+        match &at.reach {
+            Some(r) if at.n.dot(d) >= 0.0 => {
+                let mut mask = r.hits(d);
+                while mask != 0 {
+                    let k = mask.trailing_zeros() as usize;
+                    mask &= mask - 1;
+                    let i = r.object[k] as usize;
+                    // A mesh's walk costs far more than a box: its box first, as the top level
+                    // would test it (a sphere's or a plane's own test is as cheap).
+                    if let Shape::Mesh(_) = self.shapes[i] {
+                        let (lo, hi) = self.bounds[i];
+                        if !slab_hit(lo, hi, at.origin, inverse(d), f32::INFINITY) {
+                            continue;
+                        }
+                    }
+                    if self.blocks(i, at.origin, r.local_origin[k], d) {
+                        return true;
+                    }
+                }
+                false
+            }
+            _ => self.occluded(at.p, at.n, d),
+        }
+    }
+}
+
+/// A sphere that holds shape `s` of bounds `b`: a sphere's own (padded as its box is), else the
+/// box's.
+fn bounding_sphere(s: &Shape, b: Bounds) -> (Vec3, f32) {
+    match s {
+        Shape::Sphere { center, .. } => (*center, 0.5 * (b.1.x - b.0.x)),
+        _ => (0.5 * (b.0 + b.1), 0.5 * (b.1 - b.0).length()),
     }
 }
 

@@ -109,10 +109,13 @@ impl Shape {
                 half,
             } => {
                 let den = normal.dot(d);
-                if den.abs() < 1e-9 {
+                let h = normal.dot(*center - o);
+                // `t = h / den > 1e-4` needs `h` and `den` of one sign: most shadow rays leave a
+                // plane's front away from it, and stop here without a division.
+                if den.abs() < 1e-9 || h * den <= 0.0 {
                     return None;
                 }
-                let t = normal.dot(*center - o) / den;
+                let t = h / den;
                 if !(t > 1e-4 && t < t_max) {
                     return None;
                 }

@@ -290,8 +290,9 @@ fn safe_inverse(x: f32) -> f32 {
     }
 }
 
+/// `1 / d` per component, finite where a component is 0 (obvhs's convention).
 #[inline]
-pub(super) fn inverse(d: Vec3) -> Vec3 {
+pub fn inverse(d: Vec3) -> Vec3 {
     Vec3::new(safe_inverse(d.x), safe_inverse(d.y), safe_inverse(d.z))
 }
 
@@ -303,7 +304,7 @@ fn slab(n: &FlatNode, o: Vec3, inv: Vec3, t_max: f32) -> bool {
 
 /// The ray `o + t d` (`inv` = 1 / `d`) meets the box `[lo, hi]` at some `t` in `[0, t_max)`.
 #[inline]
-pub(super) fn slab_hit(lo: Vec3, hi: Vec3, o: Vec3, inv: Vec3, t_max: f32) -> bool {
+pub fn slab_hit(lo: Vec3, hi: Vec3, o: Vec3, inv: Vec3, t_max: f32) -> bool {
     let t1 = (lo - o) * inv;
     let t2 = (hi - o) * inv;
     let (near, far) = (t1.min(t2).max_element(), t1.max(t2).min_element());

@@ -10,10 +10,13 @@
 mod flat_bvh;
 mod instances;
 mod mesh_bvh;
+mod point;
 
 pub use flat_bvh::{FlatBlas, FlatBvh, FlatInstance, FlatMeshes, FlatNode, FlatTop, STACK_SIZE};
+pub use flat_bvh::{inverse, slab_hit};
 pub use instances::{Bounds, ObjectFromWorld, Tlas, world_bounds};
 pub use mesh_bvh::{MeshBvh, TriangleHit, ray_triangle};
+pub use point::{MAX_REACH, Reach, ShadowPoint};
 
 use glam::Vec3;
 
@@ -22,6 +25,17 @@ use glam::Vec3;
 /// its density is unchanged, so the estimate stays unbiased for the integrand with visibility.
 pub trait Occluder: Sync {
     fn occluded(&self, p: Vec3, n: Vec3, d: Vec3) -> bool;
+
+    /// What every shadow ray from `p` (normal `n`) shares, set up once per pixel for
+    /// [`Self::occluded_from`]. By default only the point: no culling.
+    fn at_point(&self, p: Vec3, n: Vec3) -> ShadowPoint {
+        ShadowPoint::new(p, n)
+    }
+
+    /// [`Self::occluded`] for the point `at` was set up for: the same answer, sooner.
+    fn occluded_from(&self, at: &ShadowPoint, d: Vec3) -> bool {
+        self.occluded(at.p, at.n, d)
+    }
 }
 
 /// Whether shadow rays are cast (`--visibility`, a scene file's `[sampling] visibility`).

@@ -302,3 +302,92 @@ fn instances_match_world_space_triangles() {
     let refitted = support::Instanced { tlas, ..moved };
     check(&flat, &refitted, "moved and refitted");
 }
+
+/// A pixel's shadow rays set up once ([`Occluder::at_point`]: the shapes its hemisphere can
+/// reach, as cones) get the same answer as the full query through the top level, ray by ray:
+/// on the occluded scene (spheres, the bunny, a plane), on the showcase (the torus too), and on
+/// 40 spheres over a plane (where too many are in reach and the top level answers). Directions
+/// are uniform on the sphere, so some leave below the horizon (the full query's path).
+/// Checked against a mutation: cones narrowed by 0.002 in cosine give 92 wrong answers here.
+#[test]
+fn point_culling_matches_full_query() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let check = |what: &str, occ: &Occluders, at: &[(Vec3, Vec3)]| {
+        let mut rng = envis::sampling::rng::Rng::new(7, 0);
+        let (mut rays, mut blocked, mut differ, mut culled) = (0usize, 0usize, 0usize, 0usize);
+        for &(p, n) in at {
+            let point = occ.at_point(p, n);
+            culled += point.reach.is_some() as usize;
+            for _ in 0..64 {
+                let z = 2.0 * rng.next_f32() - 1.0;
+                let phi = std::f32::consts::TAU * rng.next_f32();
+                let r = (1.0 - z * z).max(0.0).sqrt();
+                let d = Vec3::new(r * phi.cos(), z, r * phi.sin());
+                let want = occ.occluded(p, n, d);
+                differ += (occ.occluded_from(&point, d) != want) as usize;
+                blocked += want as usize;
+                rays += 1;
+            }
+        }
+        eprintln!(
+            "{what}: {rays} rays, {blocked} blocked, {differ} differ; {culled} of {} points cull by cones",
+            at.len()
+        );
+        assert_eq!(
+            differ, 0,
+            "{what}: culled rays must get the full query's answer"
+        );
+        assert!(
+            blocked * 20 > rays && blocked * 2 < rays,
+            "{what}: {blocked} of {rays} blocked"
+        );
+        culled
+    };
+    for file in ["assets/scenes/occluded.toml", "assets/scenes/showcase.toml"] {
+        let sc = Scene::load(&dir.join(file)).unwrap();
+        let (gbuf, points) = sc.gbuffer_points(40, 40);
+        let at: Vec<(Vec3, Vec3)> = gbuf
+            .iter()
+            .zip(&points)
+            .filter_map(|(px, &p)| px.as_ref().map(|px| (p, px.n.normalize())))
+            .collect();
+        let culled = check(file, &sc.occluders(), &at);
+        assert!(
+            culled * 2 > at.len(),
+            "{file}: {culled} of {} points cull",
+            at.len()
+        );
+    }
+    // 40 unit spheres in a grid over a plane, seen from points on the plane between them.
+    let mut shapes: Vec<envis::scene::Shape> = (0..40)
+        .map(|i| envis::scene::Shape::Sphere {
+            center: Vec3::new((i % 8) as f32 * 2.5 - 8.75, 1.0, (i / 8) as f32 * 2.5 - 5.0),
+            radius: 1.0,
+        })
+        .collect();
+    shapes.push(envis::scene::Shape::Plane {
+        center: Vec3::ZERO,
+        normal: Vec3::Y,
+        u: Vec3::X,
+        v: Vec3::Z,
+        half: 20.0,
+    });
+    let occ = Occluders::new(shapes.iter().collect());
+    let at: Vec<(Vec3, Vec3)> = (0..200)
+        .map(|i| {
+            (
+                Vec3::new(
+                    (i % 20) as f32 * 0.9 - 9.0,
+                    0.0,
+                    (i / 20) as f32 * 1.1 - 5.5,
+                ),
+                Vec3::Y,
+            )
+        })
+        .collect();
+    assert_eq!(
+        check("40 spheres", &occ, &at),
+        0,
+        "40 spheres are too many to list"
+    );
+}
