@@ -12,7 +12,7 @@ use envis::sampling::warp::Frame;
 use envis::sampling::*;
 use envis::stats::{Chi2Test, Discrete, FacePlane, MeanCheck, Sphere, UnbiasedTest, mean_se};
 use glam::{DVec3, Vec2, Vec3};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 mod support;
 
@@ -1502,16 +1502,8 @@ fn renders_are_deterministic_per_seed() {
 // ---------------------------------------------------------------------------------------------
 // Loaders and the command line
 
-fn tempdir() -> PathBuf {
-    use std::sync::atomic::{AtomicUsize, Ordering};
-    static N: AtomicUsize = AtomicUsize::new(0);
-    let d = std::env::temp_dir().join(format!(
-        "envis-test-{}-{}",
-        std::process::id(),
-        N.fetch_add(1, Ordering::SeqCst)
-    ));
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn tempdir() -> support::TempDir {
+    support::TempDir::new("test")
 }
 
 #[test]

@@ -770,8 +770,7 @@ fn read_exr_mean(path: &Path) -> f64 {
 #[test]
 fn cli_gpu_backends() {
     let Some(_) = gpu() else { return };
-    let dir = std::env::temp_dir().join(format!("envis-gpu-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = support::TempDir::new("gpu-cli");
     let mut backends = vec!["cpu", "wgpu"];
     if cfg!(feature = "app") {
         backends.push("gpu");

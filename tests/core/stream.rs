@@ -46,7 +46,7 @@ fn stream_sequence_plays_in_order_and_loops() {
     write_sequence(&dir, 4, 16);
     let mut s = EnvStream::open(
         StreamSource::Sequence {
-            dir: dir.clone(),
+            dir: dir.to_path_buf(),
             fps: 30.0,
         },
         8,
@@ -82,7 +82,7 @@ fn stream_bad_frames_keep_the_last_good_one_reported_once() {
     std::fs::write(dir.join("f001.exr"), &bytes[..bytes.len() / 3]).unwrap();
     let mut s = EnvStream::open(
         StreamSource::Sequence {
-            dir: dir.clone(),
+            dir: dir.to_path_buf(),
             fps: 30.0,
         },
         8,
@@ -129,7 +129,7 @@ fn stream_resolution_change_mid_stream_is_resampled() {
     write_exr(&dir.join("c.exr"), &frame_image(32, 3.0)).unwrap();
     let mut s = EnvStream::open(
         StreamSource::Sequence {
-            dir: dir.clone(),
+            dir: dir.to_path_buf(),
             fps: 10.0,
         },
         8,
@@ -201,7 +201,14 @@ fn stream_soak_child() {
     }
     let dir = tempdir();
     write_sequence(&dir, 5, 16);
-    let mut s = EnvStream::open(StreamSource::Sequence { dir, fps: 1000.0 }, 8).unwrap();
+    let mut s = EnvStream::open(
+        StreamSource::Sequence {
+            dir: dir.to_path_buf(),
+            fps: 1000.0,
+        },
+        8,
+    )
+    .unwrap();
     let t0 = std::time::Instant::now();
     let mut rss = Vec::new();
     // A stream that stopped producing frames would spin here: bound the calls, not the time.

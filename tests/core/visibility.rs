@@ -9,10 +9,18 @@ use envis::scene::Scene;
 use envis::scene::shadows::Occluders;
 use envis::visibility::{Occluder, Visibility};
 
-/// A scene file written to a temporary directory and loaded.
+/// A scene file written to a temporary directory and loaded (the file is gone afterwards: the
+/// scene is in memory).
 fn scene(name: &str, camera: &str, objects: &str) -> Scene {
-    let dir = std::env::temp_dir().join(format!("envis-vis-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    scene_in(
+        &support::TempDir::new(&format!("vis-{name}")),
+        camera,
+        objects,
+    )
+}
+
+/// A scene file written to `dir/scene.toml` and loaded.
+fn scene_in(dir: &std::path::Path, camera: &str, objects: &str) -> Scene {
     let path = dir.join("scene.toml");
     let text = format!(
         "[environment]\nsource = \"builtin:sky:15\"\nface_size = 8\n\n[camera]\n{camera}\n\n{objects}"
@@ -157,9 +165,8 @@ fn visibility_auto_rule() {
 /// the `sphere` scene is off under `auto` and renders the same image as with `off`.
 #[test]
 fn cli_visibility_stats() {
-    let dir = std::env::temp_dir().join(format!("envis-vis-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let sc = scene("cli", CAMERA, &format!("{SPHERE}\n{PLANE}"));
+    let dir = support::TempDir::new("vis-cli");
+    let sc = scene_in(&dir, CAMERA, &format!("{SPHERE}\n{PLANE}"));
     let run = |scene: &str, vis: &str| {
         let out = dir.join(format!("{}-{vis}.exr", scene.len()));
         let stats = dir.join(format!("{}-{vis}.json", scene.len()));
@@ -202,7 +209,7 @@ fn cli_visibility_stats() {
 /// and each level of the instanced bunnies timed.
 #[test]
 fn bench_visibility_smoke() {
-    let dir = std::env::temp_dir().join(format!("envis-bench-vis-{}", std::process::id()));
+    let dir = support::TempDir::new("bench-vis");
     let js = bench_json(&dir, &["visibility", "--quick"], "bench-visibility.json");
     let scenes = js["scenes"].as_array().unwrap();
     assert_eq!(scenes.len(), 3);

@@ -75,8 +75,7 @@ fn demo_scripted_under_xvfb() {
         );
         return;
     }
-    let dir = std::env::temp_dir().join(format!("envis-demo-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+    let dir = support::TempDir::new("demo");
     let t0 = std::time::Instant::now();
     // About a minute per scripted step on lavapipe with 2 cores (shadow rays in the lighting
     // pass): the script's 16 steps take 10–11 minutes there.

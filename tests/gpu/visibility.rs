@@ -62,8 +62,7 @@ fn gpu_shadow_rays_match_cpu() {
 fn gpu_shadows_match_cpu_same_seed() {
     use envis::gpu::visibility::GpuBvh;
     let Some(ctx) = gpu() else { return };
-    let dir = std::env::temp_dir().join(format!("envis-gpu-shadows-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = support::TempDir::new("gpu-shadows");
     let path = dir.join("torus.toml");
     std::fs::write(
         &path,

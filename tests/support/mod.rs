@@ -214,3 +214,50 @@ pub fn instanced_bunnies(shift: f32) -> Instanced {
     out.flat = FlatBvh::build(&blases, &out.placed, &out.tlas).unwrap();
     out
 }
+
+/// A fresh directory under the system's temporary directory, removed when dropped (kept when
+/// the test is failing, so what it wrote can be looked at; the panic message says where).
+/// Derefs to its `Path`.
+pub struct TempDir(PathBuf);
+
+impl TempDir {
+    /// `envis-NAME-PID-K`, K counting this process's directories.
+    pub fn new(name: &str) -> Self {
+        use std::sync::atomic::{AtomicUsize, Ordering};
+        static N: AtomicUsize = AtomicUsize::new(0);
+        let k = N.fetch_add(1, Ordering::SeqCst);
+        let dir = std::env::temp_dir().join(format!("envis-{name}-{}-{k}", std::process::id()));
+        std::fs::create_dir_all(&dir)
+            .unwrap_or_else(|e| panic!("cannot create {}: {e}", dir.display()));
+        TempDir(dir)
+    }
+}
+
+impl std::ops::Deref for TempDir {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<Path> for TempDir {
+    fn as_ref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<std::ffi::OsStr> for TempDir {
+    fn as_ref(&self) -> &std::ffi::OsStr {
+        self.0.as_os_str()
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            eprintln!("kept {} (the test failed)", self.0.display());
+        } else {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+}
