@@ -26,6 +26,14 @@ pub fn sin_cos_fast(x: f32) -> (f32, f32) {
     (s, if fold { -c } else { c })
 }
 
+/// `(cos, sin)` of the azimuth `2 pi u` for `u` in `[0, 1]`, branch-free: minus those of
+/// `2 pi u - pi`, which lies in [`sin_cos_fast`]'s range (negation is exact).
+#[inline(always)]
+pub fn azimuth(u: f32) -> (f32, f32) {
+    let (s, c) = sin_cos_fast(2.0 * std::f32::consts::PI * u - std::f32::consts::PI);
+    (-c, -s)
+}
+
 /// `x^y` for `x >= 0` and `y >= 0` (the Phong lobe's powers, `x` a cosine or a uniform draw),
 /// branch-free. Computed in f64: `log2 x` from the exponent bits and an atanh series on the
 /// mantissa, `exp2` from the nearest integer (by the 1.5 * 2^52 rounding trick) and a Taylor

@@ -1,7 +1,7 @@
 //! Warps from `[0,1)^2` to directions in a local frame (z = axis), each with its pdf beside it
 //! (per unit solid angle) and, where it exists in closed form, its inverse.
 
-use super::fastmath::{pow_unit, sin_cos_fast};
+use super::fastmath::{azimuth, pow_unit, sin_cos_fast};
 use super::rng::ONE_MINUS_EPSILON;
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, PI};
@@ -59,16 +59,15 @@ pub fn cosine_hemisphere_pdf(v: Vec3) -> f32 {
 }
 
 /// Phong lobe around +z: `cos a = u1^(1/(e+1))`, `phi = 2 pi u2`; pdf = `(e+1)/(2 pi) cos^e a`.
-/// Branch-free (powers by [`pow_unit`], the azimuth by [`sin_cos_fast`]), so a loop of samples
+/// Branch-free (powers by [`pow_unit`], the azimuth by [`azimuth`]), so a loop of samples
 /// vectorises.
 #[inline(always)]
 pub fn sample_phong_lobe(u: Vec2, e: f32) -> Vec3 {
     let c = pow_unit(u.x, 1.0 / (e + 1.0));
     // sin^2 = (1 - c)(1 + c) keeps precision for c close to 1 (large exponents).
     let s = ((1.0 - c) * (1.0 + c)).max(0.0).sqrt();
-    // sin / cos of 2 pi u2 = -(sin / cos of 2 pi u2 - pi), in sin_cos_fast's range.
-    let (sp, cp) = sin_cos_fast(2.0 * PI * u.y - PI);
-    Vec3::new(-s * cp, -s * sp, c)
+    let (cp, sp) = azimuth(u.y);
+    Vec3::new(s * cp, s * sp, c)
 }
 /// pdf of [`sample_phong_lobe`] given `cos_a`, the cosine between the direction and the lobe axis.
 #[inline]
@@ -120,17 +119,15 @@ pub fn ggx_g1(z: f32, alpha: f32) -> f32 {
 
 /// Visible-normal sampling by spherical caps (Dupuy & Benyoub 2023): view `o` (local, `o.z > 0`)
 /// -> microfacet normal `m`; the reflected direction has pdf
-/// `G1(o) D(m) / (4 o.z) = D(m) / (2 (o.z + s(o.z)))`. Branch-free (the azimuth's sine and
-/// cosine by [`sin_cos_fast`], as `phi - pi` with the signs flipped), so a loop of samples
-/// vectorises.
+/// `G1(o) D(m) / (4 o.z) = D(m) / (2 (o.z + s(o.z)))`. Branch-free (the azimuth by
+/// [`azimuth`]), so a loop of samples vectorises.
 #[inline]
 pub fn sample_ggx_vndf(o: Vec3, alpha: f32, u: Vec2) -> Vec3 {
     let vh = Vec3::new(alpha * o.x, alpha * o.y, o.z).normalize();
-    // (sin, cos) of phi = 2 pi u.x: minus those of phi - pi, which lies in [-pi, pi].
-    let (s, c) = sin_cos_fast(2.0 * PI * u.x - PI);
+    let (cp, sp) = azimuth(u.x);
     let z = (1.0 - u.y) * (1.0 + vh.z) - vh.z;
     let st = (1.0 - z * z).clamp(0.0, 1.0).sqrt();
-    let c = Vec3::new(-(st * c), -(st * s), z);
+    let c = Vec3::new(st * cp, st * sp, z);
     let h = c + vh;
     Vec3::new(alpha * h.x, alpha * h.y, h.z.max(0.0)).normalize_or(Vec3::Z)
 }
