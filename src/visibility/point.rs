@@ -24,8 +24,8 @@ pub const MAX_REACH: usize = 16;
 const COS_MARGIN: f32 = 1e-5;
 
 /// The cones a point's hemisphere can reach: object `object[k]` lies in the sphere of slot `k`,
-/// which only a unit direction `d` with `d . axis[k] >= cos[k]` can reach (structure of arrays, in groups of four that the
-/// compiler tests together; unused slots have `cos > 1` and never pass).
+/// which only a unit direction `d` with `d . axis[k] >= cos[k]` can reach. Structure of arrays,
+/// tested in groups of four; unused slots have `cos > 1` and never pass.
 #[derive(Clone, Copy, Debug)]
 pub struct Reach {
     len: usize,
