@@ -4,8 +4,8 @@
 
 use super::{Scene, Shape, TriMesh, sphere_mesh, square_mesh};
 use crate::visibility::{
-    Bounds, FlatBlas, FlatBvh, FlatInstance, ObjectFromWorld, Occluder, Reach, ShadowPoint, Tlas,
-    Visibility, inverse, shadow_origin, slab_hit,
+    Bounds, FlatBlas, FlatBvh, FlatInstance, Hull, ObjectFromWorld, Occluder, Reach, ShadowPoint,
+    Tlas, Visibility, inverse, shadow_origin, slab_hit,
 };
 use glam::Vec3;
 use std::sync::Arc;
@@ -16,8 +16,8 @@ use std::sync::Arc;
 pub struct Occluders<'a> {
     pub shapes: Vec<&'a Shape>,
     tlas: Tlas,
-    /// A sphere `(shape, centre, radius)` around each shape, for a point's [`Reach`].
-    spheres: Vec<(u32, Vec3, f32)>,
+    /// Where each shape lies `(shape, hull)`, for a point's [`Reach`].
+    hulls: Vec<(u32, Hull)>,
     /// Each shape's box, as the top level holds it.
     bounds: Vec<Bounds>,
 }
@@ -27,14 +27,11 @@ impl<'a> Occluders<'a> {
         let bounds: Vec<_> = shapes.iter().map(|s| s.bounds()).collect();
         Occluders {
             tlas: Tlas::build(&bounds),
-            spheres: shapes
+            hulls: shapes
                 .iter()
                 .zip(&bounds)
                 .enumerate()
-                .map(|(i, (s, b))| {
-                    let (c, r) = bounding_sphere(s, *b);
-                    (i as u32, c, r)
-                })
+                .map(|(i, (s, b))| (i as u32, hull(s, *b)))
                 .collect(),
             bounds,
             shapes,
@@ -105,11 +102,11 @@ impl Occluder for Occluders<'_> {
     fn at_point(&self, p: Vec3, n: Vec3) -> ShadowPoint {
         let mut at = ShadowPoint::new(p, n);
         let o = at.origin;
-        at.reach = Reach::new(o, n, self.spheres.iter().copied(), |i| self.local(i, o));
+        at.reach = Reach::new(o, n, self.hulls.iter().copied(), |i| self.local(i, o));
         at
     }
 
-    /// Through the point's [`Reach`]: only the shapes whose cone holds `d`, in the order the
+    /// Through the point's [`Reach`]: only the shapes whose cone (or half-space) holds `d`, in the order the
     /// shapes are listed. The answer is [`Self::occluded`]'s (any hit is a hit, whichever shape
     /// gives it first).
     fn occluded_from(&self, at: &ShadowPoint, d: Vec3) -> bool {
@@ -139,12 +136,16 @@ impl Occluder for Occluders<'_> {
     }
 }
 
-/// A sphere that holds shape `s` of bounds `b`: a sphere's own (padded as its box is), else the
-/// box's.
-fn bounding_sphere(s: &Shape, b: Bounds) -> (Vec3, f32) {
+/// Where shape `s` of bounds `b` lies for a point's [`Reach`]: a plane on its plane, a sphere in
+/// itself (padded as its box is), a mesh in its box's sphere.
+fn hull(s: &Shape, b: Bounds) -> Hull {
     match s {
-        Shape::Sphere { center, .. } => (*center, 0.5 * (b.1.x - b.0.x)),
-        _ => (0.5 * (b.0 + b.1), 0.5 * (b.1 - b.0).length()),
+        Shape::Plane { center, normal, .. } => Hull::Flat {
+            point: *center,
+            normal: *normal,
+        },
+        Shape::Sphere { center, .. } => Hull::Ball(*center, 0.5 * (b.1.x - b.0.x)),
+        Shape::Mesh(_) => Hull::Ball(0.5 * (b.0 + b.1), 0.5 * (b.1 - b.0).length()),
     }
 }
 

@@ -11,12 +11,15 @@ mod flat_bvh;
 mod instances;
 mod mesh_bvh;
 mod point;
+#[cfg(target_arch = "x86_64")]
+mod sse;
+mod wide_bvh;
 
 pub use flat_bvh::{FlatBlas, FlatBvh, FlatInstance, FlatMeshes, FlatNode, FlatTop, STACK_SIZE};
 pub use flat_bvh::{inverse, slab_hit};
 pub use instances::{Bounds, ObjectFromWorld, Tlas, world_bounds};
 pub use mesh_bvh::{MeshBvh, TriangleHit, ray_triangle};
-pub use point::{MAX_REACH, Reach, ShadowPoint};
+pub use point::{Hull, MAX_REACH, Reach, ShadowPoint};
 
 use glam::Vec3;
 

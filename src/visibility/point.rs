@@ -8,10 +8,15 @@
 //! ray then tests a handful of cones (a dot product each) instead of walking the top-level BVH,
 //! and runs an object's exact test only when its direction falls in that object's cone.
 //!
-//! The culling is exact (a direction outside a cone misses everything inside the sphere, and a
-//! hemisphere cannot reach a sphere behind its tangent plane), with a margin far larger than
-//! f32 rounding, so a ray gets the same answer as through the top level: tested ray by ray in
-//! `tests/core/visibility.rs`.
+//! A flat shape (a plane's square) gets a half-space of directions instead of a cone: only rays
+//! heading towards its plane can meet it. Its bounding sphere is large and holds the points
+//! that lie on or just above it (the ground's own pixels), whose cone would let every ray
+//! through to the exact test.
+//!
+//! The culling is exact (a direction outside a cone misses everything inside the sphere, one
+//! heading away from a plane misses it, and a hemisphere cannot reach a sphere behind its
+//! tangent plane), with a margin far larger than f32 rounding, so a ray gets the same answer as
+//! through the top level: tested ray by ray in `tests/core/visibility.rs`.
 
 use glam::Vec3;
 
@@ -22,6 +27,16 @@ pub const MAX_REACH: usize = 16;
 /// Slack on a cone's cosine: f32 rounding of a direction and of the cone's axis and cosine is
 /// about 1e-7; this keeps every ray that could touch the sphere inside its cone.
 const COS_MARGIN: f32 = 1e-5;
+
+/// Where a shape lies, as [`Reach`] culls it.
+#[derive(Clone, Copy, Debug)]
+pub enum Hull {
+    /// Inside the sphere of this centre and radius: reached only through a cone.
+    Ball(Vec3, f32),
+    /// On the plane through `point` with unit normal `normal`: reached only by directions
+    /// towards that plane.
+    Flat { point: Vec3, normal: Vec3 },
+}
 
 /// The cones a point's hemisphere can reach: object `object[k]` lies in the sphere of slot `k`,
 /// which only a unit direction `d` with `d . axis[k] >= cos[k]` can reach. Structure of arrays,
@@ -39,13 +54,13 @@ pub struct Reach {
 }
 
 impl Reach {
-    /// The spheres `(object, centre, radius)` that a ray from `origin` into the hemisphere of
-    /// `n` can reach; `local(object)` is where `origin` lies in that object's space. `None` when
-    /// more than [`MAX_REACH`] can be reached.
+    /// The shapes `(object, hull)` that a ray from `origin` into the hemisphere of `n` can
+    /// reach; `local(object)` is where `origin` lies in that object's space. `None` when more
+    /// than [`MAX_REACH`] can be reached.
     pub fn new(
         origin: Vec3,
         n: Vec3,
-        spheres: impl IntoIterator<Item = (u32, Vec3, f32)>,
+        hulls: impl IntoIterator<Item = (u32, Hull)>,
         mut local: impl FnMut(usize) -> Vec3,
     ) -> Option<Self> {
         let mut r = Reach {
@@ -57,23 +72,13 @@ impl Reach {
             cos: [2.0; MAX_REACH],
             local_origin: [Vec3::ZERO; MAX_REACH],
         };
-        for (object, c, radius) in spheres {
-            let oc = c - origin;
-            // Wholly behind the tangent plane: no direction of the hemisphere gets there.
-            if n.dot(oc) < -radius {
+        for (object, hull) in hulls {
+            let Some((axis, cos)) = cone(origin, n, hull) else {
                 continue;
-            }
+            };
             if r.len == MAX_REACH {
                 return None;
             }
-            let dist2 = oc.length_squared();
-            let (axis, cos) = if dist2 > radius * radius {
-                let axis = oc / dist2.sqrt();
-                (axis, (1.0 - radius * radius / dist2).sqrt() - COS_MARGIN)
-            } else {
-                // The origin is inside the sphere: every direction can hit.
-                (Vec3::X, -2.0)
-            };
             let k = r.len;
             r.object[k] = object;
             (r.axis_x[k], r.axis_y[k], r.axis_z[k], r.cos[k]) = (axis.x, axis.y, axis.z, cos);
@@ -97,15 +102,62 @@ impl Reach {
     pub fn hits(&self, d: Vec3) -> u32 {
         let mut mask = 0u32;
         for g in 0..self.len.div_ceil(4) {
-            let mut m = 0u32;
-            for j in 0..4 {
-                let k = 4 * g + j;
-                let dot = self.axis_x[k] * d.x + self.axis_y[k] * d.y + self.axis_z[k] * d.z;
-                m |= ((dot >= self.cos[k]) as u32) << j;
-            }
-            mask |= m << (4 * g);
+            mask |= self.group_hits(g, d) << (4 * g);
         }
         mask
+    }
+
+    /// [`Self::hits`] for slots `4 g .. 4 g + 4`, in SSE (every x86-64 CPU has it).
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    fn group_hits(&self, g: usize, d: Vec3) -> u32 {
+        use super::sse::*;
+        let lanes = |a: &[f32; MAX_REACH]| load(a[4 * g..][..4].try_into().unwrap());
+        let axis = [
+            lanes(&self.axis_x),
+            lanes(&self.axis_y),
+            lanes(&self.axis_z),
+        ];
+        mask(ge(dot(axis, splat3(d)), lanes(&self.cos)))
+    }
+
+    /// [`Self::hits`] for slots `4 g .. 4 g + 4`, lane by lane.
+    #[cfg(not(target_arch = "x86_64"))]
+    #[inline(always)]
+    fn group_hits(&self, g: usize, d: Vec3) -> u32 {
+        let mut m = 0u32;
+        for j in 0..4 {
+            let k = 4 * g + j;
+            let dot = self.axis_x[k] * d.x + self.axis_y[k] * d.y + self.axis_z[k] * d.z;
+            m |= ((dot >= self.cos[k]) as u32) << j;
+        }
+        m
+    }
+}
+
+/// The directions `d` from `origin` that can reach `hull`, as `d . axis >= cos`; `None` when
+/// none of the hemisphere of `n` can.
+fn cone(origin: Vec3, n: Vec3, hull: Hull) -> Option<(Vec3, f32)> {
+    match hull {
+        Hull::Ball(c, radius) => {
+            let oc = c - origin;
+            // Wholly behind the tangent plane: no direction of the hemisphere gets there.
+            if n.dot(oc) < -radius {
+                return None;
+            }
+            let dist2 = oc.length_squared();
+            if dist2 <= radius * radius {
+                // The origin is inside the sphere: every direction can hit.
+                return Some((Vec3::X, -2.0));
+            }
+            let axis = oc / dist2.sqrt();
+            Some((axis, (1.0 - radius * radius / dist2).sqrt() - COS_MARGIN))
+        }
+        Hull::Flat { point, normal } => {
+            // The plane's own test meets it at `t = h / (normal . d) > 0` only: `d` on `h`'s side.
+            let h = normal.dot(point - origin);
+            (h != 0.0).then(|| (normal * h.signum(), -COS_MARGIN))
+        }
     }
 }
 
