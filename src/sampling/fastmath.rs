@@ -3,6 +3,72 @@
 //! operations, so a loop of them over [`crate::sampling::LANES`] samples does. Each states its
 //! accuracy and has a test against the f64 library function.
 
+/// `c[0] + x (c[1] + x (c[2] + ...))`, Horner's rule from the innermost coefficient out. Written
+/// as a loop over a fixed-size array (which LLVM unrolls) rather than as nested parentheses:
+/// rustfmt takes minutes on a dozen nested levels. The operations are the nested form's, in its
+/// order, so results are bit-identical to it.
+#[inline(always)]
+fn horner<T, const N: usize>(x: T, c: [T; N]) -> T
+where
+    T: Copy + std::ops::Add<Output = T> + std::ops::Mul<Output = T>,
+{
+    let mut acc = c[N - 1];
+    for k in (0..N - 1).rev() {
+        acc = c[k] + x * acc;
+    }
+    acc
+}
+
+/// Taylor coefficients of `sin(y) / y` in `y^2`, to degree 10.
+const SIN_TAYLOR: [f32; 6] = [
+    1.0,
+    -1.0 / 6.0,
+    1.0 / 120.0,
+    -1.0 / 5040.0,
+    1.0 / 362_880.0,
+    -1.0 / 39_916_800.0,
+];
+
+/// Taylor coefficients of `cos(y)` in `y^2`, to degree 12.
+const COS_TAYLOR: [f32; 7] = [
+    1.0,
+    -0.5,
+    1.0 / 24.0,
+    -1.0 / 720.0,
+    1.0 / 40_320.0,
+    -1.0 / 3_628_800.0,
+    1.0 / 479_001_600.0,
+];
+
+/// `atanh(s) / s` in `s^2`: `1 / (2k + 1)`, to `s^16`.
+const ATANH_SERIES: [f64; 9] = [
+    1.0,
+    1.0 / 3.0,
+    1.0 / 5.0,
+    1.0 / 7.0,
+    1.0 / 9.0,
+    1.0 / 11.0,
+    1.0 / 13.0,
+    1.0 / 15.0,
+    1.0 / 17.0,
+];
+
+/// `e^z`'s Taylor coefficients `1 / k!`, to degree 11.
+const EXP_TAYLOR: [f64; 12] = [
+    1.0,
+    1.0,
+    1.0 / 2.0,
+    1.0 / 6.0,
+    1.0 / 24.0,
+    1.0 / 120.0,
+    1.0 / 720.0,
+    1.0 / 5040.0,
+    1.0 / 40_320.0,
+    1.0 / 362_880.0,
+    1.0 / 3_628_800.0,
+    1.0 / 39_916_800.0,
+];
+
 /// `(sin x, cos x)` for `x` in `[-pi, pi]`, branch-free: fold to `[-pi/2, pi/2]` with
 /// `sin(x) = sin(pi - x)`, `cos(x) = -cos(pi - x)`, then Taylor polynomials of degree 11 / 12
 /// (absolute error < 1e-7 there, below f32 rounding of the result).
@@ -12,17 +78,8 @@ pub fn sin_cos_fast(x: f32) -> (f32, f32) {
     let fold = x.abs() > FRAC_PI_2;
     let y = if fold { PI.copysign(x) - x } else { x };
     let y2 = y * y;
-    let s = y
-        * (1.0
-            + y2 * (-1.0 / 6.0
-                + y2 * (1.0 / 120.0
-                    + y2 * (-1.0 / 5040.0 + y2 * (1.0 / 362_880.0 + y2 * (-1.0 / 39_916_800.0))))));
-    let c = 1.0
-        + y2 * (-0.5
-            + y2 * (1.0 / 24.0
-                + y2 * (-1.0 / 720.0
-                    + y2 * (1.0 / 40_320.0
-                        + y2 * (-1.0 / 3_628_800.0 + y2 * (1.0 / 479_001_600.0))))));
+    let s = y * horner(y2, SIN_TAYLOR);
+    let c = horner(y2, COS_TAYLOR);
     (s, if fold { -c } else { c })
 }
 
@@ -65,13 +122,7 @@ fn log2_f64(x: f64) -> f64 {
     let (m, k) = if big { (0.5 * m, k + 1) } else { (m, k) };
     let s = (m - 1.0) / (m + 1.0);
     let s2 = s * s;
-    let series = 1.0
-        + s2 * (1.0 / 3.0
-            + s2 * (1.0 / 5.0
-                + s2 * (1.0 / 7.0
-                    + s2 * (1.0 / 9.0
-                        + s2 * (1.0 / 11.0
-                            + s2 * (1.0 / 13.0 + s2 * (1.0 / 15.0 + s2 * (1.0 / 17.0))))))));
+    let series = horner(s2, ATANH_SERIES);
     f64::from(k) + 2.0 * s * series * std::f64::consts::LOG2_E
 }
 
@@ -92,18 +143,7 @@ fn exp2_f64(t: f64) -> f64 {
             << 52,
     );
     let z = (t - n) * std::f64::consts::LN_2;
-    let e = 1.0
-        + z * (1.0
-            + z * (1.0 / 2.0
-                + z * (1.0 / 6.0
-                    + z * (1.0 / 24.0
-                        + z * (1.0 / 120.0
-                            + z * (1.0 / 720.0
-                                + z * (1.0 / 5040.0
-                                    + z * (1.0 / 40_320.0
-                                        + z * (1.0 / 362_880.0
-                                            + z * (1.0 / 3_628_800.0
-                                                + z * (1.0 / 39_916_800.0)))))))))));
+    let e = horner(z, EXP_TAYLOR);
     e * scale
 }
 
