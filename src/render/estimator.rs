@@ -100,9 +100,10 @@ impl<'a> FrameData<'a> {
 /// One pixel's estimate of `L(p, o) = integral of f(o, w) <n, w>+ L(w) dw`.
 ///
 /// On x86-64 CPUs with AVX2 and FMA this runs a copy of the same code compiled for them (LLVM
-/// vectorises the sample loops 8 wide). Rust never fuses a multiply and an add on its own, so
-/// both copies round identically: the result does not depend on the CPU. `ENVIS_PORTABLE=1`
-/// forces the baseline copy (for comparisons).
+/// vectorises the sample loops 8 wide), and on those with AVX-512 one compiled for that (16
+/// wide: one register per lane chunk). Rust never fuses a multiply and an add on its own, so
+/// the copies round identically: the result does not depend on the CPU. `ENVIS_ISA` or
+/// `ENVIS_PORTABLE=1` caps the choice (for comparisons; [`crate::cpu::isa`]).
 pub fn shade_pixel(
     fd: &FrameData,
     s: &Settings,
@@ -121,11 +122,29 @@ pub fn shade_pixel_at(
     at: Option<Vec3>,
     pixel_index: u32,
 ) -> (Vec3, PixelStats) {
+    shade_pixel_on(crate::cpu::isa(), fd, s, px, at, pixel_index)
+}
+
+/// [`shade_pixel_at`] run by the copy compiled for `isa`, or by the best the CPU supports where
+/// that is less ([`crate::cpu::detected`]).
+pub(crate) fn shade_pixel_on(
+    isa: crate::cpu::Isa,
+    fd: &FrameData,
+    s: &Settings,
+    px: &GPixel,
+    at: Option<Vec3>,
+    pixel_index: u32,
+) -> (Vec3, PixelStats) {
+    use crate::cpu::Isa;
     #[cfg(target_arch = "x86_64")]
-    if crate::cpu::avx2_fma() {
-        // SAFETY: the CPU supports the features `shade_pixel_avx2` is compiled for.
-        return unsafe { simd::shade_pixel_avx2(fd, s, px, at, pixel_index) };
+    match isa.min(crate::cpu::detected()) {
+        // SAFETY (both): the CPU supports the copy's features (`detected`).
+        Isa::Avx512 => return unsafe { simd::shade_pixel_avx512(fd, s, px, at, pixel_index) },
+        Isa::Avx2 => return unsafe { simd::shade_pixel_avx2(fd, s, px, at, pixel_index) },
+        Isa::Portable => {}
     }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = isa;
     shade_pixel_portable(fd, s, px, at, pixel_index)
 }
 
@@ -134,6 +153,17 @@ mod simd {
     use super::*;
     #[target_feature(enable = "avx2,fma")]
     pub fn shade_pixel_avx2(
+        fd: &FrameData,
+        s: &Settings,
+        px: &GPixel,
+        at: Option<Vec3>,
+        pixel_index: u32,
+    ) -> (Vec3, PixelStats) {
+        shade_pixel_portable(fd, s, px, at, pixel_index)
+    }
+
+    #[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,avx2,fma")]
+    pub fn shade_pixel_avx512(
         fd: &FrameData,
         s: &Settings,
         px: &GPixel,

@@ -104,21 +104,21 @@ fn same_as_material<B: LocalBsdf>(
     a.max_element() > 0.0
 }
 
-/// The dispatching `shade_pixel` (the AVX2 + FMA copy on CPUs that have them) and the
-/// baseline copy agree bit for bit on every material kind.
+/// Every SIMD copy of the shading this CPU can run (AVX2 + FMA, AVX-512) agrees bit for bit
+/// with the baseline copy on every material kind.
 #[test]
 fn simd_copy_is_bit_identical() {
-    // Calls both copies directly, whatever `ENVIS_PORTABLE` says (which only steers
-    // `shade_pixel`'s choice). A CPU without AVX2 + FMA cannot run the SIMD copy at all.
-    #[cfg(target_arch = "x86_64")]
-    let has_simd =
-        std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma");
-    #[cfg(not(target_arch = "x86_64"))]
-    let has_simd = false;
-    if !has_simd {
+    // Calls the copies directly, whatever `ENVIS_ISA` says (which only steers `shade_pixel`'s
+    // choice). A CPU without AVX2 + FMA can run no SIMD copy at all.
+    let copies: Vec<_> = crate::cpu::Isa::available()
+        .into_iter()
+        .filter(|&i| i != crate::cpu::Isa::Portable)
+        .collect();
+    if copies.is_empty() {
         eprintln!("simd_copy_is_bit_identical: no AVX2 + FMA on this CPU; nothing to compare");
         return;
     }
+    eprintln!("simd_copy_is_bit_identical: comparing {copies:?} with the baseline copy");
     let map = crate::envmap::sky::sky_cube(16, 10.0);
     for mat in [
         Material::diffuse(0.8),
@@ -142,17 +142,15 @@ fn simd_copy_is_bit_identical() {
             let fd = FrameData::prepare(&map, &s);
             for (i, px) in gbuf.iter().enumerate() {
                 let Some(px) = px else { continue };
-                // SAFETY: the CPU has AVX2 + FMA (checked above).
-                #[cfg(target_arch = "x86_64")]
-                let (a, _) = unsafe { simd::shade_pixel_avx2(&fd, &s, px, None, i as u32) };
-                #[cfg(not(target_arch = "x86_64"))]
-                let (a, _) = shade_pixel(&fd, &s, px, i as u32);
                 let (b, _) = shade_pixel_portable(&fd, &s, px, None, i as u32);
-                assert_eq!(
-                    a.to_array().map(f32::to_bits),
-                    b.to_array().map(f32::to_bits),
-                    "{mat:?} {strategy:?} pixel {i}"
-                );
+                for &isa in &copies {
+                    let (a, _) = shade_pixel_on(isa, &fd, &s, px, None, i as u32);
+                    assert_eq!(
+                        a.to_array().map(f32::to_bits),
+                        b.to_array().map(f32::to_bits),
+                        "{isa:?} {mat:?} {strategy:?} pixel {i}"
+                    );
+                }
             }
         }
     }
