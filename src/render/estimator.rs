@@ -151,27 +151,28 @@ pub(crate) fn shade_pixel_on(
 #[cfg(target_arch = "x86_64")]
 mod simd {
     use super::*;
-    #[target_feature(enable = "avx2,fma")]
-    pub fn shade_pixel_avx2(
-        fd: &FrameData,
-        s: &Settings,
-        px: &GPixel,
-        at: Option<Vec3>,
-        pixel_index: u32,
-    ) -> (Vec3, PixelStats) {
-        shade_pixel_portable(fd, s, px, at, pixel_index)
+
+    /// A copy of [`shade_pixel_portable`] compiled with the target features `$features`.
+    macro_rules! compiled_for {
+        ($name:ident, $features:literal) => {
+            #[target_feature(enable = $features)]
+            pub fn $name(
+                fd: &FrameData,
+                s: &Settings,
+                px: &GPixel,
+                at: Option<Vec3>,
+                pixel_index: u32,
+            ) -> (Vec3, PixelStats) {
+                shade_pixel_portable(fd, s, px, at, pixel_index)
+            }
+        };
     }
 
-    #[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,avx2,fma")]
-    pub fn shade_pixel_avx512(
-        fd: &FrameData,
-        s: &Settings,
-        px: &GPixel,
-        at: Option<Vec3>,
-        pixel_index: u32,
-    ) -> (Vec3, PixelStats) {
-        shade_pixel_portable(fd, s, px, at, pixel_index)
-    }
+    compiled_for!(shade_pixel_avx2, "avx2,fma");
+    compiled_for!(
+        shade_pixel_avx512,
+        "avx512f,avx512vl,avx512bw,avx512dq,avx2,fma"
+    );
 }
 
 /// [`shade_pixel`] compiled for the baseline target.
