@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Reference FLIP values for envis's FLIP implementation (src/bench/flip.rs), from NVIDIA's
 `flip-evaluator` package (pip install flip-evaluator numpy). Writes tests/data/flip_reference.json;
-tests/core.rs rebuilds the same images from the same formulas and compares.
+tests/core/bench.rs rebuilds the same images from the same formulas and compares.
 
 Usage: python3 docs/bench/flip_reference.py [tests/data/flip_reference.json]
 """

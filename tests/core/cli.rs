@@ -1,0 +1,210 @@
+//! The command line's contract: features, errors without a display or adapter, every subcommand's
+//! flags and messages.
+
+use super::*;
+
+/// A Bevy user depending on the plugins alone (`default-features = false, features = ["app"]`)
+/// pulls no window system and no egui: checked on the resolved dependency graph.
+#[test]
+fn app_feature_pulls_no_window_system_or_egui() {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let tree = |features: &[&str]| {
+        let out = std::process::Command::new(&cargo)
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .args(["tree", "--locked", "-e", "normal", "--prefix", "none"])
+            .args(["--format", "{p}", "--no-default-features", "--features"])
+            .arg(features.join(","))
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let has = |tree: &str, krate: &str| tree.lines().any(|l| l.starts_with(&format!("{krate} v")));
+    let plugins = tree(&["app"]);
+    assert!(has(&plugins, "bevy"), "the app feature must bring Bevy");
+    for k in [
+        "winit",
+        "bevy_winit",
+        "x11rb",
+        "x11-dl",
+        "egui",
+        "bevy_egui",
+    ] {
+        assert!(!has(&plugins, k), "`--features app` pulls {k}");
+    }
+    // The demo feature does bring them: the check above can see them.
+    let demo = tree(&["demo"]);
+    assert!(has(&demo, "winit") && has(&demo, "egui"));
+}
+
+/// What a new user meets first: the demo on a machine without a display, and the GPU backend
+/// with no such adapter, each give one line saying what to do, and no panic or backtrace.
+#[test]
+fn cli_without_display_or_adapter_says_what_to_do() {
+    let one_line = |out: &std::process::Output, needles: &[&str]| {
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "succeeded: {err}");
+        assert_eq!(err.trim().lines().count(), 1, "not one line: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+        for n in needles {
+            assert!(err.contains(n), "'{err}' does not say '{n}'");
+        }
+    };
+    // Mesa's Vulkan loader prints its own complaint when XDG_RUNTIME_DIR is unset (as on a
+    // desktop it never is): give the children one, so stderr holds only what envis says.
+    let dir = tempdir();
+    let demo = std::process::Command::new(env!("CARGO_BIN_EXE_envis"))
+        .env("XDG_RUNTIME_DIR", &dir)
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .unwrap();
+    if cfg!(feature = "demo") {
+        one_line(&demo, &["DISPLAY", "xvfb-run", "envis render"]);
+    } else {
+        one_line(&demo, &["demo"]);
+    }
+    let gpu = std::process::Command::new(env!("CARGO_BIN_EXE_envis"))
+        .args(["render", "--backend", "wgpu", "--size", "8", "--out"])
+        .arg(dir.join("x.exr"))
+        .env("XDG_RUNTIME_DIR", &dir)
+        .env("WGPU_ADAPTER_NAME", "no-such-adapter-anywhere")
+        .output()
+        .unwrap();
+    if cfg!(feature = "gpu") {
+        one_line(&gpu, &["no-such-adapter-anywhere", "mesa-vulkan-drivers"]);
+    } else {
+        one_line(&gpu, &["gpu"]);
+    }
+}
+
+#[test]
+fn cli_contract() {
+    let dir = tempdir();
+    let out = dir.join("img.exr");
+    let stats = dir.join("stats.json");
+    let r = envis_cmd(&[
+        "render",
+        "--env",
+        "builtin:sky:9",
+        "--face-size",
+        "16",
+        "--scene",
+        "sphere",
+        "--size",
+        "24",
+        "--brdf",
+        "ggx",
+        "--alpha",
+        "0.3",
+        "--light-samples",
+        "4",
+        "--brdf-samples",
+        "4",
+        "--strategy",
+        "paper",
+        "--counts",
+        "fractional",
+        "--mis",
+        "balance",
+        "--seed",
+        "3",
+        "--backend",
+        "cpu",
+        "--out",
+        out.to_str().unwrap(),
+        "--stats",
+        stats.to_str().unwrap(),
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let img = envis::envmap::load::read_exr(&out).unwrap();
+    assert_eq!((img.width, img.height), (24, 24));
+    assert_eq!(img.get(0, 0), Vec3::ZERO, "corner pixel is off the sphere");
+    assert!(img.get(12, 12).max_element() > 0.0);
+    let js: serde_json::Value = support::read_json(&stats);
+    for key in [
+        "build_ms",
+        "shade_ms",
+        "samples_evaluated",
+        "red",
+        "green",
+        "yellow",
+        "wasted",
+    ] {
+        assert!(js[key].is_number(), "stats lack {key}: {js}");
+    }
+    let (red, green, yellow) = (
+        js["red"].as_f64().unwrap(),
+        js["green"].as_f64().unwrap(),
+        js["yellow"].as_f64().unwrap(),
+    );
+    assert!((red + green + yellow - 1.0).abs() < 1e-9);
+
+    let refp = dir.join("ref.exr");
+    let r = envis_cmd(&[
+        "reference",
+        "--env",
+        "builtin:sky:9",
+        "--face-size",
+        "8",
+        "--size",
+        "8",
+        "--brdf",
+        "phong",
+        "--exponent",
+        "20",
+        "--out",
+        refp.to_str().unwrap(),
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert!(refp.exists());
+
+    // Bad arguments and files: one line, non-zero exit, names the problem.
+    let o = out.to_str().unwrap();
+    let bad: &[(&[&str], &str)] = &[
+        (
+            &["render", "--env", "/nonexistent/x.exr", "--out", o],
+            "x.exr",
+        ),
+        (&["render", "--strategy", "fancy", "--out", o], "fancy"),
+        (
+            &[
+                "render",
+                "--light-samples",
+                "0",
+                "--brdf-samples",
+                "0",
+                "--out",
+                o,
+            ],
+            "both 0",
+        ),
+        (&["render", "--scene", "teapot", "--out", o], "teapot"),
+        (
+            &["render", "--brdf", "ggx", "--alpha", "0", "--out", o],
+            "--alpha",
+        ),
+        (&["render", "--out", "image.png"], ".exr"),
+        (&["render", "--env", "builtin:sky:noon", "--out", o], "noon"),
+        (&["render", "--size", "abc", "--out", o], "abc"),
+    ];
+    for (args, needle) in bad {
+        let r = envis_cmd(args);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(!r.status.success(), "{args:?} should fail");
+        assert_eq!(
+            err.trim_end().lines().count(),
+            1,
+            "{args:?}: not one line: {err}"
+        );
+        assert!(
+            err.contains(needle),
+            "{args:?}: '{err}' does not name '{needle}'"
+        );
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+    }
+}

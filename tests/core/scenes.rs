@@ -1,0 +1,148 @@
+//! Scene geometry: the mesh BVH against brute force, and scene files load, render and report
+//! errors.
+
+use super::*;
+
+/// The mesh BVH (obvhs) finds what the brute-force loop over every triangle finds: for 20,000
+/// random rays at the bunny and the torus, the same hit or miss and the same distance; the
+/// normal too, except where a ray meets two triangles at the same distance (an edge), where
+/// either triangle is right: those are counted and must be rare.
+#[test]
+fn mesh_bvh_matches_brute_force() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let bunny = envis::scene::load_glb(&root.join("assets/models/bunny_plain.glb")).unwrap();
+    let torus = envis::scene::torus_mesh(1.0, 0.3, 48, 24);
+    let mut r = Rng::new(13, 17);
+    for (name, mesh) in [("bunny", &bunny), ("torus", &torus)] {
+        let (lo, hi) = mesh.positions.iter().fold(
+            (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
+            |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+        );
+        let (centre, radius) = (0.5 * (lo + hi), 0.5 * (hi - lo).length());
+        let (mut hits, mut edge) = (0, 0);
+        let n = 10_000;
+        for _ in 0..n {
+            // From a sphere around the mesh towards a point inside its box.
+            let o = centre + random_dir(&mut r) * 2.0 * radius;
+            let target = lo + (hi - lo) * Vec3::new(r.next_f32(), r.next_f32(), r.next_f32());
+            let d = (target - o).normalize();
+            let (a, b) = (
+                mesh.intersect(o, d, f32::MAX),
+                mesh.intersect_brute(o, d, f32::MAX),
+            );
+            match (a, b) {
+                (None, None) => {}
+                (Some((ta, na)), Some((tb, nb))) => {
+                    hits += 1;
+                    assert_eq!(ta, tb, "{name}: ray {o} {d}");
+                    edge += (na != nb) as u32;
+                }
+                _ => panic!("{name}: BVH {a:?} vs brute force {b:?} for ray {o} {d}"),
+            }
+            // The shadow-ray query (any hit) agrees with the closest hit.
+            assert_eq!(
+                mesh.occluded(o, d, f32::MAX),
+                b.is_some(),
+                "{name}: any-hit"
+            );
+        }
+        assert!(hits > n / 4, "{name}: only {hits} of {n} rays hit");
+        assert!(
+            edge * 1000 <= n,
+            "{name}: {edge} of {n} rays differ in the normal"
+        );
+    }
+}
+
+/// Scene files: the shipped examples load and render; errors name the file, the line and the
+/// field; a broken glTF names the file.
+#[test]
+fn scene_files_load_render_and_report_errors() {
+    use envis::scene::Scene;
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
+    for name in [
+        "showcase.toml",
+        "diffuse-static.toml",
+        "glossy-dynamic.toml",
+    ] {
+        let sc = Scene::load(&dir.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let g = sc.gbuffer(24, 24);
+        let hits = g.iter().filter(|p| p.is_some()).count();
+        assert!(
+            hits > 24 * 24 / 4,
+            "{name}: only {hits} pixels hit geometry"
+        );
+        for p in g.iter().flatten() {
+            assert!(
+                (p.n.length() - 1.0).abs() < 1e-3 && p.n.dot(p.o) > -1e-3,
+                "{name}: bad G-buffer texel {p:?}"
+            );
+        }
+    }
+    // The CLI renders a scene file (the file supplies everything but the size).
+    let t = tempdir();
+    let out = t.join("scene.exr");
+    let o = envis_cmd(&[
+        "render",
+        "--scene",
+        dir.join("diffuse-static.toml").to_str().unwrap(),
+        "--size",
+        "24",
+        "--out",
+        out.to_str().unwrap(),
+        "--stats",
+        t.join("s.json").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: serde_json::Value = support::read_json(&t.join("s.json"));
+    assert_eq!(
+        j["brdf_samples_drawn"], 0,
+        "diffuse scene with material_budget drew BRDF samples: {j}"
+    );
+    // Errors: file + line + field.
+    let cases = [
+        (
+            "typo.toml",
+            "[environment]\nsource = \"builtin:sky\"\n\n[[object]]\nshape = \"sphere\"\nradus = 1.0\nmaterial = { type = \"diffuse\" }\n",
+            &["typo.toml", "line 6", "radus"][..],
+        ),
+        (
+            "nomat.toml",
+            "[environment]\nsource = \"builtin:sky\"\n[[object]]\nshape = \"sphere\"\n",
+            &["nomat.toml", "material"][..],
+        ),
+        (
+            "shape.toml",
+            "[environment]\nsource = \"builtin:sky\"\n[[object]]\nshape = \"cone\"\nmaterial = { type = \"diffuse\" }\n",
+            &["shape.toml", "object 1", "`shape`", "cone"][..],
+        ),
+        (
+            "mat.toml",
+            "[environment]\nsource = \"builtin:sky\"\n[[object]]\nshape = \"sphere\"\nmaterial = { type = \"velvet\" }\n",
+            &["mat.toml", "`material`", "velvet"][..],
+        ),
+        (
+            "samp.toml",
+            "[environment]\nsource = \"builtin:sky\"\n[sampling]\ncounts = \"often\"\n[[object]]\nshape = \"sphere\"\nmaterial = { type = \"diffuse\" }\n",
+            &["samp.toml", "counts", "often"][..],
+        ),
+        (
+            "glb.toml",
+            "[environment]\nsource = \"builtin:sky\"\n[[object]]\nshape = \"gltf\"\npath = \"broken.glb\"\nmaterial = { type = \"diffuse\" }\n",
+            &["broken.glb", "glTF"][..],
+        ),
+    ];
+    std::fs::write(t.join("broken.glb"), b"glTF\x02\x00\x00\x00garbage").unwrap();
+    for (file, text, needles) in cases {
+        let p = t.join(file);
+        std::fs::write(&p, text).unwrap();
+        let e = Scene::load(&p)
+            .err()
+            .unwrap_or_else(|| panic!("{file}: accepted"))
+            .to_string();
+        for n in needles {
+            assert!(e.contains(n), "{file}: '{e}' does not name '{n}'");
+        }
+        assert_eq!(e.lines().count(), 1, "{file}: not one line: {e}");
+    }
+}
