@@ -1,0 +1,211 @@
+//! Suite `accuracy`'s driver: runs the sweep of [`super::accuracy`] with a progress bar and writes its
+//! files.
+
+use super::*;
+
+/// The sweep's progress on stderr (indicatif): on a terminal a bar redrawn in place, with the
+/// count, the time so far, the time left and the rate; elsewhere (logs, CI) the same figures as a
+/// plain line every 5%.
+struct Progress {
+    bar: indicatif::ProgressBar,
+    tty: bool,
+}
+
+impl Progress {
+    fn new(total: usize) -> Self {
+        use std::io::IsTerminal;
+        let tty = std::io::stderr().is_terminal();
+        let bar = if tty {
+            indicatif::ProgressBar::new(total as u64)
+        } else {
+            indicatif::ProgressBar::hidden()
+        };
+        bar.set_length(total as u64);
+        let style = indicatif::ProgressStyle::with_template(
+            "[{bar:30}] {pos}/{len} {percent:>3}%  {elapsed}, ~{eta} left, {per_sec}  {msg}",
+        )
+        .map(|s| s.progress_chars("#>."))
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar());
+        bar.set_style(style);
+        Progress { bar, tty }
+    }
+
+    /// `done` points of the total finished, the last one described by `what`.
+    fn update(&self, done: usize, what: &str) {
+        self.bar.set_position(done as u64);
+        self.bar.set_message(what.to_string());
+        let total = self.bar.length().unwrap_or(0) as usize;
+        if !self.tty && (done.is_multiple_of((total / 20).max(1)) || done == total) {
+            eprintln!(
+                "{done}/{total} {:3.0}%  {:.1} s, ~{:.1} s left, {:.1} points/s  {what}",
+                100.0 * done as f64 / total.max(1) as f64,
+                self.bar.elapsed().as_secs_f64(),
+                self.bar.eta().as_secs_f64(),
+                self.bar.per_sec()
+            );
+        }
+        if done == total {
+            self.bar.finish();
+        }
+    }
+}
+
+/// Suite `accuracy`: writes `accuracy.csv`, `accuracy.json` and `accuracy-vs-time.md` to `dir`.
+pub(super) fn accuracy_suite(a: BenchArgs, dir: PathBuf) -> Result<()> {
+    let cfg = accuracy::Config::new(a.quick, a.maps.as_deref())?;
+    let start = Instant::now();
+    let total = accuracy::point_count(&cfg);
+    eprintln!(
+        "envis bench accuracy: {} environments x {} materials, {total} points",
+        cfg.envs.len(),
+        cfg.materials.len()
+    );
+    // The GPU backend, when this build has it and a device is there (`--cpu-only` skips it).
+    #[cfg(feature = "gpu")]
+    let gpu_ctx = if a.cpu_only {
+        None
+    } else {
+        crate::gpu::GpuContext::new()
+            .map_err(|e| eprintln!("accuracy: no GPU backend ({e}); CPU only"))
+            .ok()
+    };
+    #[cfg(feature = "gpu")]
+    let gpu_device = gpu_ctx
+        .as_ref()
+        .map(|c| format!("{} ({:?})", c.info.name, c.info.backend));
+    #[cfg(not(feature = "gpu"))]
+    let gpu_device: Option<String> = None;
+
+    // Resumable: every finished point is appended to `accuracy.partial.jsonl` (first line: the
+    // sweep's fingerprint). A rerun with the same configuration takes those points and measures
+    // only the rest; the file is removed once the outputs are written.
+    let fingerprint = accuracy::fingerprint(&cfg, gpu_device.as_deref());
+    let partial = dir.join("accuracy.partial.jsonl");
+    let resume: Vec<accuracy::Point> = match std::fs::read_to_string(&partial) {
+        Ok(text) => {
+            let mut lines = text.lines();
+            if lines.next() == Some(serde_json::to_string(&fingerprint).unwrap().as_str()) {
+                // A line cut short by the interruption is dropped (and measured again).
+                let pts: Vec<accuracy::Point> =
+                    lines.filter_map(|l| serde_json::from_str(l).ok()).collect();
+                eprintln!(
+                    "accuracy: resuming {} of {total} points from {}",
+                    pts.len(),
+                    partial.display()
+                );
+                pts
+            } else {
+                eprintln!(
+                    "accuracy: {} is from a different configuration; starting over",
+                    partial.display()
+                );
+                Vec::new()
+            }
+        }
+        Err(_) => Vec::new(),
+    };
+    let mut journal = {
+        let mut text = serde_json::to_string(&fingerprint).unwrap() + "\n";
+        for p in &resume {
+            text += &(serde_json::to_string(p).unwrap() + "\n");
+        }
+        std::fs::write(&partial, text)
+            .map_err(|e| Error::file(&partial, format!("cannot write: {e}")))?;
+        std::fs::OpenOptions::new()
+            .append(true)
+            .open(&partial)
+            .map_err(|e| Error::file(&partial, format!("cannot append: {e}")))?
+    };
+    let resumed = resume.len();
+    let mut journal_error = None;
+    let mut progress: Option<Progress> = None;
+    let report_progress = |done: usize, total: usize, p: &accuracy::Point, was_resumed: bool| {
+        use std::io::Write as _;
+        if !was_resumed && let Err(e) = writeln!(journal, "{}", serde_json::to_string(p).unwrap()) {
+            journal_error.get_or_insert(e);
+        }
+        // Made on the first point: the sweep knows the total only then.
+        let bar = progress.get_or_insert_with(|| Progress::new(total));
+        bar.update(
+            done,
+            &format!("{} / {} / {} N={}", p.env, p.material, p.strategy, p.budget),
+        );
+    };
+    #[cfg(feature = "gpu")]
+    let points = match &gpu_ctx {
+        Some(ctx) => {
+            let mut renderer = crate::gpu::GpuRenderer::new(ctx);
+            let mut time = |map: &CubeMap,
+                            gbuf: &[Option<render::GPixel>],
+                            size: usize,
+                            s: &Settings|
+             -> Result<(f64, f64)> {
+                let (_, t) = renderer.render(map, gbuf, size, size, s)?;
+                Ok((
+                    t.build_gpu_ms.unwrap_or(t.build_wall_ms),
+                    t.shade_gpu_ms.unwrap_or(t.shade_wall_ms),
+                ))
+            };
+            accuracy::sweep(&cfg, &resume, Some(&mut time), report_progress)?
+        }
+        None => accuracy::sweep(&cfg, &resume, None, report_progress)?,
+    };
+    #[cfg(not(feature = "gpu"))]
+    let points = accuracy::sweep(&cfg, &resume, None, report_progress)?;
+    if let Some(e) = journal_error {
+        eprintln!(
+            "accuracy: could not append to {} ({e}); this run is not resumable",
+            partial.display()
+        );
+    }
+    let mut command = String::from("envis bench --suite accuracy");
+    if a.quick {
+        command.push_str(" --quick");
+    }
+    if let Some(m) = &a.maps {
+        command.push_str(&format!(" --maps {}", m.display()));
+    }
+    let write = |name: &str, text: String| -> Result<()> {
+        let p = dir.join(name);
+        std::fs::write(&p, text).map_err(|e| Error::file(&p, format!("cannot write: {e}")))
+    };
+    write("accuracy.csv", accuracy::csv(&points))?;
+    crate::render::output::write_json(
+        &dir.join("accuracy.json"),
+        &serde_json::json!({ "command": command, "points": points }),
+    )?;
+    let mut md = accuracy::report(&cfg, &points, &command, gpu_device.as_deref());
+    md.push_str("## Plots\n\n");
+    md.push_str("Each plot is written as SVG and PNG (plotters); the PNGs are shown here.\n\n");
+    for (mname, _) in &cfg.materials {
+        let stem = accuracy::plot_stem(mname);
+        let (_, time_png) = accuracy::plot_error_vs_time(&points, mname).write(&dir, &stem)?;
+        let (_, samples_png) = accuracy::plot_error_vs_samples(&points, mname)
+            .write(&dir, &format!("{stem}-samples"))?;
+        md.push_str(&format!(
+            "![{mname}: error vs time]({time_png}) ![{mname}: error vs samples]({samples_png})\n\n"
+        ));
+    }
+    let (_, wasted_png) = accuracy::plot_wasted(&points).write(&dir, "accuracy-wasted")?;
+    md.push_str(&format!("![wasted light samples]({wasted_png})\n\n"));
+    md.push_str(&format!(
+        "Sweep time: {:.0} s{}.\n",
+        start.elapsed().as_secs_f64(),
+        if resumed > 0 {
+            format!(
+                " ({resumed} of {} points resumed from an interrupted run)",
+                points.len()
+            )
+        } else {
+            String::new()
+        }
+    ));
+    write("accuracy-vs-time.md", md)?;
+    let _ = std::fs::remove_file(&partial);
+    eprintln!(
+        "wrote accuracy.csv, accuracy.json, accuracy-vs-time.md to {} in {:.0} s",
+        dir.display(),
+        start.elapsed().as_secs_f64()
+    );
+    Ok(())
+}

@@ -1,0 +1,133 @@
+//! Suite `popping`: integer against fractional counts while the sun moves (the seed's popping).
+
+use super::*;
+
+/// Suite `popping`: temporal stability of integer vs fractional counts (the seed's "smooth
+/// transitions"). The built-in sun moves from 9h to 11h over `frames` frames; every frame uses the
+/// same seed, so frame-to-frame change comes only from the environment and the counts. For each
+/// mode: mean |change| per pixel relative to the reference's own mean |change| (1 = as smooth as
+/// the truth), and the fraction of (pixel, frame) pairs that jump by more than 10% of the pixel
+/// while the reference moves by less than 1% (discontinuities). Writes `popping.json`, a plot of
+/// the change per frame (`popping.svg` / `.png`) and PNG strips of 6 frames per mode.
+pub(super) fn popping(a: BenchArgs, dir: PathBuf) -> Result<()> {
+    let frames = if a.quick { 8 } else { 48 };
+    let (size, face) = (a.size.min(64), a.face_size.min(32));
+    let mat = Material::diffuse(0.8);
+    let gbuf = render::sphere_gbuffer(size, size, mat);
+    let idx: Vec<usize> = (0..gbuf.len()).filter(|&i| gbuf[i].is_some()).collect();
+    let lum = |c: glam::Vec3| crate::envmap::luminance(c) as f64;
+    let hours = |t: usize| 9.0 + 2.0 * t as f32 / (frames - 1) as f32;
+    let maps: Vec<crate::envmap::CubeMap> = (0..frames)
+        .map(|t| crate::envmap::sky::sky_cube(face, hours(t)))
+        .collect();
+    let refs: Vec<Vec<f64>> = maps
+        .iter()
+        .map(|m| {
+            crate::render::reference::reference_image(m, &gbuf, size, size, 1.0)
+                .1
+                .iter()
+                .map(|&c| crate::envmap::luminance_f64(c))
+                .collect()
+        })
+        .collect();
+    let ref_change: f64 = (1..frames)
+        .map(|t| {
+            idx.iter()
+                .map(|&i| (refs[t][i] - refs[t - 1][i]).abs())
+                .sum::<f64>()
+        })
+        .sum::<f64>();
+    let np = idx.len().max(1) as f64;
+    let per_frame = |f: &dyn Fn(usize) -> f64| -> Vec<(f64, f64)> {
+        (1..frames).map(|t| (t as f64, f(t) / np)).collect()
+    };
+    let mut series = vec![accuracy::Series {
+        name: "reference".into(),
+        color: "#000000",
+        points: per_frame(&|t| {
+            idx.iter()
+                .map(|&i| (refs[t][i] - refs[t - 1][i]).abs())
+                .sum()
+        }),
+        dashed: true,
+    }];
+    let mut rows = Vec::new();
+    for (name, counts, color) in [
+        ("fractional", crate::sampling::Counts::Fractional, "#d62728"),
+        ("integer", crate::sampling::Counts::Integer, "#ff7f0e"),
+    ] {
+        let s = Settings {
+            light_samples: a.light_samples,
+            brdf_samples: a.brdf_samples,
+            counts,
+            seed: 1,
+            ..Default::default()
+        };
+        let imgs: Vec<crate::envmap::Image> = maps
+            .iter()
+            .map(|m| render::render(m, &gbuf, size, size, &s).map(|o| o.image))
+            .collect::<Result<_>>()?;
+        let (mut change, mut jumps, mut pairs) = (0.0, 0usize, 0usize);
+        for t in 1..frames {
+            for &i in &idx {
+                let (x0, x1) = (lum(imgs[t - 1].data[i]), lum(imgs[t].data[i]));
+                let d = (x1 - x0).abs();
+                change += d;
+                pairs += 1;
+                let r = (refs[t][i] - refs[t - 1][i]).abs();
+                if d > 0.1 * x0.max(x1).max(1e-6) && r < 0.01 * refs[t][i].max(1e-6) {
+                    jumps += 1;
+                }
+            }
+        }
+        series.push(accuracy::Series {
+            name: format!("{name} counts"),
+            color,
+            points: per_frame(&|t| {
+                idx.iter()
+                    .map(|&i| (lum(imgs[t].data[i]) - lum(imgs[t - 1].data[i])).abs())
+                    .sum()
+            }),
+            dashed: false,
+        });
+        let ratio = change / ref_change.max(1e-12);
+        let jump_frac = jumps as f64 / pairs.max(1) as f64;
+        eprintln!(
+            "  {name:10}: mean |frame change| = {ratio:.2} x the reference's; discontinuities {:.3}% of pixel-frames",
+            100.0 * jump_frac
+        );
+        // Strip of 6 frames, spread over the animation.
+        let picks: Vec<usize> = (0..6).map(|k| k * (frames - 1) / 5).collect();
+        let mut strip = crate::envmap::Image::new(6 * size, size);
+        for (k, &t) in picks.iter().enumerate() {
+            for y in 0..size {
+                for x in 0..size {
+                    strip.data[y * 6 * size + k * size + x] = imgs[t].get(x, y);
+                }
+            }
+        }
+        crate::render::output::write_png(
+            &dir.join(format!("popping-strip-{name}.png")),
+            &strip,
+            1.0,
+        )?;
+        rows.push(serde_json::json!({ "counts": name, "change_over_reference": ratio, "discontinuity_fraction": jump_frac, "strip_frames": picks }));
+    }
+    let report = serde_json::json!({ "suite": "popping", "frames": frames, "hours": [9.0, 11.0], "size": size, "face_size": face, "light_samples": a.light_samples, "brdf_samples": a.brdf_samples, "seed": "1 for every frame", "rows": rows });
+    let path = dir.join("popping.json");
+    crate::render::output::write_json(&path, &report)?;
+    let chart = accuracy::Chart {
+        title: "Frame-to-frame change, sun moving 9h -> 11h (same seed every frame)".into(),
+        xlabel: "frame",
+        ylabel: "mean |luminance change| per pixel",
+        xlog: false,
+        ylog: false,
+        series,
+    };
+    let (svg, png) = chart.write(&dir, "popping")?;
+    eprintln!(
+        "wrote {}, {svg}, {png} and popping-strip-*.png",
+        path.display()
+    );
+    Ok(())
+}
