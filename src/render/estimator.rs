@@ -13,6 +13,11 @@ use crate::sampling::{
 };
 use glam::{Vec2, Vec3};
 
+mod brdf_samples;
+mod pool_window;
+use brdf_samples::brdf_samples;
+pub(crate) use pool_window::{PoolWindow, pool_window};
+
 /// Radiance of the environment at full resolution, by direction (see [`FrameData::fine`]).
 pub type FineRadiance<'a> = &'a (dyn Fn(Vec3) -> Vec3 + Sync);
 
@@ -424,68 +429,6 @@ pub(crate) fn shading_directions(px: &GPixel) -> Option<(Vec3, Vec3)> {
     (visible && !px.material.is_black()).then_some((n, o))
 }
 
-/// The part of each face's pool one pixel reads: slots `base .. base + len`, in order from
-/// `base + start`, wrapping.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) struct PoolWindow {
-    pub base: usize,
-    pub len: usize,
-    pub start: usize,
-}
-
-impl PoolWindow {
-    /// The window's slots in the order a pixel takes them, wrapping (counts are clamped to the
-    /// window, so no slot is taken twice).
-    #[inline(always)]
-    pub fn slots(self) -> impl Iterator<Item = usize> {
-        let mut idx = self.start;
-        std::iter::repeat_with(move || {
-            let j = self.base + idx;
-            // (start + k) mod len, kept in range without a division per sample.
-            idx += 1;
-            if idx == self.len {
-                idx = 0;
-            }
-            j
-        })
-    }
-
-    /// Where slot `j` of a region comes in this window's order, or `None` outside the window.
-    pub fn position(&self, j: usize) -> Option<usize> {
-        let i = j.checked_sub(self.base).filter(|&i| i < self.len)?;
-        Some((i + self.len - self.start) % self.len)
-    }
-}
-
-/// A pixel's window on the pool ([`PoolLayout`]), drawn as the pixel's first random number when
-/// the layout draws one: the whole pool from slot 0 (`shared`), from a random slot (`offset`),
-/// or one block drawn at random, from its slot 0 (`blocks`). A block is read from its start, as
-/// the seed reads its pool: a random start in the block decorrelates more but, measured over 400
-/// seeds on the furnace, costs 8% relMSE, as the `offset` layout's random start does
-/// (`docs/benchmarks.md`, "Pool layouts").
-#[inline(always)]
-pub(crate) fn pool_window(rng: &mut Rng, s: &Settings, pool: &LightPool) -> PoolWindow {
-    let (m, block) = (pool.per_region, pool.block);
-    let whole = PoolWindow {
-        base: 0,
-        len: m,
-        start: 0,
-    };
-    match s.pool_layout {
-        _ if m == 0 => whole,
-        PoolLayout::Shared => whole,
-        PoolLayout::Offset => PoolWindow {
-            start: rng.next_u32() as usize % m,
-            ..whole
-        },
-        PoolLayout::Blocks => PoolWindow {
-            base: (rng.next_u32() as usize % (m / block)) * block,
-            len: block,
-            start: 0,
-        },
-    }
-}
-
 /// The pbrt-style baseline's light samples: N_L draws from one lat-long distribution.
 #[inline(always)]
 fn global_samples<B: LocalBsdf>(px: &Pixel<B>, rng: &mut Rng, sum: &mut Vec3, st: &mut PixelStats) {
@@ -507,111 +450,6 @@ fn global_samples<B: LocalBsdf>(px: &Pixel<B>, rng: &mut Rng, sum: &mut Vec3, st
             st,
         );
     }
-}
-
-/// The N_B BRDF samples, in chunks of LANES, structure of arrays: pass 1 draws the local
-/// directions (vectorised for a branch-free sampler), pass 2 turns them into world directions,
-/// texels and cube Jacobians (vectorised), pass 3 prefetches the texels, pass 4 loads them and
-/// shades. The loads are independent, so they overlap instead of stalling one by one. Same
-/// random draws, same arithmetic, same summation order as one scalar loop.
-#[inline(always)]
-fn brdf_samples<B: LocalBsdf>(
-    px: &Pixel<B>,
-    rng: &mut Rng,
-    density: &[f32; MAX_REGIONS],
-    sum: &mut Vec3,
-    st: &mut PixelStats,
-) {
-    let (fd, s, mat, ol) = (px.fd, px.s, px.bsdf, px.ol);
-    let nb_f = px.nb as f32;
-    let mut smp = crate::sampling::SampleLanes::default();
-    let mut hit = HitLanes::default();
-    let n_size = fd.map.size as u32;
-    let tiles_k = fd.dist.grid.k as u32;
-    let mut left = px.nb;
-    while left > 0 {
-        let count = left.min(LANES);
-        left -= count;
-        st.brdf += count as u32;
-        mat.sample_lanes(ol, rng, count, &mut smp);
-        for k in 0..LANES {
-            let d = px.frame.to_world(smp.dir(k));
-            let (face, a, b, texel) = crate::envmap::dir_to_texel_lane(d.x, d.y, d.z, n_size);
-            let q = 1.0 + a * a + b * b;
-            (hit.x[k], hit.y[k], hit.z[k]) = (d.x, d.y, d.z);
-            (hit.face[k], hit.texel[k], hit.jac[k]) = (face, texel, q * q.sqrt());
-        }
-        for k in 0..count {
-            prefetch(&fd.texels[hit.texel[k] as usize]);
-        }
-        for k in 0..count {
-            let p = smp.pdf[k];
-            if p <= 0.0 {
-                continue;
-            }
-            // One texel gives both the radiance and the light density of the direction.
-            let t = fd.texels[hit.texel[k] as usize];
-            let n_l = match s.strategy {
-                Strategy::Paper => {
-                    // With one tile per face the region is the face (no divisions).
-                    let r = match tiles_k {
-                        1 => hit.face[k],
-                        _ => region_of_texel(hit.texel[k], n_size, tiles_k),
-                    };
-                    density[r as usize] * t.w * hit.jac[k]
-                }
-                Strategy::Global => {
-                    px.nl as f32
-                        * fd.global
-                            .as_ref()
-                            .map_or(0.0, |g| g.pdf(Vec3::new(hit.x[k], hit.y[k], hit.z[k])))
-                }
-                _ => 0.0,
-            };
-            let il = smp.dir(k);
-            let d = Vec3::new(hit.x[k], hit.y[k], hit.z[k]);
-            if px.blocked(d, st) {
-                continue;
-            }
-            // The value the sampler computed with the sample (`LocalBsdf::sample_lanes`).
-            *sum += smp.value(k)
-                * fd.radiance(d, t.truncate())
-                * (il.z * mis::weight_over_density(s.mis, nb_f * p, n_l));
-        }
-    }
-}
-
-/// World directions, faces, texels and cube Jacobians of a chunk of BRDF samples.
-#[derive(Default)]
-struct HitLanes {
-    x: [f32; LANES],
-    y: [f32; LANES],
-    z: [f32; LANES],
-    face: [u32; LANES],
-    texel: [u32; LANES],
-    jac: [f32; LANES],
-}
-
-/// The region ([`crate::sampling::TileGrid::region`]) of cube texel `texel` (index into the map's
-/// data) of faces `n` texels wide cut into `k x k` tiles.
-#[inline(always)]
-fn region_of_texel(texel: u32, n: u32, k: u32) -> u32 {
-    let (face, rest) = (texel / (n * n), texel % (n * n));
-    let (row, col) = (rest / n, rest % n);
-    face * k * k + (row * k / n) * k + col * k / n
-}
-
-/// Hint the CPU to start loading `x`'s cache line (no effect on results; a no-op off x86-64).
-#[inline(always)]
-fn prefetch<T>(x: &T) {
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: prefetching is a hint; it never faults and reads nothing observable. The pointer
-    // comes from a live reference.
-    unsafe {
-        std::arch::x86_64::_mm_prefetch(x as *const T as *const i8, std::arch::x86_64::_MM_HINT_T0)
-    };
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = x;
 }
 
 #[cfg(test)]

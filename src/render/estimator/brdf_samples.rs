@@ -1,0 +1,109 @@
+//! The pixel's N_B BRDF samples, drawn and shaded on lanes: section `brdf_samples` of
+//! `shade_counts` in `shaders/shade.wgsl`.
+
+use super::*;
+
+/// The N_B BRDF samples, in chunks of LANES, structure of arrays: pass 1 draws the local
+/// directions (vectorised for a branch-free sampler), pass 2 turns them into world directions,
+/// texels and cube Jacobians (vectorised), pass 3 prefetches the texels, pass 4 loads them and
+/// shades. The loads are independent, so they overlap instead of stalling one by one. Same
+/// random draws, same arithmetic, same summation order as one scalar loop.
+#[inline(always)]
+pub(super) fn brdf_samples<B: LocalBsdf>(
+    px: &Pixel<B>,
+    rng: &mut Rng,
+    density: &[f32; MAX_REGIONS],
+    sum: &mut Vec3,
+    st: &mut PixelStats,
+) {
+    let (fd, s, mat, ol) = (px.fd, px.s, px.bsdf, px.ol);
+    let nb_f = px.nb as f32;
+    let mut smp = crate::sampling::SampleLanes::default();
+    let mut hit = HitLanes::default();
+    let n_size = fd.map.size as u32;
+    let tiles_k = fd.dist.grid.k as u32;
+    let mut left = px.nb;
+    while left > 0 {
+        let count = left.min(LANES);
+        left -= count;
+        st.brdf += count as u32;
+        mat.sample_lanes(ol, rng, count, &mut smp);
+        for k in 0..LANES {
+            let d = px.frame.to_world(smp.dir(k));
+            let (face, a, b, texel) = crate::envmap::dir_to_texel_lane(d.x, d.y, d.z, n_size);
+            let q = 1.0 + a * a + b * b;
+            (hit.x[k], hit.y[k], hit.z[k]) = (d.x, d.y, d.z);
+            (hit.face[k], hit.texel[k], hit.jac[k]) = (face, texel, q * q.sqrt());
+        }
+        for k in 0..count {
+            prefetch(&fd.texels[hit.texel[k] as usize]);
+        }
+        for k in 0..count {
+            let p = smp.pdf[k];
+            if p <= 0.0 {
+                continue;
+            }
+            // One texel gives both the radiance and the light density of the direction.
+            let t = fd.texels[hit.texel[k] as usize];
+            let n_l = match s.strategy {
+                Strategy::Paper => {
+                    // With one tile per face the region is the face (no divisions).
+                    let r = match tiles_k {
+                        1 => hit.face[k],
+                        _ => region_of_texel(hit.texel[k], n_size, tiles_k),
+                    };
+                    density[r as usize] * t.w * hit.jac[k]
+                }
+                Strategy::Global => {
+                    px.nl as f32
+                        * fd.global
+                            .as_ref()
+                            .map_or(0.0, |g| g.pdf(Vec3::new(hit.x[k], hit.y[k], hit.z[k])))
+                }
+                _ => 0.0,
+            };
+            let il = smp.dir(k);
+            let d = Vec3::new(hit.x[k], hit.y[k], hit.z[k]);
+            if px.blocked(d, st) {
+                continue;
+            }
+            // The value the sampler computed with the sample (`LocalBsdf::sample_lanes`).
+            *sum += smp.value(k)
+                * fd.radiance(d, t.truncate())
+                * (il.z * mis::weight_over_density(s.mis, nb_f * p, n_l));
+        }
+    }
+}
+
+/// World directions, faces, texels and cube Jacobians of a chunk of BRDF samples.
+#[derive(Default)]
+struct HitLanes {
+    x: [f32; LANES],
+    y: [f32; LANES],
+    z: [f32; LANES],
+    face: [u32; LANES],
+    texel: [u32; LANES],
+    jac: [f32; LANES],
+}
+
+/// The region ([`crate::sampling::TileGrid::region`]) of cube texel `texel` (index into the map's
+/// data) of faces `n` texels wide cut into `k x k` tiles.
+#[inline(always)]
+fn region_of_texel(texel: u32, n: u32, k: u32) -> u32 {
+    let (face, rest) = (texel / (n * n), texel % (n * n));
+    let (row, col) = (rest / n, rest % n);
+    face * k * k + (row * k / n) * k + col * k / n
+}
+
+/// Hint the CPU to start loading `x`'s cache line (no effect on results; a no-op off x86-64).
+#[inline(always)]
+fn prefetch<T>(x: &T) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: prefetching is a hint; it never faults and reads nothing observable. The pointer
+    // comes from a live reference.
+    unsafe {
+        std::arch::x86_64::_mm_prefetch(x as *const T as *const i8, std::arch::x86_64::_MM_HINT_T0)
+    };
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = x;
+}
