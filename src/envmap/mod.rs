@@ -164,9 +164,25 @@ pub fn dir_to_texel_lane(x: f32, y: f32, z: f32, n: u32) -> (u32, f32, f32, u32)
     let b = if zero { 0.0 } else { sign_b * src_b * r };
     let face = if zero { 0 } else { face };
     let nf = n as f32;
-    let col = ((0.5 * (a + 1.0) * nf) as i32).clamp(0, n as i32 - 1) as u32;
-    let row = ((0.5 * (b + 1.0) * nf) as i32).clamp(0, n as i32 - 1) as u32;
+    let (col, row) = (
+        texel_coord(0.5 * (a + 1.0) * nf, nf),
+        texel_coord(0.5 * (b + 1.0) * nf, nf),
+    );
     (face, a, b, (face * n + row) * n + col)
+}
+
+/// `(t as i32).clamp(0, n - 1)` for `nf = n as f32`, `1 <= n < 2^24` ([`uv_to_texel`]'s rounding),
+/// with the clamp done in float: then the conversion needs no saturation, which kept LLVM from
+/// vectorising the lane loops (it left them scalar, with branches on the face, measured). Equal
+/// for every `t`: truncation is monotonic and fixes `0` and `n - 1`, and NaN goes to 0 as
+/// `as i32` sends it.
+#[inline(always)]
+fn texel_coord(t: f32, nf: f32) -> u32 {
+    let last = nf - 1.0;
+    let t = if t > 0.0 { t } else { 0.0 };
+    let t = if t < last { t } else { last };
+    // SAFETY: `t` is finite and in `[0, n - 1]`, which i32 holds.
+    unsafe { t.to_int_unchecked::<i32>() as u32 }
 }
 
 /// Face and texture coordinates `(u, v)` in `[0, 1]^2` of a direction.
