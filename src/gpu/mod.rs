@@ -41,6 +41,70 @@ pub fn compute_pipeline(
     })
 }
 
+/// A compute-stage bind group layout entry for a buffer binding of kind `ty`.
+pub fn buffer_entry(binding: u32, ty: wgpu::BufferBindingType) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+/// A compute-stage layout of buffers only: binding `i` is a buffer of kind `kinds[i]`.
+pub fn buffer_layout(
+    device: &wgpu::Device,
+    label: &str,
+    kinds: &[wgpu::BufferBindingType],
+) -> wgpu::BindGroupLayout {
+    let entries: Vec<_> = (0u32..)
+        .zip(kinds)
+        .map(|(b, &ty)| buffer_entry(b, ty))
+        .collect();
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some(label),
+        entries: &entries,
+    })
+}
+
+/// A bind group for `layout` binding each of `buffers` whole, binding `i` to `buffers[i]`.
+pub fn whole_buffers(
+    device: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::BindGroupLayout,
+    buffers: &[&wgpu::Buffer],
+) -> wgpu::BindGroup {
+    let entries: Vec<_> = (0u32..)
+        .zip(buffers)
+        .map(|(binding, b)| wgpu::BindGroupEntry {
+            binding,
+            resource: b.as_entire_binding(),
+        })
+        .collect();
+    device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some(label),
+        layout,
+        entries: &entries,
+    })
+}
+
+/// The pipeline layout of a stage with one bind group, `layout`.
+pub fn one_group_layout(
+    device: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::BindGroupLayout,
+) -> wgpu::PipelineLayout {
+    device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(label),
+        bind_group_layouts: &[Some(layout)],
+        immediate_size: 0,
+    })
+}
+
 /// Two timestamp queries (a pass's start and end) and the 16-byte buffer they resolve into.
 pub fn timestamp_pair(device: &wgpu::Device, label: &str) -> (wgpu::QuerySet, wgpu::Buffer) {
     let set = device.create_query_set(&wgpu::QuerySetDescriptor {

@@ -34,40 +34,21 @@ pub struct ImageResampler {
 
 impl ImageResampler {
     pub fn new(device: &wgpu::Device) -> Self {
-        use wgpu::{BindingType as B, ShaderStages as S};
-        let entry = |binding: u32, ty: B| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: S::COMPUTE,
-            ty,
-            count: None,
-        };
+        use wgpu::BufferBindingType as Kind;
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("envis resample layout"),
             entries: &[
-                entry(0, source_binding()),
-                entry(
-                    1,
-                    B::Buffer {
-                        ty: wgpu::BufferBindingType::Storage { read_only: false },
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                ),
-                entry(
-                    2,
-                    B::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                ),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: source_binding(),
+                    count: None,
+                },
+                super::buffer_entry(1, Kind::Storage { read_only: false }),
+                super::buffer_entry(2, Kind::Uniform),
             ],
         });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("envis resample"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
+        let pipeline_layout = super::one_group_layout(device, "envis resample", &layout);
         let module = shaders::module(device, "envis resample.wgsl", &shaders::resample_source());
         let pipeline = compute_pipeline(device, &pipeline_layout, &module, "resample");
         ImageResampler { layout, pipeline }

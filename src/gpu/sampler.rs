@@ -10,7 +10,10 @@ use crate::sampling::distribution::{
 use crate::sampling::{CubeDistribution, LightPool, PoolSample, TileGrid};
 use glam::Vec3;
 
+mod global;
 mod readback;
+use global::GlobalBuild;
+pub use global::global_len;
 pub use readback::GpuTables;
 
 #[repr(C)]
@@ -32,20 +35,6 @@ pub const REGION_RECORD: usize = 16;
 /// records come first).
 pub fn totals_columns(k: usize) -> usize {
     REGION_RECORD * 6 * k * k
-}
-
-/// Floats in the `global` distribution buffer for N x N faces (`glen` in global_layout.wgsl):
-/// `[marg: h + 1][rows: h (w + 1)][pdf: w h][rowtot: h][misc: 4]`, `w = 4N`, `h = 2N`.
-pub fn global_len(n: usize) -> usize {
-    let (w, h) = (4 * n, 2 * n);
-    (h + 1) + h * (w + 1) + w * h + h + 4
-}
-
-/// The `global` baseline's build: its own bind group (texels, the distribution, N).
-struct GlobalBuild {
-    bind_group: wgpu::BindGroup,
-    pipelines: [wgpu::ComputePipeline; 6],
-    _params: wgpu::Buffer,
 }
 
 /// GPU buffers and pipelines of the per-frame build for faces of `n x n` texels cut into
@@ -106,6 +95,33 @@ pub fn check_binding(limits: &wgpu::Limits, what: &str, bytes: u64) -> Result<()
     Ok(())
 }
 
+/// The byte sizes of the build's large buffers, each checked against the device's binding limit
+/// before anything is allocated.
+struct BufferSizes {
+    /// The texel table, `6 N^2` texels of 16 bytes.
+    texels: u64,
+    cdfs: u64,
+    pool: u64,
+}
+
+impl BufferSizes {
+    fn check(limits: &wgpu::Limits, grid: TileGrid, m: usize) -> Result<Self> {
+        let (n, k) = (grid.size, grid.k);
+        if n == 0 || m == 0 {
+            return Err(Error::invalid(
+                "GPU sampler: face size and pool size must be positive",
+            ));
+        }
+        let texels = (6 * n * n) as u64 * 16;
+        check_binding(limits, "the texel table (6 N^2 x 16 bytes)", texels)?;
+        let cdfs = (6 * n * (n + k) + grid.regions() * (n + 1)) as u64 * 4;
+        check_binding(limits, "the CDF tables", cdfs)?;
+        let pool = (grid.regions() * m) as u64 * 32;
+        check_binding(limits, "the light pool", pool)?;
+        Ok(BufferSizes { texels, cdfs, pool })
+    }
+}
+
 impl EnvSampler {
     /// The seed's sampler: whole faces, `m` pool slots per face.
     pub fn new(ctx: &GpuContext, n: usize, m: usize) -> Result<Self> {
@@ -143,31 +159,17 @@ impl EnvSampler {
         timestamps: bool,
     ) -> Result<Self> {
         let (n, k) = (grid.size, grid.k);
-        if n == 0 || m == 0 {
-            return Err(Error::invalid(
-                "GPU sampler: face size and pool size must be positive",
-            ));
-        }
-        let texel_count = 6 * n * n;
-        let limits = device.limits();
-        check_binding(
-            &limits,
-            "the texel table (6 N^2 x 16 bytes)",
-            texel_count as u64 * 16,
-        )?;
-        let cdf_len = 6 * n * (n + k) + grid.regions() * (n + 1);
-        check_binding(&limits, "the CDF tables", cdf_len as u64 * 4)?;
-        check_binding(&limits, "the light pool", (grid.regions() * m) as u64 * 32)?;
-        let texels = storage(device, "envis texels", texel_count as u64 * 16);
+        let sizes = BufferSizes::check(&device.limits(), grid, m)?;
+        let texels = storage(device, "envis texels", sizes.texels);
         let solid_angle = storage(device, "envis solid angles", (n * n) as u64 * 4);
-        let weights = storage(device, "envis weights", texel_count as u64 * 4);
-        let cdfs = storage(device, "envis cdfs", cdf_len as u64 * 4);
+        let weights = storage(device, "envis weights", sizes.texels / 4);
+        let cdfs = storage(device, "envis cdfs", sizes.cdfs);
         let totals = storage(
             device,
             "envis totals",
             (totals_columns(k) + 6 * k * n) as u64 * 4,
         );
-        let pool = storage(device, "envis pool", (grid.regions() * m) as u64 * 32);
+        let pool = storage(device, "envis pool", sizes.pool);
         let problems = storage(device, "envis sanitise counters", 16);
         let params = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("envis build params"),
@@ -180,32 +182,8 @@ impl EnvSampler {
             0,
             bytemuck::cast_slice(face_solid_angles(n).as_slice()),
         );
-
-        let st = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Storage { read_only },
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
-        let mut entries: Vec<wgpu::BindGroupLayoutEntry> = (0..7).map(|b| st(b, b == 1)).collect();
-        entries.push(wgpu::BindGroupLayoutEntry {
-            binding: 7,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Uniform,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        });
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("envis build layout"),
-            entries: &entries,
-        });
+        // Bindings 0..=6 as in `shaders/distribution.wgsl`: all storage (the solid angles read
+        // only), then the parameters.
         let bufs = [
             &texels,
             &solid_angle,
@@ -216,23 +194,13 @@ impl EnvSampler {
             &problems,
             &params,
         ];
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("envis build bind group"),
-            layout: &layout,
-            entries: &bufs
-                .iter()
-                .enumerate()
-                .map(|(i, b)| wgpu::BindGroupEntry {
-                    binding: i as u32,
-                    resource: b.as_entire_binding(),
-                })
-                .collect::<Vec<_>>(),
-        });
-        let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("envis build"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
+        let mut kinds: Vec<_> = (0..7)
+            .map(|b| wgpu::BufferBindingType::Storage { read_only: b == 1 })
+            .collect();
+        kinds.push(wgpu::BufferBindingType::Uniform);
+        let layout = super::buffer_layout(device, "envis build layout", &kinds);
+        let bind_group = super::whole_buffers(device, "envis build bind group", &layout, &bufs);
+        let pl = super::one_group_layout(device, "envis build", &layout);
         let module = shaders::module(
             device,
             "envis distribution.wgsl",
@@ -269,101 +237,6 @@ impl EnvSampler {
             pool_timer,
             global: None,
         })
-    }
-
-    /// Also build the `global` baseline's lat-long distribution (4N x 2N cells) every frame.
-    pub fn enable_global(&mut self, device: &wgpu::Device, queue: &wgpu::Queue) -> Result<()> {
-        if self.global.is_some() {
-            return Ok(());
-        }
-        let bytes = global_len(self.n) as u64 * 4;
-        check_binding(
-            &device.limits(),
-            "the global distribution (4N x 2N cells)",
-            bytes,
-        )?;
-        self.gdist = storage(device, "envis global distribution", bytes);
-        let params = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("envis global params"),
-            size: 16,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        queue.write_buffer(&params, 0, bytemuck::cast_slice(&[self.n as u32, 0, 0, 0]));
-        let e = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("envis global layout"),
-            entries: &[
-                e(0, wgpu::BufferBindingType::Storage { read_only: true }),
-                e(1, wgpu::BufferBindingType::Storage { read_only: false }),
-                e(2, wgpu::BufferBindingType::Uniform),
-            ],
-        });
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("envis global"),
-            layout: &layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: self.texels.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: self.gdist.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: params.as_entire_binding(),
-                },
-            ],
-        });
-        let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("envis global"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let module = shaders::module(device, "envis global.wgsl", &shaders::global_source());
-        let pipe = |entry: &str| super::compute_pipeline(device, &pl, &module, entry);
-        let pipelines = [
-            pipe("global_cells"),
-            pipe("global_row_sums"),
-            pipe("global_floor"),
-            pipe("global_row_cdfs"),
-            pipe("global_marginal"),
-            pipe("global_pdf_table"),
-        ];
-        self.global = Some(GlobalBuild {
-            bind_group,
-            pipelines,
-            _params: params,
-        });
-        Ok(())
-    }
-
-    pub fn has_global(&self) -> bool {
-        self.global.is_some()
-    }
-
-    /// The `global` distribution buffer, read back (tests).
-    pub fn read_global(&self, ctx: &GpuContext) -> Result<Vec<f32>> {
-        ctx.read(
-            &self.gdist,
-            0,
-            if self.global.is_some() {
-                global_len(self.n)
-            } else {
-                4
-            },
-        )
     }
 
     /// The regions' records (corners and energies) at the start of `totals`: what the shading

@@ -173,40 +173,13 @@ impl Shader {
     }
 
     pub fn with_device(device: &wgpu::Device, timestamps: bool) -> Self {
-        let e = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
         let ro = wgpu::BufferBindingType::Storage { read_only: true };
         let rw = wgpu::BufferBindingType::Storage { read_only: false };
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("envis shade layout"),
-            entries: &[
-                e(0, ro),
-                e(1, ro),
-                e(2, ro),
-                e(3, ro),
-                e(4, rw),
-                e(5, rw),
-                e(6, wgpu::BufferBindingType::Uniform),
-                e(7, ro),
-                e(8, ro),
-                e(9, ro),
-                e(10, ro),
-                e(11, rw),
-            ],
-        });
-        let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("envis shade"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
+        let uniform = wgpu::BufferBindingType::Uniform;
+        // Bindings 0..=11 as in `shaders/shade.wgsl`.
+        let kinds = [ro, ro, ro, ro, rw, rw, uniform, ro, ro, ro, ro, rw];
+        let layout = super::buffer_layout(device, "envis shade layout", &kinds);
+        let pl = super::one_group_layout(device, "envis shade", &layout);
         let module = shaders::module(device, "envis shade.wgsl", &shaders::shade_source());
         let pipeline = super::compute_pipeline(device, &pl, &module, "shade_gbuffer");
         let params = device.create_buffer(&wgpu::BufferDescriptor {

@@ -73,33 +73,17 @@ impl GpuBvh {
     pub fn new(ctx: &GpuContext, bvh: &FlatBvh) -> Self {
         let device = &ctx.device;
         let (nodes, triangles) = upload_bvh(device, bvh);
-        use wgpu::{BindingType as B, BufferBindingType as BB};
-        let entry = |binding: u32, ty: BB| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: B::Buffer {
-                ty,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
+        use wgpu::BufferBindingType as BB;
         let read = BB::Storage { read_only: true };
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("envis trace rays"),
-            entries: &[
-                entry(0, read),
-                entry(1, read),
-                entry(2, read),
-                entry(3, BB::Storage { read_only: false }),
-                entry(4, BB::Uniform),
-            ],
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("envis trace rays"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
+        let kinds = [
+            read,
+            read,
+            read,
+            BB::Storage { read_only: false },
+            BB::Uniform,
+        ];
+        let layout = super::buffer_layout(device, "envis trace rays", &kinds);
+        let pipeline_layout = super::one_group_layout(device, "envis trace rays", &layout);
         let module = shaders::module(
             device,
             "envis trace_rays.wgsl",
@@ -135,21 +119,8 @@ impl GpuBvh {
             contents: bytemuck::cast_slice(&[self.node_count, rays.len() as u32, 0, 0]),
             usage: wgpu::BufferUsages::UNIFORM,
         });
-        let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("envis trace rays"),
-            layout: &self.layout,
-            entries: &[
-                (0, &self.nodes),
-                (1, &self.triangles),
-                (2, &rays_buf),
-                (3, &out),
-                (4, &counts),
-            ]
-            .map(|(binding, b)| wgpu::BindGroupEntry {
-                binding,
-                resource: b.as_entire_binding(),
-            }),
-        });
+        let bufs = [&self.nodes, &self.triangles, &rays_buf, &out, &counts];
+        let bind = super::whole_buffers(device, "envis trace rays", &self.layout, &bufs);
         let mut enc = device.create_command_encoder(&Default::default());
         {
             let mut pass = enc.begin_compute_pass(&Default::default());
