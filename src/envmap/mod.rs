@@ -518,6 +518,36 @@ mod tests {
         }
     }
 
+    /// The float clamp of `texel_coord` against the saturating integer clamp it replaces, on
+    /// the values where they could part: NaN, infinities, both ends of the range and just past them.
+    #[test]
+    fn texel_coord_matches_the_saturating_clamp() {
+        for n in [1u32, 2, 7, 64, 1024] {
+            let nf = n as f32;
+            let special = [
+                f32::NAN,
+                f32::INFINITY,
+                f32::NEG_INFINITY,
+                -0.0,
+                0.0,
+                -0.5,
+                -1e30,
+                1e30,
+                f32::MIN_POSITIVE,
+                0.999_999_94,
+                nf - 1.0,
+                nf - 1e-3,
+                nf,
+                nf + 0.5,
+            ];
+            let steps = (0..=4000).map(|i| -2.0 + (nf + 4.0) * i as f32 / 4000.0);
+            for t in special.into_iter().chain(steps) {
+                let want = (t as i32).clamp(0, n as i32 - 1) as u32;
+                assert_eq!(texel_coord(t, nf), want, "t {t} n {n}");
+            }
+        }
+    }
+
     #[test]
     fn face_round_trip() {
         for f in 0..6 {
