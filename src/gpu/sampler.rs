@@ -162,6 +162,7 @@ impl EnvSampler {
         let sizes = BufferSizes::check(&device.limits(), grid, m)?;
         let texels = storage(device, "envis texels", sizes.texels);
         let solid_angle = storage(device, "envis solid angles", (n * n) as u64 * 4);
+        // One f32 per texel: a quarter of the texel table, so within the limit it passed.
         let weights = storage(device, "envis weights", sizes.texels / 4);
         let cdfs = storage(device, "envis cdfs", sizes.cdfs);
         let totals = storage(
@@ -182,7 +183,7 @@ impl EnvSampler {
             0,
             bytemuck::cast_slice(face_solid_angles(n).as_slice()),
         );
-        // Bindings 0..=6 as in `shaders/distribution.wgsl`: all storage (the solid angles read
+        // Bindings 0..=7 as in `shaders/distribution.wgsl`: storage (the solid angles read
         // only), then the parameters.
         let bufs = [
             &texels,
@@ -194,10 +195,9 @@ impl EnvSampler {
             &problems,
             &params,
         ];
-        let mut kinds: Vec<_> = (0..7)
-            .map(|b| wgpu::BufferBindingType::Storage { read_only: b == 1 })
-            .collect();
-        kinds.push(wgpu::BufferBindingType::Uniform);
+        let ro = wgpu::BufferBindingType::Storage { read_only: true };
+        let rw = wgpu::BufferBindingType::Storage { read_only: false };
+        let kinds = [rw, ro, rw, rw, rw, rw, rw, wgpu::BufferBindingType::Uniform];
         let layout = super::buffer_layout(device, "envis build layout", &kinds);
         let bind_group = super::whole_buffers(device, "envis build bind group", &layout, &bufs);
         let pl = super::one_group_layout(device, "envis build", &layout);
