@@ -20,6 +20,7 @@ pub mod prelude;
 pub mod render;
 pub mod sampling;
 pub mod scene;
+pub mod sequence;
 pub mod stats;
 pub mod stream;
 pub mod visibility;

@@ -165,6 +165,9 @@ mod distributions;
 #[path = "core/samplers.rs"]
 mod samplers;
 
+#[path = "core/resampling.rs"]
+mod resampling;
+
 #[path = "core/unbiased.rs"]
 mod unbiased;
 

@@ -4,6 +4,7 @@
 pub mod commands;
 pub mod demo;
 pub mod scene;
+pub mod sequence;
 
 /// A panic (a bug, or a library that panics on a condition it does not report) prints one line
 /// and exits with code 101, like every other error; `RUST_BACKTRACE` set keeps Rust's own report.

@@ -98,7 +98,7 @@ pub fn setup(a: &SceneArgs) -> Result<Setup> {
                 a.scene
             )));
         }
-        let sc = envis::scene::Scene::load(std::path::Path::new(&a.scene))?;
+        let sc = envis::scene::Scene::load(std::path::Path::new(&a.scene))?.at_time(a.time)?;
         let src: EnvSource = sc.environment.parse()?;
         let env = load_env(&src, sc.file.environment.face_size)?;
         if env.report.total() > 0 {
@@ -112,6 +112,11 @@ pub fn setup(a: &SceneArgs) -> Result<Setup> {
             material: sc.objects[0].material,
             scene: Some(sc),
         });
+    }
+    if a.time != 0.0 {
+        return Err(Error::invalid(
+            "--time needs a scene file (--scene FILE.toml with an [animation] table)",
+        ));
     }
     let mat = material(a)?;
     let src: EnvSource = a.env.parse()?;

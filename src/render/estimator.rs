@@ -21,6 +21,22 @@ pub(crate) use pool_window::{PoolWindow, pool_window};
 /// Radiance of the environment at full resolution, by direction (see [`FrameData::fine`]).
 pub type FineRadiance<'a> = &'a (dyn Fn(Vec3) -> Vec3 + Sync);
 
+/// Where a pixel's samples go: summed into its estimate ([`Vec3`]), or streamed into a
+/// reservoir as resampling candidates ([`super::resampling`]). Each sample reports its direction,
+/// `fl` (BRDF x radiance), its cosine and `scale`, so that its contribution is `fl * scale`
+/// (`scale` = weight x cosine x MIS weight over density): the Vec3 sink adds exactly that, in the
+/// same order of operations as before there were sinks (renders bit-identical).
+pub trait Sink {
+    fn add(&mut self, dir: Vec3, fl: Vec3, cos: f32, scale: f32);
+}
+
+impl Sink for Vec3 {
+    #[inline(always)]
+    fn add(&mut self, _dir: Vec3, fl: Vec3, _cos: f32, scale: f32) {
+        *self += fl * scale;
+    }
+}
+
 /// Everything built once per environment frame.
 pub struct FrameData<'a> {
     pub map: &'a CubeMap,
@@ -140,17 +156,35 @@ pub(crate) fn shade_pixel_on(
     at: Option<Vec3>,
     pixel_index: u32,
 ) -> (Vec3, PixelStats) {
+    let mut sum = Vec3::ZERO;
+    let st = shade_pixel_into(isa, fd, s, px, at, pixel_index, &mut sum);
+    (sum, st)
+}
+
+/// [`shade_pixel_on`] with the samples sent to `sink` instead of summed (the resampling
+/// candidates: [`super::resampling`]).
+pub(crate) fn shade_pixel_into<S: Sink>(
+    isa: crate::cpu::Isa,
+    fd: &FrameData,
+    s: &Settings,
+    px: &GPixel,
+    at: Option<Vec3>,
+    pixel_index: u32,
+    sink: &mut S,
+) -> PixelStats {
     use crate::cpu::Isa;
     #[cfg(target_arch = "x86_64")]
     match isa.min(crate::cpu::detected()) {
         // SAFETY (both): the CPU supports the copy's features (`detected`).
-        Isa::Avx512 => return unsafe { simd::shade_pixel_avx512(fd, s, px, at, pixel_index) },
-        Isa::Avx2 => return unsafe { simd::shade_pixel_avx2(fd, s, px, at, pixel_index) },
+        Isa::Avx512 => {
+            return unsafe { simd::shade_pixel_avx512(fd, s, px, at, pixel_index, sink) };
+        }
+        Isa::Avx2 => return unsafe { simd::shade_pixel_avx2(fd, s, px, at, pixel_index, sink) },
         Isa::Portable => {}
     }
     #[cfg(not(target_arch = "x86_64"))]
     let _ = isa;
-    shade_pixel_portable(fd, s, px, at, pixel_index)
+    shade_pixel_portable(fd, s, px, at, pixel_index, sink)
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -161,14 +195,15 @@ mod simd {
     macro_rules! compiled_for {
         ($name:ident, $features:literal) => {
             #[target_feature(enable = $features)]
-            pub fn $name(
+            pub fn $name<S: Sink>(
                 fd: &FrameData,
                 s: &Settings,
                 px: &GPixel,
                 at: Option<Vec3>,
                 pixel_index: u32,
-            ) -> (Vec3, PixelStats) {
-                shade_pixel_portable(fd, s, px, at, pixel_index)
+                sink: &mut S,
+            ) -> PixelStats {
+                shade_pixel_portable(fd, s, px, at, pixel_index, sink)
             }
         };
     }
@@ -188,9 +223,10 @@ fn shade_pixel_portable(
     px: &GPixel,
     at: Option<Vec3>,
     pixel_index: u32,
-) -> (Vec3, PixelStats) {
+    sink: &mut impl Sink,
+) -> PixelStats {
     let Some((n, o)) = shading_directions(px) else {
-        return (Vec3::ZERO, PixelStats::default());
+        return PixelStats::default();
     };
     let material = &px.material;
     // Shadow rays only where there is an occluder and a point to cast them from; what the
@@ -204,13 +240,13 @@ fn shade_pixel_portable(
     // sampler is branch-free); the results are bit-identical to the general `Material` path.
     let dirs = (n, o, shadow);
     if let Some(lambert) = material.as_lambert() {
-        shade_with(fd, s, material, &lambert, dirs, pixel_index)
+        shade_with(fd, s, material, &lambert, dirs, pixel_index, sink)
     } else if let Some(ggx) = material.as_ggx() {
-        shade_with(fd, s, material, &ggx, dirs, pixel_index)
+        shade_with(fd, s, material, &ggx, dirs, pixel_index, sink)
     } else if let Some(phong) = material.as_phong() {
-        shade_with(fd, s, material, &phong, dirs, pixel_index)
+        shade_with(fd, s, material, &phong, dirs, pixel_index, sink)
     } else {
-        shade_with(fd, s, material, material, dirs, pixel_index)
+        shade_with(fd, s, material, material, dirs, pixel_index, sink)
     }
 }
 
@@ -246,7 +282,7 @@ impl<B: LocalBsdf> Pixel<'_, B> {
         radiance: impl FnOnce() -> Vec3,
         weight: f32,
         n_l: f32,
-        sum: &mut Vec3,
+        sum: &mut impl Sink,
         st: &mut PixelStats,
     ) {
         let cos = self.n.dot(dir);
@@ -266,7 +302,8 @@ impl<B: LocalBsdf> Pixel<'_, B> {
         } else {
             (self.bsdf.eval_local(self.ol, il), 0.0)
         };
-        *sum += f * radiance() * (weight * cos * mis::weight_over_density(self.s.mis, n_l, n_b));
+        let scale = weight * cos * mis::weight_over_density(self.s.mis, n_l, n_b);
+        sum.add(dir, f * radiance(), cos, scale);
     }
 }
 
@@ -294,7 +331,8 @@ fn shade_with<B: LocalBsdf>(
     bsdf: &B,
     (n, o, shadow): (Vec3, Vec3, Shadow),
     pixel_index: u32,
-) -> (Vec3, PixelStats) {
+    sum: &mut impl Sink,
+) -> PixelStats {
     let frame = Frame::new(n);
     let (nl, nb) = s.budget(material);
     let px = Pixel {
@@ -310,18 +348,17 @@ fn shade_with<B: LocalBsdf>(
     };
     let mut st = PixelStats::default();
     let mut rng = Rng::new(s.seed, pixel_index);
-    let mut sum = Vec3::ZERO;
     // Light-sample density on each region (N_t, clamped to the pool): `n_L(w) = density[t] p_t(w)`.
     let mut density = [0.0f32; MAX_REGIONS];
     match s.strategy {
         Strategy::Paper | Strategy::Light => {
-            light_pool_samples(&px, &mut rng, &mut density, &mut sum, &mut st);
+            light_pool_samples(&px, &mut rng, &mut density, sum, &mut st);
         }
-        Strategy::Global => global_samples(&px, &mut rng, &mut sum, &mut st),
+        Strategy::Global => global_samples(&px, &mut rng, sum, &mut st),
         Strategy::Brdf => {}
     }
-    brdf_samples(&px, &mut rng, &density, &mut sum, &mut st);
-    (sum, st)
+    brdf_samples(&px, &mut rng, &density, sum, &mut st);
+    st
 }
 
 /// The seed's light samples: each region (face, or tile) weighted by `mu_t`, `N_t = mu_t N_L`,
@@ -333,7 +370,7 @@ fn light_pool_samples<B: LocalBsdf>(
     px: &Pixel<B>,
     rng: &mut Rng,
     density: &mut [f32; MAX_REGIONS],
-    sum: &mut Vec3,
+    sum: &mut impl Sink,
     st: &mut PixelStats,
 ) {
     let (fd, s) = (px.fd, px.s);
@@ -374,7 +411,7 @@ fn face_tile_samples<B: LocalBsdf>(
     f: usize,
     total: f32,
     tiles: &mut [f32],
-    sum: &mut Vec3,
+    sum: &mut impl Sink,
     st: &mut PixelStats,
 ) {
     let k2 = tiles.len();
@@ -408,7 +445,7 @@ fn pool_sample<B: LocalBsdf>(
     slot: usize,
     weight: f32,
     density: f32,
-    sum: &mut Vec3,
+    sum: &mut impl Sink,
     st: &mut PixelStats,
 ) {
     let ls = px.fd.pool.get(r, slot);
@@ -431,7 +468,12 @@ pub(crate) fn shading_directions(px: &GPixel) -> Option<(Vec3, Vec3)> {
 
 /// The pbrt-style baseline's light samples: N_L draws from one lat-long distribution.
 #[inline(always)]
-fn global_samples<B: LocalBsdf>(px: &Pixel<B>, rng: &mut Rng, sum: &mut Vec3, st: &mut PixelStats) {
+fn global_samples<B: LocalBsdf>(
+    px: &Pixel<B>,
+    rng: &mut Rng,
+    sum: &mut impl Sink,
+    st: &mut PixelStats,
+) {
     let (fd, nl) = (px.fd, px.nl);
     let Some(g) = fd.global.as_ref() else {
         return; // FrameData::prepare builds it for Strategy::Global

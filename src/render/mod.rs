@@ -12,6 +12,7 @@ pub mod debug;
 pub mod estimator;
 pub mod output;
 pub mod reference;
+pub mod resampling;
 pub mod scene;
 pub mod settings;
 pub mod stats;

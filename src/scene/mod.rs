@@ -27,6 +27,8 @@
 //! Errors name the file, the line and the field. The CPU G-buffer of a scene is ray cast:
 //! spheres and planes analytically, tori and glTF meshes as triangles.
 
+mod animation;
+mod camera;
 mod glb;
 pub mod shadows;
 mod shapes;
@@ -34,6 +36,8 @@ mod shapes;
 use crate::error::{Error, Result};
 use crate::render::{GPixel, Settings, Strategy};
 use crate::sampling::{Counts, Heuristic, Lobe, Material};
+pub use animation::AnimationSpec;
+pub use camera::Camera;
 use glam::{Affine3A, EulerRot, Mat3, Quat, Vec3};
 pub use glb::{load_glb, parse_glb};
 use serde::Deserialize;
@@ -52,6 +56,9 @@ pub struct SceneFile {
     pub sampling: SamplingSpec,
     #[serde(rename = "object", default)]
     pub objects: Vec<ObjectSpec>,
+    /// The sequence clock, camera orbit (`envis sequence`, `--time`).
+    #[serde(default)]
+    pub animation: AnimationSpec,
 }
 
 #[derive(Clone, Debug, Deserialize)]
@@ -145,6 +152,9 @@ pub struct ObjectSpec {
     /// Whether the object blocks shadow rays (default true).
     #[serde(default = "yes")]
     pub cast_shadows: bool,
+    /// Units per second (`[animation]`: the object translates on the sequence clock).
+    #[serde(default)]
+    pub velocity: [f32; 3],
 }
 
 fn one() -> f32 {
@@ -245,6 +255,13 @@ impl Scene {
                 .unwrap_or_default();
             err(path, format!("{line}{}", e.message().trim()))
         })?;
+        Scene::from_file(path, file)
+    }
+
+    /// The scene a parsed file describes (`path`: where relative paths start, and what errors
+    /// name).
+    pub fn from_file(path: &Path, file: SceneFile) -> Result<Scene> {
+        check_animation(path, &file)?;
         let base = path.parent().unwrap_or(Path::new("."));
         let resolve = |p: &str| -> PathBuf {
             let p = PathBuf::from(p);
@@ -302,34 +319,50 @@ impl Scene {
     /// [`Self::gbuffer`] and each pixel's surface point (the origin of its shadow rays; the
     /// camera's position where there is no geometry).
     pub fn gbuffer_points(&self, width: usize, height: usize) -> (Vec<Option<GPixel>>, Vec<Vec3>) {
+        let sc = self.screen(width, height);
+        (sc.gbuf, sc.points)
+    }
+
+    /// The camera of a `width x height` image.
+    pub fn camera(&self, width: usize, height: usize) -> Camera {
+        Camera::new(&self.file.camera, width, height)
+    }
+
+    /// What the camera sees: per pixel the G-buffer, the surface point, and its distance and
+    /// object (what resampling's geometric tests read).
+    pub fn screen(&self, width: usize, height: usize) -> SceneScreen {
         use rayon::prelude::*;
-        let c = &self.file.camera;
-        let eye = Vec3::from(c.position);
-        let fwd = (Vec3::from(c.target) - eye).normalize_or(Vec3::NEG_Z);
-        let right = fwd.cross(Vec3::Y).normalize_or(Vec3::X);
-        let up = right.cross(fwd);
-        let t = (0.5 * c.fov.clamp(1.0, 170.0).to_radians()).tan();
-        let aspect = width as f32 / height as f32;
-        (0..width * height)
+        let cam = self.camera(width, height);
+        let eye = cam.eye;
+        let px: Vec<_> = (0..width * height)
             .into_par_iter()
             .map(|i| {
-                let (x, y) = ((i % width) as f32 + 0.5, (i / width) as f32 + 0.5);
-                let ndc_x = (2.0 * x / width as f32 - 1.0) * t * aspect;
-                let ndc_y = (1.0 - 2.0 * y / height as f32) * t;
-                let d = (fwd + right * ndc_x + up * ndc_y).normalize();
-                match self.trace_hit(eye, d) {
-                    Some((t, n, m)) => {
+                let d = cam.ray(i);
+                match self.trace_object(eye, d) {
+                    Some((id, t, n, m)) => {
                         let px = GPixel {
                             n,
                             o: -d,
                             material: m,
                         };
-                        (Some(px), eye + d * t)
+                        let surface = crate::render::resampling::Surface { depth: t, id };
+                        (Some(px), eye + d * t, surface)
                     }
-                    None => (None, eye),
+                    None => (None, eye, Default::default()),
                 }
             })
-            .unzip()
+            .collect();
+        let mut out = SceneScreen {
+            gbuf: Vec::with_capacity(px.len()),
+            points: Vec::with_capacity(px.len()),
+            surfaces: Vec::with_capacity(px.len()),
+        };
+        for (g, p, s) in px {
+            out.gbuf.push(g);
+            out.points.push(p);
+            out.surfaces.push(s);
+        }
+        out
     }
 
     /// Closest hit along the ray: shading normal (facing the ray) and material.
@@ -339,16 +372,53 @@ impl Scene {
 
     /// [`Self::trace`] with the hit distance.
     pub fn trace_hit(&self, o: Vec3, d: Vec3) -> Option<(f32, Vec3, Material)> {
+        self.trace_object(o, d).map(|(_, t, n, m)| (t, n, m))
+    }
+
+    /// [`Self::trace_hit`] with the index of the object hit.
+    pub fn trace_object(&self, o: Vec3, d: Vec3) -> Option<(u32, f32, Vec3, Material)> {
         let (i, (t, n)) = self.tlas.closest(o, d, f32::INFINITY, |i, t_max| {
             let hit = self.objects[i].shape.intersect(o, d, t_max)?;
             Some((hit.0, hit))
         })?;
         Some((
+            i as u32,
             t,
             if n.dot(d) > 0.0 { -n } else { n },
             self.objects[i].material,
         ))
     }
+}
+
+/// A scene seen by its camera ([`Scene::screen`]), row-major.
+pub struct SceneScreen {
+    pub gbuf: Vec<Option<GPixel>>,
+    /// Surface points (the eye where there is no geometry).
+    pub points: Vec<Vec3>,
+    pub surfaces: Vec<crate::render::resampling::Surface>,
+}
+
+/// The animation's numbers are finite, the clock runs forward.
+fn check_animation(path: &Path, f: &SceneFile) -> Result<()> {
+    let a = &f.animation;
+    if !(a.fps.is_finite() && a.fps > 0.0) {
+        return Err(err(path, format!("[animation]: fps {} must be > 0", a.fps)));
+    }
+    if !a.orbit.is_finite() || !f.environment.speed.is_finite() {
+        return Err(err(path, "[animation]: orbit and speed must be finite"));
+    }
+    if let Some((i, _)) = f
+        .objects
+        .iter()
+        .enumerate()
+        .find(|(_, o)| !o.velocity.iter().all(|v| v.is_finite()))
+    {
+        return Err(err(
+            path,
+            format!("object {}, field `velocity`: must be finite", i + 1),
+        ));
+    }
+    Ok(())
 }
 
 /// The meshes a scene file has loaded, one per asset (a glTF file, a torus's radii), however

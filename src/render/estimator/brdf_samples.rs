@@ -13,7 +13,7 @@ pub(super) fn brdf_samples<B: LocalBsdf>(
     px: &Pixel<B>,
     rng: &mut Rng,
     density: &[f32; MAX_REGIONS],
-    sum: &mut Vec3,
+    sum: &mut impl Sink,
     st: &mut PixelStats,
 ) {
     let (fd, s, mat, ol) = (px.fd, px.s, px.bsdf, px.ol);
@@ -68,9 +68,8 @@ pub(super) fn brdf_samples<B: LocalBsdf>(
                 continue;
             }
             // The value the sampler computed with the sample (`LocalBsdf::sample_lanes`).
-            *sum += smp.value(k)
-                * fd.radiance(d, t.truncate())
-                * (il.z * mis::weight_over_density(s.mis, nb_f * p, n_l));
+            let scale = il.z * mis::weight_over_density(s.mis, nb_f * p, n_l);
+            sum.add(d, smp.value(k) * fd.radiance(d, t.truncate()), il.z, scale);
         }
     }
 }

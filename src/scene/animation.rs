@@ -1,0 +1,90 @@
+//! A scene file's `[animation]`: the sequence clock, the camera's orbit, objects' velocities and
+//! the sky's clock, and the scene posed at a time `t` (what `envis sequence` renders frame by
+//! frame and `--time` renders once).
+
+use super::{Scene, SceneFile};
+use crate::envmap::load::EnvSource;
+use crate::error::Result;
+use glam::{Quat, Vec3};
+use serde::Deserialize;
+
+/// `[animation]` (every field optional).
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AnimationSpec {
+    /// Frames per second of the sequence clock (frame `k` is at `k / fps` seconds).
+    #[serde(default = "default_fps")]
+    pub fps: f32,
+    /// The camera's orbit about `camera.target`, around +Y, in degrees per second.
+    #[serde(default)]
+    pub orbit: f32,
+}
+
+impl Default for AnimationSpec {
+    fn default() -> Self {
+        AnimationSpec {
+            fps: default_fps(),
+            orbit: 0.0,
+        }
+    }
+}
+
+fn default_fps() -> f32 {
+    30.0
+}
+
+impl SceneFile {
+    /// The file's scene at time `t` seconds: the camera orbited, each object moved by its
+    /// velocity, a built-in sky's clock advanced by `environment.speed` (hours per second; a
+    /// map from a file does not move). `t = 0` is the file as written.
+    pub fn posed(&self, t: f32) -> SceneFile {
+        let mut f = self.clone();
+        if t == 0.0 {
+            return f;
+        }
+        let angle = (self.animation.orbit * t).to_radians();
+        if angle != 0.0 {
+            let target = Vec3::from(f.camera.target);
+            let p = Quat::from_rotation_y(angle) * (Vec3::from(f.camera.position) - target);
+            f.camera.position = (target + p).to_array();
+        }
+        for o in &mut f.objects {
+            o.position = (Vec3::from(o.position) + Vec3::from(o.velocity) * t).to_array();
+        }
+        let speed = self.environment.speed;
+        if let (true, Ok(EnvSource::Sky { hours })) = (speed != 0.0, f.environment.source.parse()) {
+            let h: f32 = hours + speed * t;
+            f.environment.source = format!("builtin:sky:{}", h.rem_euclid(24.0));
+        }
+        f
+    }
+}
+
+impl Scene {
+    /// This scene at time `t` seconds ([`SceneFile::posed`]).
+    pub fn at_time(&self, t: f32) -> Result<Scene> {
+        if !t.is_finite() {
+            return Err(crate::error::Error::invalid(format!(
+                "time {t} must be finite"
+            )));
+        }
+        if t == 0.0 {
+            return Ok(self.clone());
+        }
+        Scene::from_file(&self.path, self.file.posed(t))
+    }
+
+    /// The time of frame `k` on the sequence clock.
+    pub fn frame_time(&self, k: u32) -> f32 {
+        k as f32 / self.file.animation.fps
+    }
+
+    /// Where object `id`'s points were `dt` seconds earlier than now (objects translate).
+    pub fn earlier(&self, id: u32, p: Vec3, dt: f32) -> Vec3 {
+        let v = self
+            .objects
+            .get(id as usize)
+            .map_or(Vec3::ZERO, |o| Vec3::from(o.spec.velocity));
+        p - v * dt
+    }
+}

@@ -1,0 +1,190 @@
+//! An animated scene rendered frame by frame (`envis sequence`): each frame posed on the
+//! sequence clock (`[animation]`), its map loaded for that time, shaded either by today's
+//! estimator alone or with reservoir resampling across pixels and frames
+//! ([`crate::render::resampling`]), which needs each pixel's place in the previous frame: the
+//! point, moved back by its object's velocity, seen by the previous frame's camera.
+
+use crate::envmap::load::{EnvSource, load_env};
+use crate::envmap::{CubeMap, Image};
+use crate::error::Result;
+use crate::render::resampling::{
+    self, History, Mutation, Resampling, Reservoir, ReuseStats, Screen,
+};
+use crate::render::{self, Extras, Settings};
+use crate::scene::{Camera, Scene, SceneScreen};
+use crate::visibility::{Occluder, Visibility};
+
+/// What a sequence renders.
+#[derive(Clone, Copy, Debug)]
+pub struct SequenceOptions {
+    /// Image width and height.
+    pub size: usize,
+    pub frames: u32,
+    /// The candidates per pixel per frame with resampling; the whole budget without.
+    pub settings: Settings,
+    /// `None`: no resampling (today's estimator, every sample shadow-tested, the same seed in
+    /// every frame).
+    pub resampling: Option<Resampling>,
+    /// Shadow rays (`None`: the scene file's choice).
+    pub visibility: Option<Visibility>,
+}
+
+/// One rendered frame.
+pub struct SequenceFrame {
+    pub image: Image,
+    pub stats: FrameStats,
+}
+
+/// A frame's statistics (the `frames` list of `envis sequence --stats`).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct FrameStats {
+    pub frame: u32,
+    /// Seconds on the sequence clock.
+    pub time: f32,
+    /// Distribution and pool build, milliseconds.
+    pub build_ms: f64,
+    /// Candidates (or samples), reuse and shading, milliseconds.
+    pub shade_ms: f64,
+    /// Shadow rays cast this frame, over all pixels.
+    pub shadow_rays: u64,
+    /// Per shaded pixel.
+    pub shadow_rays_per_pixel: f64,
+    /// Light samples used and BRDF samples drawn, over all pixels.
+    pub samples_evaluated: u64,
+    pub shaded_pixels: u64,
+    /// What reuse did (zeros without resampling).
+    pub reuse: ReuseStats,
+}
+
+/// A frame posed and seen: what the next frame's reuse needs of it.
+pub struct Posed {
+    pub scene: Scene,
+    pub map: CubeMap,
+    pub screen: SceneScreen,
+    pub camera: Camera,
+    pub time: f32,
+}
+
+impl Posed {
+    /// `scene` at time `t`, its map (faces of the scene file's size), its screen.
+    pub fn new(scene: &Scene, t: f32, size: usize) -> Result<Posed> {
+        let scene = scene.at_time(t)?;
+        let src: EnvSource = scene.environment.parse()?;
+        let map = load_env(&src, scene.file.environment.face_size)?.cube;
+        Ok(Posed {
+            screen: scene.screen(size, size),
+            camera: scene.camera(size, size),
+            map,
+            scene,
+            time: t,
+        })
+    }
+
+    fn screen<'a>(&'a self, occluder: Option<&'a dyn Occluder>) -> Screen<'a> {
+        Screen {
+            map: &self.map,
+            gbuf: &self.screen.gbuf,
+            points: &self.screen.points,
+            surfaces: &self.screen.surfaces,
+            width: self.camera.width,
+            height: self.camera.height,
+            occluder,
+        }
+    }
+
+    /// Where pixel `i` was in `prev`: its point moved back by its object's velocity, projected
+    /// by `prev`'s camera (by this frame's with [`Mutation::WrongReprojection`]).
+    pub fn reproject(
+        &self,
+        prev: &Posed,
+        i: usize,
+        mutation: Option<Mutation>,
+    ) -> Option<(usize, f32)> {
+        self.screen.gbuf[i].as_ref()?;
+        let s = self.screen.surfaces[i];
+        let p = self
+            .scene
+            .earlier(s.id, self.screen.points[i], self.time - prev.time);
+        match mutation {
+            Some(Mutation::WrongReprojection) => self.camera.project(p),
+            _ => prev.camera.project(p),
+        }
+    }
+}
+
+/// Render `o.frames` frames of `scene`, handing each to `each` in order.
+pub fn run(
+    scene: &Scene,
+    o: &SequenceOptions,
+    mut each: impl FnMut(SequenceFrame) -> Result<()>,
+) -> Result<()> {
+    o.settings.validate()?;
+    let (shadows, _) = scene.shadows(o.visibility);
+    let mut prev: Option<(Posed, Vec<Reservoir>)> = None;
+    for k in 0..o.frames {
+        let cur = Posed::new(scene, scene.frame_time(k), o.size)?;
+        let occ = cur.scene.occluders();
+        let occ: Option<&dyn Occluder> = shadows.then_some(&occ as _);
+        let Some(r) = o.resampling else {
+            each(plain_frame(&cur, occ, &o.settings, k)?)?;
+            continue;
+        };
+        let prev_occ = prev.as_ref().map(|(p, _)| p.scene.occluders());
+        let reproject = |i: usize| {
+            let (p, _) = prev.as_ref()?;
+            cur.reproject(p, i, r.mutation)
+        };
+        let history = prev.as_ref().map(|(p, res)| {
+            let occ = prev_occ
+                .as_ref()
+                .filter(|_| shadows)
+                .map(|o| o as &dyn Occluder);
+            let h = History {
+                screen: p.screen(occ),
+                reservoirs: res,
+            };
+            (h, &reproject as resampling::Reproject)
+        });
+        let out = resampling::resample_frame(&cur.screen(occ), history, &o.settings, &r, k)?;
+        drop(prev_occ);
+        each(SequenceFrame {
+            stats: frame_stats(k, cur.time, &out.stats, out.reuse),
+            image: out.image,
+        })?;
+        prev = Some((cur, out.reservoirs));
+    }
+    Ok(())
+}
+
+/// A frame of today's estimator (every sample shadow-tested).
+fn plain_frame(
+    cur: &Posed,
+    occ: Option<&dyn Occluder>,
+    s: &Settings,
+    k: u32,
+) -> Result<SequenceFrame> {
+    let extras = Extras {
+        shadows: occ.map(|o| (o, cur.screen.points.as_slice())),
+        ..Default::default()
+    };
+    let (w, h) = (cur.camera.width, cur.camera.height);
+    let out = render::render_with(&cur.map, extras, &cur.screen.gbuf, w, h, s)?;
+    Ok(SequenceFrame {
+        stats: frame_stats(k, cur.time, &out.stats, ReuseStats::default()),
+        image: out.image,
+    })
+}
+
+fn frame_stats(k: u32, time: f32, st: &render::RenderStats, reuse: ReuseStats) -> FrameStats {
+    FrameStats {
+        frame: k,
+        time,
+        build_ms: st.build_ms,
+        shade_ms: st.shade_ms,
+        shadow_rays: st.shadow_rays,
+        shadow_rays_per_pixel: st.shadow_rays as f64 / st.shaded_pixels.max(1) as f64,
+        samples_evaluated: st.samples_evaluated,
+        shaded_pixels: st.shaded_pixels,
+        reuse,
+    }
+}
