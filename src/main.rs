@@ -49,6 +49,10 @@ struct DemoArgs {
     light_samples: usize,
     #[arg(long, default_value_t = 32)]
     brdf_samples: usize,
+    /// Size of the panels relative to their normal size (egui's zoom factor): below 1 they leave
+    /// a small window's scene visible (the scripted test runs a 512 x 320 window at 0.5).
+    #[arg(long, default_value_t = 1.0)]
+    ui_scale: f32,
     /// Scripted run for CI: take screenshots into DIR, write DIR/report.json, exit.
     #[arg(long)]
     script: Option<PathBuf>,

@@ -66,6 +66,12 @@ pub fn run_demo(a: DemoArgs) -> Result<()> {
     let face_size = scene
         .as_ref()
         .map_or(a.face_size, |s| s.file.environment.face_size);
+    if !(a.ui_scale.is_finite() && (0.25..=4.0).contains(&a.ui_scale)) {
+        return Err(Error::invalid(format!(
+            "--ui-scale {} out of range 0.25..=4",
+            a.ui_scale
+        )));
+    }
     if let Some(d) = &a.script {
         std::fs::create_dir_all(d).map_err(|e| Error::file(d, format!("cannot create: {e}")))?;
     }
@@ -74,6 +80,7 @@ pub fn run_demo(a: DemoArgs) -> Result<()> {
         face_size,
         script: a.script,
         window: (w, h),
+        ui_scale: a.ui_scale,
         sampling,
         scene,
     });

@@ -288,14 +288,14 @@ fn reuse_lowers_the_error_over_frames() {
     assert!(e7 < 0.7 * e7s, "{e7} vs {e7s}");
 }
 
-/// Shadow rays per shaded pixel: at most 2 + spatial unbiased, at most 2 biased, and today's
-/// estimator casts one per sample.
+/// Shadow rays per shaded pixel: at most 1 + 2 (1 + spatial) unbiased, at most 2 biased, and
+/// today's estimator casts one per sample.
 #[test]
 fn shadow_ray_budget() {
     let dir = tempdir();
     let scene = moving(&dir);
     for (r, most) in [
-        (Some(Resampling::default()), 5.0),
+        (Some(Resampling::default()), 9.0),
         (
             Some(Resampling {
                 unbiased: false,

@@ -77,20 +77,21 @@ fn demo_scripted_under_xvfb() {
     }
     let dir = support::TempDir::new("demo");
     let t0 = std::time::Instant::now();
-    // Each frame of the 1024 x 640 window with shadow rays costs seconds on lavapipe with 2
-    // cores, and the script runs 112 frames: 10–11 minutes on the 2-core VM of 2026-12-02, but
-    // about 20 minutes on the slower one of 2026-12-03 while the other GPU tests ran beside it
-    // (900 s was not enough there). The limit only stops a hung demo.
+    // Every step of the script, at a small cost: a 512 x 320 window with the panels at half
+    // size (so the scene stays visible), 4 + 4 samples with shadow rays, 57 frames. About a
+    // minute on 2 cores (docs/testing.md); the limit only stops a hung demo.
     let out = std::process::Command::new("timeout")
-        .args(["2100", "xvfb-run", "-a", "-s", "-screen 0 1280x800x24"])
+        .args(["900", "xvfb-run", "-a", "-s", "-screen 0 1280x800x24"])
         .arg(env!("CARGO_BIN_EXE_envis"))
         .args([
             "--window",
-            "1024x640",
+            "512x320",
+            "--ui-scale",
+            "0.5",
             "--light-samples",
-            "8",
+            "4",
             "--brdf-samples",
-            "8",
+            "4",
             "--face-size",
             "32",
             "--script",
@@ -151,7 +152,7 @@ fn demo_scripted_under_xvfb() {
             && t["build_cpu_ms"].as_f64().is_some(),
         "{r}"
     );
-    assert!(r["lighting_passes"].as_u64().unwrap() >= 50, "{r}");
+    assert!(r["lighting_passes"].as_u64().unwrap() >= 40, "{r}");
     // Overlays were on for three steps (and only then).
     let ov = r["overlay_passes"].as_u64().unwrap();
     assert!(
@@ -167,7 +168,7 @@ fn demo_scripted_under_xvfb() {
         .iter()
         .map(|k| p[k].as_u64().unwrap())
         .sum();
-    assert_eq!(total, 6 * 8, "every pool sample is classified: {p}");
+    assert_eq!(total, 6 * 4, "every pool sample is classified: {p}");
     for c in 0..3 {
         let (g, cpu) = (
             p["gpu_estimate"][c].as_f64().unwrap(),

@@ -115,6 +115,7 @@ fn gpu_render_matches_cpu_same_seed() {
 #[test]
 fn gpu_render_is_unbiased() {
     let Some(ctx) = gpu() else { return };
+    let mut renderer = envis::gpu::GpuRenderer::new(ctx);
     let (size, face, k) = (16usize, 16usize, 40u32);
     let mut envs = vec![(
         "builtin:sky:10".to_string(),
@@ -148,7 +149,7 @@ fn gpu_render_is_unbiased() {
                         seed: seed * 7919 + 1,
                         ..Default::default()
                     };
-                    gpu_mean(ctx, map, &gbuf, size, &s)
+                    gpu_mean(&mut renderer, map, &gbuf, size, &s)
                 })
                 .collect();
             test.push(MeanCheck::from_values(
@@ -161,21 +162,16 @@ fn gpu_render_is_unbiased() {
     test.assert();
 }
 
-/// Image-mean luminance of one GPU frame.
+/// Image-mean luminance of one GPU frame, by a renderer that keeps its pipelines between the
+/// test's frames (compiling them per frame was most of these tests' time).
 fn gpu_mean(
-    ctx: &GpuContext,
+    r: &mut envis::gpu::GpuRenderer,
     map: &CubeMap,
     gbuf: &[Option<GPixel>],
     size: usize,
     s: &Settings,
 ) -> f64 {
-    mean_lum(
-        &render_gpu(ctx, map, gbuf, size, size, s)
-            .unwrap()
-            .0
-            .image
-            .data,
-    )
+    mean_lum(&r.render(map, gbuf, size, size, s).unwrap().0.image.data)
 }
 
 /// Integer counts on the GPU carry the bias they carry on the CPU, and the test sees it: two
@@ -184,6 +180,7 @@ fn gpu_mean(
 #[test]
 fn gpu_integer_counts_bias_is_detected() {
     let Some(ctx) = gpu() else { return };
+    let mut renderer = envis::gpu::GpuRenderer::new(ctx);
     let (n, size, k) = (8usize, 16usize, 64u32);
     let mut map = CubeMap::new(n);
     for f in [2usize, 4] {
@@ -192,7 +189,7 @@ fn gpu_integer_counts_bias_is_detected() {
     let gbuf = sphere_gbuffer(size, size, Material::diffuse(1.0));
     let (_, reference) = reference_image(&map, &gbuf, size, size, 1.0);
     let want = reference.iter().map(|c| luminance_f64(*c)).sum::<f64>() / reference.len() as f64;
-    let run = |counts| {
+    let mut run = |counts| {
         let means: Vec<f64> = (0..k)
             .map(|seed| {
                 let s = Settings {
@@ -203,7 +200,7 @@ fn gpu_integer_counts_bias_is_detected() {
                     seed: seed * 7919 + 1,
                     ..Default::default()
                 };
-                gpu_mean(ctx, &map, &gbuf, size, &s)
+                gpu_mean(&mut renderer, &map, &gbuf, size, &s)
             })
             .collect();
         MeanCheck::from_values(format!("{counts}"), &means, want)

@@ -39,6 +39,8 @@ pub struct DemoOptions {
     /// Scripted run: screenshots and `report.json` go here, then the app exits.
     pub script: Option<PathBuf>,
     pub window: (u32, u32),
+    /// The panels' zoom factor (1: egui's normal size).
+    pub ui_scale: f32,
     pub sampling: Settings,
     /// Objects and camera from a scene file (the built-in showcase otherwise).
     pub scene: Option<crate::scene::Scene>,
@@ -82,6 +84,7 @@ pub fn run(opts: DemoOptions) -> AppExit {
         debug: false,
         script: opts.script.clone(),
         face_size: opts.face_size,
+        ui_scale: opts.ui_scale,
         exposure: 1.0,
         sampling: opts.sampling,
         ..default()
@@ -142,6 +145,8 @@ pub struct DemoState {
     exposure: f32,
     /// The sampling settings the camera starts with.
     sampling: Settings,
+    /// The panels' zoom factor.
+    ui_scale: f32,
 }
 
 /// The stream's face size for a distribution of `face` texels per face: the picture (the sky,

@@ -61,8 +61,10 @@ pub(super) fn run_script(
     mut commands: Commands,
     mut exit: MessageWriter<AppExit>,
 ) {
-    const WARMUP: u32 = 10;
-    const STEP: u32 = 6;
+    // A screenshot is taken by the frame after it is asked for; three frames a step leave room
+    // for it to be written before the next change.
+    const WARMUP: u32 = 6;
+    const STEP: u32 = 3;
     let Some(dir) = state.script.clone() else {
         return;
     };

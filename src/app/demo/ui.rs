@@ -50,6 +50,9 @@ pub(super) fn panel(
     diagnostics: Res<bevy::diagnostic::DiagnosticsStore>,
 ) -> Result {
     let ctx = contexts.ctx_mut()?.clone();
+    if state.ui_scale > 0.0 && ctx.zoom_factor() != state.ui_scale {
+        ctx.set_zoom_factor(state.ui_scale);
+    }
     let Ok((mut settings, mut env, mut exposure)) = cams.single_mut() else {
         return Ok(());
     };

@@ -14,7 +14,10 @@
 //! the generalised balance heuristic evaluated for the selected sample only). Visibility in the
 //! weights is what a domain's support really is: every reservoir is culled (`W = 0`) where its
 //! sample is blocked from its own pixel, so a neighbour cannot offer a direction it does not see.
-//! Cost: one shadow ray per other domain whose target is positive at `Y`.
+//! The target at the canonical pixel includes its visibility: a reused sample it does not see
+//! gets no weight (one ray per reused sample), so the selected `Y` is always seen. Cost: that,
+//! plus one ray per other domain whose target is positive at `Y`: at most `2 (k - 1)` for `k`
+//! domains.
 //!
 //! The biased option replaces `m_s` by `1 / Σ M_k`: no rays, darker where domains' visibility
 //! differs (docs/temporal.md measures it).
@@ -65,6 +68,11 @@ pub struct Domain<'a> {
     pub here: Vec3,
 }
 
+/// Whether the canonical pixel (`domains[0]`) sees reused sample `d` (a shadow ray).
+fn canonical_sees(domains: &[Domain], d: &Domain, rays: &mut u32) -> bool {
+    domains[0].at.visible(d.res.dir, rays)
+}
+
 /// Combine `domains` (the canonical pixel's own first) into the canonical pixel's reservoir.
 /// Rays cast go to `rays`.
 pub fn combine(
@@ -85,6 +93,12 @@ pub fn combine(
         };
         let w = d.res.m * here * d.res.ucw;
         if !(w > 0.0 && w.is_finite()) {
+            continue;
+        }
+        // Unbiased: a reused sample the canonical pixel does not see cannot be selected (the
+        // target is p̂ V here). Without this a lit neighbour's sun sample wins in a shadow, is
+        // blocked, and the pixel loses the sky sample its history had found.
+        if unbiased && k > 0 && !canonical_sees(domains, d, rays) {
             continue;
         }
         w_sum += w;
@@ -109,16 +123,10 @@ pub fn combine(
         m: m_total,
         target,
         rgb,
-        visible: chosen.res.visible && s == 0,
+        // Unbiased: every selectable sample was seen from here.
+        visible: unbiased || (chosen.res.visible && s == 0),
     };
     if unbiased {
-        // The canonical pixel sees Y (known if Y is its own, a ray otherwise).
-        if !out.visible {
-            if !canonical.at.visible(y, rays) {
-                return out;
-            }
-            out.visible = true;
-        }
         let mut denom = 0.0f32;
         for (k, d) in domains.iter().enumerate() {
             let p = if k == s {
