@@ -17,6 +17,8 @@
 //! Suite `gpu`: per-pass GPU times next to their CPU twins (see [`gpu`]).
 //! Suite `scene`: per-frame cost of a static diffuse scene vs a dynamic glossy one (see [`gpu::scenes`]).
 //!
+//! Suite `motion`: reservoir resampling on an animated scene (see [`motion`]).
+//!
 //! Suite `accuracy`: error vs time over strategies, budgets, materials and maps (see [`accuracy`]).
 
 pub mod accuracy;
@@ -26,6 +28,7 @@ pub mod flicker;
 pub mod flip;
 #[cfg(feature = "gpu")]
 pub mod gpu;
+pub mod motion;
 mod offset;
 mod popping;
 mod speed;
@@ -61,6 +64,7 @@ pub enum Suite {
     Scene,
     /// Shadow rays on the CPU: frame cost with and without, rays per second, BVH builds.
     Visibility,
+    Motion,
 }
 crate::vocab::display_as_value_enum!(Suite);
 
@@ -121,6 +125,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         Suite::Flicker => flicker::run(a, &dir),
         Suite::Popping => popping::popping(a, dir),
         Suite::Visibility => visibility::run(a, dir),
+        Suite::Motion => motion::run(a, dir),
         #[cfg(feature = "gpu")]
         Suite::Gpu => gpu::run(a, dir),
         #[cfg(feature = "gpu")]

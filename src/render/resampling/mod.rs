@@ -68,6 +68,10 @@ pub struct Resampling {
     pub max_history: u32,
     /// MIS weights with visibility (unbiased) or `1 / M` (biased, fewer rays).
     pub unbiased: bool,
+    /// Shadow-test every candidate (one ray per light and BRDF sample), so that the target is
+    /// the shadowed integrand from the start: no blocked sun can inflate a sky sample's weight
+    /// (docs/temporal.md). Off by default: the budget is one ray per selected sample.
+    pub candidate_visibility: bool,
     /// A deliberate fault, for the tests that must catch it (`None` in any real use).
     #[serde(skip)]
     pub mutation: Option<Mutation>,
@@ -80,6 +84,7 @@ impl Default for Resampling {
             spatial: 3,
             max_history: 20,
             unbiased: true,
+            candidate_visibility: false,
             mutation: None,
         }
     }
@@ -233,14 +238,17 @@ pub fn resample_frame(
         ..*s
     };
     let t0 = std::time::Instant::now();
-    let fd = FrameData::prepare(cur.map, &s);
+    let mut fd = FrameData::prepare(cur.map, &s);
+    if r.candidate_visibility {
+        fd.occluder = cur.occluder;
+    }
     let build_ms = t0.elapsed().as_secs_f64() * 1e3;
     let t1 = std::time::Instant::now();
     let stream = |pass: u32, i: usize| Rng::new(hash_combine(&[s.seed, pass, 0x5e57]), i as u32);
     // 1. Candidates, and the selected one's shadow ray.
     let first: Vec<(Reservoir, Option<PixelStats>, u32)> = (0..n_px)
         .into_par_iter()
-        .map(|i| candidates(cur, &fd, &s, i, stream(1, i)))
+        .map(|i| candidates(cur, &fd, &s, r, i, stream(1, i)))
         .collect();
     let mut rays: Vec<u32> = first.iter().map(|f| f.2).collect();
     let per_pixel: Vec<Option<PixelStats>> = first.iter().map(|f| f.1).collect();
@@ -296,7 +304,12 @@ pub fn resample_frame(
     let mut stats = RenderStats::for_settings(cur.width, cur.height, &s, fd.pool.block);
     (stats.build_ms, stats.shade_ms) = (build_ms, shade_ms);
     stats.accumulate(&per_pixel);
-    stats.shadow_rays = rays.iter().zip(&data).map(|(a, b)| (a + b.1) as u64).sum();
+    // The candidates' own rays (`candidate_visibility`) are in `accumulate`'s count already.
+    stats.shadow_rays += rays
+        .iter()
+        .zip(&data)
+        .map(|(a, b)| (a + b.1) as u64)
+        .sum::<u64>();
     let shaded = cur.gbuf.iter().filter(|p| p.is_some()).count().max(1);
     reuse.mean_history = cur
         .gbuf
@@ -324,6 +337,7 @@ fn candidates(
     cur: &Screen,
     fd: &FrameData,
     s: &Settings,
+    r: &Resampling,
     i: usize,
     rng: Rng,
 ) -> (Reservoir, Option<PixelStats>, u32) {
@@ -331,11 +345,15 @@ fn candidates(
         return (Reservoir::default(), None, 0);
     };
     let mut sink = CandidateSink::new(rng);
-    // No surface point: the candidates cast no shadow rays.
-    let st = shade_pixel_into(crate::cpu::isa(), fd, s, at.px, None, i as u32, &mut sink);
+    // Without a surface point the candidates cast no shadow rays; with one (and `fd.occluder`)
+    // a blocked candidate never reaches the sink.
+    let point = r.candidate_visibility.then_some(at.point);
+    let st = shade_pixel_into(crate::cpu::isa(), fd, s, at.px, point, i as u32, &mut sink);
     let mut q = sink.finish();
     let mut rays = 0;
-    if q.is_live() {
+    if point.is_some() {
+        q.visible = true;
+    } else if q.is_live() {
         q.visible = at.visible(q.dir, &mut rays);
         if !q.visible {
             q.ucw = 0.0;

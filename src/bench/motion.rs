@@ -1,0 +1,192 @@
+//! Suite `motion`: reservoir resampling on an animated scene (`assets/scenes/motion.toml`:
+//! orbiting camera, a moving sphere, contact shadows, a moving sun), each measured frame against
+//! its own converged reference. Configurations, run in one sitting:
+//! - `single 32+32`: today's estimator, every sample shadow-tested, no reuse;
+//! - `single 4+4`: the same at the candidates' budget;
+//! - `restir 4+4`: spatiotemporal reuse of 4 + 4 candidates, unbiased (the default);
+//! - `restir 4+4 biased`;
+//! - `temporal 4+4`: temporal reuse only;
+//! - `restir 4+4 shadowed candidates`: every candidate shadow-tested (`candidate_visibility`).
+//!
+//! Per configuration over the measured frames: mean relMSE and HDR-FLIP against the reference,
+//! lighting cost (build + shading) and shadow rays per pixel, and each as a ratio to
+//! `single 32+32`. The reference of a frame is today's estimator at `REF_SAMPLES` + `REF_SAMPLES`
+//! samples (unbiased; its own relMSE is printed, so the floor is known). Writes
+//! `DIR/bench-motion.json`.
+
+use super::BenchArgs;
+use crate::envmap::{Image, luminance};
+use crate::error::{Error, Result};
+use crate::render::resampling::{Resampling, ResamplingMode};
+use crate::render::{Extras, Settings};
+use crate::scene::Scene;
+use crate::sequence::{self, Posed, SequenceOptions};
+use std::path::{Path, PathBuf};
+
+/// Samples of each kind per pixel in the reference frames.
+const REF_SAMPLES: usize = 1024;
+
+/// One configuration's figures over the measured frames.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct MotionRow {
+    pub name: String,
+    pub relmse: f64,
+    pub flip: f64,
+    /// Build + shading per frame, milliseconds.
+    pub frame_ms: f64,
+    pub shadow_rays_per_pixel: f64,
+    /// Each as a ratio to the `single 32+32` row.
+    pub relmse_ratio: f64,
+    pub flip_ratio: f64,
+    pub cost_ratio: f64,
+    /// Per measured frame: (frame, relMSE).
+    pub per_frame: Vec<(u32, f64)>,
+}
+
+/// The relMSE of `img` against `rf` (luminance; `1e-2` keeps dark pixels from dominating, as
+/// in the accuracy sweep).
+fn relmse(img: &Image, rf: &Image) -> f64 {
+    let n = img.data.len().max(1) as f64;
+    img.data
+        .iter()
+        .zip(&rf.data)
+        .map(|(x, r)| {
+            let (x, r) = (luminance(*x) as f64, luminance(*r) as f64);
+            (x - r) * (x - r) / (r * r + 1e-2)
+        })
+        .sum::<f64>()
+        / n
+}
+
+pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes/motion.toml");
+    let scene = Scene::load(&path)?;
+    let (size, frames, first) = if a.quick {
+        (48, 6, 3)
+    } else {
+        (a.size, 32, 16)
+    };
+    eprintln!("motion: {size}^2, frames {first}..{frames}, reference {REF_SAMPLES}+{REF_SAMPLES}");
+    let refs = references(&scene, size, first, frames)?;
+    let shadowed = Resampling {
+        candidate_visibility: true,
+        ..Default::default()
+    };
+    let configs: [(&str, Option<Resampling>, usize); 6] = [
+        ("single 32+32", None, 32),
+        ("single 4+4", None, 4),
+        (
+            "restir 4+4",
+            Resampling::for_mode(ResamplingMode::Spatiotemporal, true),
+            4,
+        ),
+        (
+            "restir 4+4 biased",
+            Resampling::for_mode(ResamplingMode::Spatiotemporal, false),
+            4,
+        ),
+        (
+            "temporal 4+4",
+            Resampling::for_mode(ResamplingMode::Temporal, true),
+            4,
+        ),
+        ("restir 4+4 shadowed candidates", Some(shadowed), 4),
+    ];
+    let mut rows: Vec<MotionRow> = Vec::new();
+    for (name, r, n) in configs {
+        let o = SequenceOptions {
+            size,
+            frames,
+            settings: Settings {
+                light_samples: n,
+                brdf_samples: n,
+                ..scene.settings
+            },
+            resampling: r,
+            visibility: None,
+        };
+        let mut row = MotionRow {
+            name: name.into(),
+            relmse: 0.0,
+            flip: 0.0,
+            frame_ms: 0.0,
+            shadow_rays_per_pixel: 0.0,
+            relmse_ratio: 1.0,
+            flip_ratio: 1.0,
+            cost_ratio: 1.0,
+            per_frame: Vec::new(),
+        };
+        sequence::run(&scene, &o, |f| {
+            let k = f.stats.frame;
+            if k < first {
+                return Ok(());
+            }
+            let rf = &refs[(k - first) as usize];
+            let e = relmse(&f.image, rf);
+            row.per_frame.push((k, e));
+            row.relmse += e;
+            row.flip += super::flip::hdr_flip(&rf.data, &f.image.data, size, size).1 as f64;
+            row.frame_ms += f.stats.build_ms + f.stats.shade_ms;
+            row.shadow_rays_per_pixel += f.stats.shadow_rays_per_pixel;
+            Ok(())
+        })?;
+        let m = (frames - first) as f64;
+        row.relmse /= m;
+        row.flip /= m;
+        row.frame_ms /= m;
+        row.shadow_rays_per_pixel /= m;
+        if let Some(base) = rows.first() {
+            row.relmse_ratio = row.relmse / base.relmse;
+            row.flip_ratio = row.flip / base.flip;
+            row.cost_ratio = row.frame_ms / base.frame_ms;
+        }
+        eprintln!(
+            "  {name:30} relMSE {:.4} ({:.2}x)  FLIP {:.4} ({:.2}x)  {:.1} ms ({:.2}x)  {:.2} rays/px",
+            row.relmse,
+            row.relmse_ratio,
+            row.flip,
+            row.flip_ratio,
+            row.frame_ms,
+            row.cost_ratio,
+            row.shadow_rays_per_pixel
+        );
+        rows.push(row);
+    }
+    let out = dir.join("bench-motion.json");
+    let v = serde_json::json!({
+        "suite": "motion",
+        "scene": "assets/scenes/motion.toml",
+        "size": size,
+        "frames": [first, frames],
+        "reference_samples": REF_SAMPLES,
+        "threads": rayon::current_num_threads(),
+        "rows": rows,
+    });
+    crate::render::output::write_json(&out, &v)?;
+    eprintln!("wrote {}", out.display());
+    Ok(())
+}
+
+/// The converged reference of frames `first..frames`.
+fn references(scene: &Scene, size: usize, first: u32, frames: u32) -> Result<Vec<Image>> {
+    let (shadows, _) = scene.shadows(None);
+    (first..frames)
+        .map(|k| {
+            let p = Posed::new(scene, scene.frame_time(k), size)?;
+            let occ = p.scene.occluders();
+            let extras = Extras {
+                shadows: shadows.then_some((&occ as _, p.screen.points.as_slice())),
+                ..Default::default()
+            };
+            let s = Settings {
+                light_samples: REF_SAMPLES,
+                brdf_samples: REF_SAMPLES,
+                seed: 0x5eed + k,
+                ..scene.settings
+            };
+            let r = crate::render::render_with(&p.map, extras, &p.screen.gbuf, size, size, &s)
+                .map_err(|e| Error::invalid(format!("motion reference: {e}")))?;
+            Ok(r.image)
+        })
+        .collect()
+}
