@@ -68,6 +68,27 @@ pub struct Domain<'a> {
     pub here: Vec3,
 }
 
+impl<'a> Domain<'a> {
+    /// The canonical pixel's own reservoir.
+    pub fn own(res: Reservoir, at: DomainSurface<'a>) -> Self {
+        Domain {
+            res,
+            at,
+            here: res.rgb,
+        }
+    }
+
+    /// Another pixel's (or frame's) reservoir `res`, made at `at`, its sample re-evaluated for
+    /// the canonical pixel `px` under this frame's `map`.
+    pub fn reused(res: Reservoir, at: DomainSurface<'a>, map: &CubeMap, px: &GPixel) -> Self {
+        Domain {
+            res,
+            at,
+            here: target_rgb(map, px, res.dir),
+        }
+    }
+}
+
 /// Whether the canonical pixel (`domains[0]`) sees reused sample `d` (a shadow ray).
 fn canonical_sees(domains: &[Domain], d: &Domain, rays: &mut u32) -> bool {
     domains[0].at.visible(d.res.dir, rays)

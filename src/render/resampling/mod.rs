@@ -389,18 +389,7 @@ fn temporal(
     };
     let mut old = h.reservoirs[q];
     old.m = old.m.min(r.max_history as f32);
-    let domains = [
-        Domain {
-            res: own,
-            at,
-            here: own.rgb,
-        },
-        Domain {
-            res: old,
-            at: p,
-            here: target_rgb(cur.map, at.px, old.dir),
-        },
-    ];
+    let domains = [Domain::own(own, at), Domain::reused(old, p, cur.map, at.px)];
     let mut rays = 0;
     let out = combine(&domains, r.unbiased, r.mutation, &mut rng, &mut rays);
     (out, rays, true)
@@ -420,11 +409,7 @@ fn spatial(
     };
     let (w, h) = (cur.width as i64, cur.height as i64);
     let (x, y) = ((i % cur.width) as i64, (i / cur.width) as i64);
-    let mut domains = vec![Domain {
-        res: own,
-        at,
-        here: own.rgb,
-    }];
+    let mut domains = vec![Domain::own(own, at)];
     for _ in 0..r.spatial {
         let (u1, u2) = (rng.next_f32(), rng.next_f32());
         let rad = SPATIAL_RADIUS * u1.sqrt();
@@ -441,11 +426,7 @@ fn spatial(
         if !similar(at.px.n, cur.surfaces[i], nb.px.n, cur.surfaces[j]) {
             continue;
         }
-        domains.push(Domain {
-            res: res[j],
-            at: nb,
-            here: target_rgb(cur.map, at.px, res[j].dir),
-        });
+        domains.push(Domain::reused(res[j], nb, cur.map, at.px));
     }
     let accepted = domains.len() as u32 - 1;
     if accepted == 0 {
