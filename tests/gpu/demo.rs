@@ -146,6 +146,12 @@ fn demo_scripted_under_xvfb() {
     );
     // The report: per-pass timings, counters, and the probed pixel (GPU estimate = CPU twin).
     let r: serde_json::Value = crate::support::read_json(&dir.join("report.json"));
+    // The probe's readback is asynchronous: the script waits for it (a slow machine needs more
+    // frames); say how long, so a slow run is visible in the log.
+    eprintln!(
+        "the probed pixel came back after {} extra frames",
+        r["probe_wait_frames"]
+    );
     let t = &r["timings_ms"];
     assert!(
         t["lighting_cpu_ms"].as_f64().is_some_and(|x| x >= 0.0)

@@ -137,7 +137,12 @@ pub struct DemoState {
     key: Option<(u64, Settings, u32, Vec3, u64)>,
     cross: Option<(u64, egui::TextureHandle)>,
     script: Option<PathBuf>,
+    /// The scripted run's clock: frames so far, the next step, the frame it runs at and how
+    /// many frames the current wait has lasted.
     script_frame: u32,
+    script_step: usize,
+    script_next: u32,
+    script_waited: u32,
     face_size: usize,
     env_text: String,
     fps: f32,

@@ -1,6 +1,6 @@
 //! The scripted run (`--script DIR`, what CI runs under Xvfb): a fixed list of steps, one every
-//! few frames after a warm-up, each changing one thing or taking a screenshot; then `report.json`
-//! and exit.
+//! few frames after a warm-up, each changing one thing, taking a screenshot or waiting for what
+//! the next screenshot needs; then `report.json` and exit.
 
 use super::*;
 
@@ -14,6 +14,9 @@ enum Step {
     /// Overlays off, fractional counts, probe a pixel on the sphere and show the debug view.
     /// Whole faces: with tiles a probed pixel may have no yellow (wasted) sample left to show.
     Probe,
+    /// Wait until the probed pixel has come back from the GPU and the CPU twin has classified
+    /// its samples (the readback never blocks a frame, so on a slow machine it takes several).
+    AwaitProbe,
     /// Show or hide the debug view.
     Debug(bool),
     /// Make the sphere a near-mirror GGX.
@@ -35,6 +38,7 @@ const SCRIPT: &[Step] = &[
     Step::Overlay(Overlay::CountsDifference),
     Step::Shot("overlay-diff.png"),
     Step::Probe,
+    Step::AwaitProbe,
     Step::Shot("debug-on.png"),
     Step::Debug(false),
     Step::Shot("debug-off.png"),
@@ -65,6 +69,8 @@ pub(super) fn run_script(
     // for it to be written before the next change.
     const WARMUP: u32 = 6;
     const STEP: u32 = 3;
+    // How long a wait may last before the run fails, saying what it waited for.
+    const MAX_WAIT: u32 = 600;
     let Some(dir) = state.script.clone() else {
         return;
     };
@@ -73,11 +79,24 @@ pub(super) fn run_script(
     if f == 1 {
         // A still environment, so the screenshots differ only by what each step changed.
         stream.stream.playing = false;
+        state.script_next = WARMUP;
     }
-    if f < WARMUP || !(f - WARMUP).is_multiple_of(STEP) {
+    if f < state.script_next {
         return;
     }
-    let step = (f - WARMUP) / STEP;
+    let step = state.script_step;
+    if let Some(Step::AwaitProbe) = SCRIPT.get(step)
+        && state.pixel.is_none()
+    {
+        state.script_waited += 1;
+        if state.script_waited > MAX_WAIT {
+            eprintln!("envis: error: the probed pixel did not come back in {MAX_WAIT} frames");
+            exit.write(AppExit::error());
+        }
+        return;
+    }
+    state.script_step += 1;
+    state.script_next = f + STEP;
     let Ok((camera, cam_transform, mut settings)) = cams.single_mut() else {
         return;
     };
@@ -90,7 +109,7 @@ pub(super) fn run_script(
         .single()
         .map(|w| (w.physical_width(), w.physical_height()))
         .unwrap_or((0, 0));
-    match SCRIPT.get(step as usize) {
+    match SCRIPT.get(step) {
         Some(Step::Shot(name)) => shot(&mut commands, name),
         Some(Step::Counts(c)) => settings.counts = *c,
         Some(Step::Overlay(o)) => settings.overlay = *o,
@@ -106,6 +125,7 @@ pub(super) fn run_script(
             settings.probe = Some((p * scale).as_uvec2());
             state.debug = true;
         }
+        Some(Step::AwaitProbe) => {}
         Some(Step::Debug(on)) => state.debug = *on,
         Some(Step::GlossySphere) => {
             for mut o in &mut objects {
@@ -124,6 +144,7 @@ pub(super) fn run_script(
             let report = serde_json::json!({
                 "window": [w, h],
                 "frames": f,
+                "probe_wait_frames": state.script_waited,
                 "fps": state.fps,
                 "timings_ms": timings.get(),
                 "builds": counters.get(|c| &c.builds),
