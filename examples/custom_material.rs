@@ -4,7 +4,6 @@
 //!
 //! `cargo run --release --example custom_material`
 
-use bevy::pbr::DefaultOpaqueRendererMethod;
 use bevy::prelude::*;
 use envis::app::{EnvMapStream, EnvMapStreamPlugin};
 use envis::prelude::*;
@@ -19,16 +18,15 @@ fn main() {
 
 /// The scene and the sky stream (everything but the window and `EnvisPlugin`).
 pub fn example(app: &mut App) {
-    app.insert_resource(DefaultOpaqueRendererMethod::deferred())
-        .add_plugins(EnvMapStreamPlugin {
-            // From 7 am, an hour of sky per second.
-            source: StreamSource::Sky {
-                hours: 7.0,
-                speed: 1.0,
-            },
-            face_size: 64,
-        })
-        .add_systems(Startup, setup);
+    app.add_plugins(EnvMapStreamPlugin {
+        // From 7 am, an hour of sky per second.
+        source: StreamSource::Sky {
+            hours: 7.0,
+            speed: 1.0,
+        },
+        face_size: 64,
+    })
+    .add_systems(Startup, setup);
 }
 
 fn setup(

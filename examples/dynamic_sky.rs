@@ -10,7 +10,6 @@
 
 use bevy::asset::RenderAssetUsages;
 use bevy::core_pipeline::schedule::camera_driver;
-use bevy::pbr::DefaultOpaqueRendererMethod;
 use bevy::prelude::*;
 use bevy::render::extract_resource::{ExtractResource, ExtractResourcePlugin};
 use bevy::render::render_asset::RenderAssets;
@@ -45,8 +44,7 @@ pub struct SkyParams {
 
 /// The scene, the sky and its compute pass (everything but the window and `EnvisPlugin`).
 pub fn example(app: &mut App) {
-    app.insert_resource(DefaultOpaqueRendererMethod::deferred())
-        .add_plugins(ExtractResourcePlugin::<Sky>::default())
+    app.add_plugins(ExtractResourcePlugin::<Sky>::default())
         .add_systems(Startup, setup)
         .add_systems(Update, move_sun);
     let render_app = app.sub_app_mut(RenderApp);

@@ -3,7 +3,6 @@
 //!
 //! `cargo run --release --example gltf_scene`
 
-use bevy::pbr::DefaultOpaqueRendererMethod;
 use bevy::prelude::*;
 use envis::prelude::*;
 
@@ -16,10 +15,9 @@ fn main() {
 
 /// The scene (everything but the window and the plugins): the tests run it headless.
 pub fn example(app: &mut App) {
-    // The one line of set-up: StandardMaterials render deferred, so they write the G-buffer the
-    // envis pass reads (without it envis warns once and lights only EnvisMaterial meshes).
-    app.insert_resource(DefaultOpaqueRendererMethod::deferred())
-        .add_systems(Startup, setup);
+    // No set-up of its own: EnvisPlugin makes StandardMaterials render deferred, so they write
+    // the G-buffer the envis pass reads.
+    app.add_systems(Startup, setup);
 }
 
 fn setup(

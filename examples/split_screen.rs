@@ -5,7 +5,6 @@
 //! `cargo run --release --example split_screen`
 
 use bevy::camera::Viewport;
-use bevy::pbr::DefaultOpaqueRendererMethod;
 use bevy::prelude::*;
 use envis::prelude::*;
 
@@ -22,8 +21,7 @@ pub struct Half(pub u32);
 
 /// The scene and the two cameras (everything but the window and `EnvisPlugin`).
 pub fn example(app: &mut App) {
-    app.insert_resource(DefaultOpaqueRendererMethod::deferred())
-        .add_systems(Startup, setup)
+    app.add_systems(Startup, setup)
         .add_systems(Update, fit_viewports);
 }
 

@@ -27,3 +27,9 @@ pub mod visibility;
 mod vocab;
 
 pub use error::{Error, Result};
+
+/// The README, whose Bevy snippet `cargo test` compiles (a doc test), so the set-up it shows
+/// cannot go stale; its other blocks are shell or text.
+#[cfg(all(doctest, feature = "app"))]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;

@@ -32,8 +32,7 @@ pub fn warn_forward_meshes(
     if !changed || cameras.is_empty() {
         return;
     }
-    // The resource has no getter nor PartialEq in Bevy 0.19: read its Debug form.
-    let default_forward = default_method.is_none_or(|m| !format!("{:?}", *m).contains("Deferred"));
+    let default_forward = default_method.is_none_or(|m| !super::setup::is_deferred(&m));
     let (mut forward, mut blended) = (0u64, 0u64);
     for m in meshes.iter().filter_map(|m| materials.get(&m.0)) {
         if !matches!(m.alpha_mode, AlphaMode::Opaque | AlphaMode::Mask(_)) {
@@ -52,7 +51,8 @@ pub fn warn_forward_meshes(
     if forward > 0 && !warned.0 {
         warn!(
             "envis: {forward} opaque StandardMaterial mesh(es) render forward, so envis cannot light \
-             them; add `app.insert_resource(DefaultOpaqueRendererMethod::deferred())` (docs/bevy.md)"
+             them; EnvisPlugin makes `DefaultOpaqueRendererMethod::deferred()` the default unless the \
+             app sets another after it, or a material asks for forward (docs/bevy.md)"
         );
         warned.0 = true;
     }

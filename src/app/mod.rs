@@ -38,6 +38,7 @@ pub mod lighting;
 pub mod material;
 pub mod sampling;
 pub mod scene_objects;
+pub mod setup;
 pub mod shadows;
 pub mod stream;
 pub mod timing;
@@ -58,12 +59,18 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Everything envis needs (and nothing from egui or the demo): add it next to `DefaultPlugins`.
 /// Cameras without [`EnvironmentSampling`] + [`EnvisEnvironment`] are not affected.
+///
+/// It sets itself up ([`setup`]): `DefaultOpaqueRendererMethod::deferred()` becomes the default
+/// (so `StandardMaterial`s write the G-buffer envis lights), and a camera set up so that envis
+/// lights nothing, or with Bevy's environment light as well, gets a one-time warning.
 pub struct EnvisPlugin;
 
 impl Plugin for EnvisPlugin {
     fn build(&self, app: &mut App) {
+        setup::default_to_deferred(app);
         app.register_type::<EnvironmentSampling>()
             .register_type::<EnvisEnvironment>()
+            .add_systems(PostUpdate, setup::warn_camera_setup)
             .add_plugins((
                 EnvisMaterialPlugin,
                 EnvMapSamplingPlugin,
@@ -215,6 +222,8 @@ pub struct Counters {
     /// transparent ones, at the last look ([`coverage::warn_forward_meshes`]; gauges).
     pub forward_meshes: AtomicU64,
     pub transparent_meshes: AtomicU64,
+    /// Camera set-up warnings given (once per camera and problem: [`setup::warn_camera_setup`]).
+    pub setup_warnings: AtomicU64,
     /// Shadow-ray BVHs built from mesh assets (once per mesh asset, however often it is
     /// placed; again only when the asset changes).
     pub shadow_bvh_builds: AtomicU64,

@@ -48,12 +48,11 @@ fn latlong_image(w: u32, f: impl Fn(Vec3) -> Vec3) -> (Image, envis::envmap::Ima
     (img, cpu)
 }
 
-/// An app whose StandardMaterials render deferred (the one line of set-up `docs/bevy.md` asks
-/// for), with the unit sphere in `material`.
+/// An app with the unit sphere in `material`, set up by `EnvisPlugin` alone: its
+/// StandardMaterials render deferred without a line of the app's own (a forward sphere would
+/// come out unlit, so every test on this app checks that set-up).
 fn standard_sphere_app(material: StandardMaterial) -> HeadlessApp {
     let mut h = HeadlessApp::new();
-    h.app
-        .insert_resource(DefaultOpaqueRendererMethod::deferred());
     let mesh = h.add::<Mesh>(Sphere::new(1.0).mesh().ico(7).expect("icosphere"));
     let mat = h.add::<StandardMaterial>(material);
     h.app
@@ -346,12 +345,15 @@ fn bevy_split_screen() {
     }
 }
 
-/// Meshes envis cannot light are reported: an opaque StandardMaterial left forward (no
-/// `DefaultOpaqueRendererMethod::deferred()`), and a transparent one; the deferred one is lit.
+/// Meshes envis cannot light are reported: an opaque StandardMaterial left forward (the app
+/// chose forward as its default after `EnvisPlugin`), and a transparent one; the deferred one is
+/// lit.
 #[test]
 fn bevy_reports_meshes_it_cannot_light() {
     let Some(_) = gpu() else { return };
     let mut h = HeadlessApp::new();
+    h.app
+        .insert_resource(DefaultOpaqueRendererMethod::forward());
     let mesh = h.add::<Mesh>(Sphere::new(0.5).mesh().ico(3).expect("icosphere"));
     for (x, m) in [
         (-1.0, StandardMaterial::default()),
@@ -384,6 +386,59 @@ fn bevy_reports_meshes_it_cannot_light() {
     let c = h.counters();
     assert_eq!(c.get(|c| &c.forward_meshes), 1, "{:?}", c.0);
     assert_eq!(c.get(|c| &c.transparent_meshes), 1, "{:?}", c.0);
+}
+
+/// `EnvisPlugin` sets itself up: deferred is the default renderer method, and each camera set
+/// up so that envis lights nothing, or with Bevy's environment light as well, gets one warning
+/// per problem (not one per frame); a well set-up camera gets none.
+#[test]
+fn bevy_plugin_sets_itself_up_and_warns_once() {
+    let Some(_) = gpu() else { return };
+    let mut h = HeadlessApp::new();
+    assert!(envis::app::setup::is_deferred(
+        h.app.world().resource::<DefaultOpaqueRendererMethod>()
+    ));
+    let (env, _) = latlong_image(8, |_| Vec3::ONE);
+    let env = h.add::<Image>(env);
+    // Inactive cameras: only their components matter here, nothing is drawn.
+    let camera = || {
+        (
+            Camera3d::default(),
+            Camera {
+                is_active: false,
+                ..default()
+            },
+        )
+    };
+    let w = h.app.world_mut();
+    w.spawn((camera(), EnvironmentSampling::default()));
+    w.spawn((camera(), EnvisEnvironment::new(env.clone())));
+    w.spawn((
+        camera(),
+        EnvironmentSampling::default(),
+        EnvisEnvironment::new(env.clone()),
+        EnvironmentMapLight::default(),
+    ));
+    w.spawn((
+        camera(),
+        EnvironmentSampling::default(),
+        EnvisEnvironment::new(env.clone()),
+    ));
+    for _ in 0..3 {
+        h.update();
+    }
+    let warnings = |h: &HeadlessApp| h.counters().get(|c| &c.setup_warnings);
+    assert_eq!(warnings(&h), 3, "one warning per badly set-up camera");
+    // Another of Bevy's environment lights added to the camera already warned adds nothing.
+    let w = h.app.world_mut();
+    let e = w
+        .query_filtered::<Entity, With<EnvironmentMapLight>>()
+        .single(w)
+        .unwrap();
+    w.entity_mut(e)
+        .insert(GeneratedEnvironmentMapLight::default());
+    h.update();
+    assert_eq!(warnings(&h), 3, "a problem is warned about once per camera");
 }
 
 /// An `Image` asset modified on the CPU is rebuilt exactly once, and the lighting follows it.
