@@ -109,7 +109,7 @@ struct SequenceArgs {
     brdf_samples: Option<usize>,
     /// Shadow rays: overrides the scene file's `visibility`.
     #[arg(long, value_enum)]
-    visibility: Option<envis::visibility::Visibility>,
+    visibility: Option<envis::visibility::ShadowRays>,
     /// Write the settings and one object per frame as JSON.
     #[arg(long)]
     stats: Option<std::path::PathBuf>,
@@ -147,7 +147,7 @@ struct SceneArgs {
     /// Shadow rays for every light and BRDF sample (CPU): `auto` (default, or the scene file's
     /// `visibility`) casts them when some object can shadow a visible point.
     #[arg(long, value_enum)]
-    visibility: Option<envis::visibility::Visibility>,
+    visibility: Option<envis::visibility::ShadowRays>,
     /// With a scene file: the pose at this time, in seconds on its `[animation]` clock (the
     /// camera orbited, objects moved, the sky's clock advanced).
     #[arg(long, default_value_t = 0.0)]

@@ -4,7 +4,8 @@
 //! - [`EnvironmentSampling`] and [`EnvisEnvironment`]: the two camera components.
 //! - [`EnvisMaterial`] / [`EnvisBrdf`]: envis's own deferred material (plain `StandardMaterial`
 //!   meshes are lit too).
-//! - The sampling vocabulary: [`Strategy`], [`Counts`], [`Heuristic`], [`Overlay`].
+//! - The sampling vocabulary: [`Strategy`], [`Counts`], [`Heuristic`], [`Overlay`],
+//!   [`ShadowRays`] (`EnvironmentSampling::shadows`).
 
 pub use crate::app::{
     EnvironmentSampling, EnvisBrdf, EnvisEnvironment, EnvisMaterial, EnvisPlugin, Overlay,
@@ -12,3 +13,4 @@ pub use crate::app::{
 };
 pub use crate::render::Strategy;
 pub use crate::sampling::{Counts, Heuristic};
+pub use crate::visibility::ShadowRays;

@@ -12,7 +12,7 @@ use crate::render::resampling::{
 };
 use crate::render::{self, Extras, Settings};
 use crate::scene::{Camera, Scene, SceneScreen};
-use crate::visibility::{Occluder, Visibility};
+use crate::visibility::{Occluder, ShadowRays};
 
 /// What a sequence renders.
 #[derive(Clone, Copy, Debug)]
@@ -26,7 +26,7 @@ pub struct SequenceOptions {
     /// every frame).
     pub resampling: Option<Resampling>,
     /// Shadow rays (`None`: the scene file's choice).
-    pub visibility: Option<Visibility>,
+    pub visibility: Option<ShadowRays>,
 }
 
 /// One rendered frame.

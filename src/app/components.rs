@@ -62,7 +62,7 @@ pub struct EnvironmentSampling {
     pub probe: Option<UVec2>,
     /// Shadow rays against the scene's meshes for every light and BRDF sample: `auto` (on
     /// when some mesh casts shadows), `on` or `off`. `NotShadowCaster` meshes cast none.
-    pub shadows: crate::visibility::Visibility,
+    pub shadows: crate::visibility::ShadowRays,
 }
 
 impl Default for EnvironmentSampling {
@@ -84,7 +84,7 @@ impl Default for EnvironmentSampling {
             overlay: Overlay::None,
             face_size: 64,
             probe: None,
-            shadows: crate::visibility::Visibility::Auto,
+            shadows: crate::visibility::ShadowRays::Auto,
         }
     }
 }

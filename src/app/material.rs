@@ -24,7 +24,8 @@ use bevy::shader::ShaderRef;
 pub const ENVIS_LIGHTING_PASS_ID: u8 = 231;
 
 /// The BRDF of an [`EnvisMaterial`].
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Reflect)]
+#[reflect(Clone, Debug, PartialEq)]
 pub enum EnvisBrdf {
     Lambert {
         albedo: Vec3,
@@ -155,7 +156,10 @@ pub fn standard_material_decoded(m: &StandardMaterial) -> CoreMaterial {
 /// An envis material: meshes with it are lit by the environment alone (Bevy's lights do not
 /// reach them; see `docs/bevy.md`). Deferred only: it is drawn by cameras with
 /// [`super::EnvironmentSampling`] (any camera with a deferred prepass writes its G-buffer).
-#[derive(Asset, AsBindGroup, TypePath, Clone, Debug)]
+///
+/// Reflected like Bevy's own materials, so inspectors and scene files can edit it.
+#[derive(Asset, AsBindGroup, Reflect, Clone, Debug)]
+#[reflect(Clone, Debug)]
 #[uniform(0, EnvisMaterialUniform)]
 pub struct EnvisMaterial {
     pub brdf: EnvisBrdf,
@@ -228,6 +232,7 @@ pub struct EnvisMaterialPlugin;
 impl Plugin for EnvisMaterialPlugin {
     fn build(&self, app: &mut App) {
         embedded_asset!(app, "envis_material.wgsl");
-        app.add_plugins(MaterialPlugin::<EnvisMaterial>::default());
+        app.register_type::<EnvisMaterial>()
+            .add_plugins(MaterialPlugin::<EnvisMaterial>::default());
     }
 }

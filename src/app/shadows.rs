@@ -11,7 +11,7 @@
 use super::components::EnvironmentSampling;
 use super::{Counters, EnvisCounters};
 use crate::visibility::{
-    Bounds, FlatBlas, FlatBvh, FlatInstance, MeshBvh, ObjectFromWorld, Tlas, Visibility,
+    Bounds, FlatBlas, FlatBvh, FlatInstance, MeshBvh, ObjectFromWorld, ShadowRays, Tlas,
     world_bounds,
 };
 use bevy::light::NotShadowCaster;
@@ -38,11 +38,11 @@ pub struct ShadowGeometry {
 impl ShadowGeometry {
     /// Whether a camera asking for `mode` casts shadow rays: `auto` does when there is any
     /// shadow-casting triangle (a Bevy mesh is not known to be convex).
-    pub fn enabled(&self, mode: Visibility) -> bool {
+    pub fn enabled(&self, mode: ShadowRays) -> bool {
         match mode {
-            Visibility::On => true,
-            Visibility::Off => false,
-            Visibility::Auto => self.triangles > 0,
+            ShadowRays::On => true,
+            ShadowRays::Off => false,
+            ShadowRays::Auto => self.triangles > 0,
         }
     }
 }

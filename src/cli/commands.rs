@@ -169,16 +169,16 @@ fn render_bevy(
 ) -> Result<(render::Rendered, serde_json::Value)> {
     use envis::app::{EnvironmentSampling, EnvisBrdf, headless::HeadlessSphere};
     use envis::envmap::load::EnvSource;
-    use envis::visibility::Visibility;
+    use envis::visibility::ShadowRays;
     envis::gpu::context::check_adapter()?;
     use envis::stream::{EnvStream, StreamSource};
     let mut settings = EnvironmentSampling::default();
     settings.set_settings(s);
     // Bevy traces the meshes it draws (a tessellated sphere included).
     settings.shadows = if shadows {
-        Visibility::On
+        ShadowRays::On
     } else {
-        Visibility::Off
+        ShadowRays::Off
     };
     if let Some(sc) = scene {
         let t0 = std::time::Instant::now();

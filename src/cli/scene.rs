@@ -6,7 +6,7 @@ use envis::envmap::load::{EnvSource, LoadedEnv, load_env};
 use envis::error::{Error, Result};
 use envis::render;
 use envis::sampling::Material;
-use envis::visibility::Visibility;
+use envis::visibility::ShadowRays;
 
 pub fn material(a: &SceneArgs) -> Result<Material> {
     if !(a.albedo.is_finite() && a.albedo >= 0.0) {
@@ -57,13 +57,13 @@ const UNIT_SPHERE: envis::scene::Shape = envis::scene::Shape::Sphere {
 
 impl Setup {
     /// Whether to cast shadow rays (`--visibility`, else the scene file's, else `auto`) and why.
-    pub fn shadows(&self, mode: Option<Visibility>) -> (bool, String) {
+    pub fn shadows(&self, mode: Option<ShadowRays>) -> (bool, String) {
         match &self.scene {
             Some(sc) => sc.shadows(mode),
             None => match mode.unwrap_or_default() {
-                Visibility::Auto => envis::scene::shadows::auto_rule(&[&UNIT_SPHERE]),
-                Visibility::On => (true, "on (asked for)".into()),
-                Visibility::Off => (false, "off (asked for)".into()),
+                ShadowRays::Auto => envis::scene::shadows::auto_rule(&[&UNIT_SPHERE]),
+                ShadowRays::On => (true, "on (asked for)".into()),
+                ShadowRays::Off => (false, "off (asked for)".into()),
             },
         }
     }

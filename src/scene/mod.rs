@@ -118,7 +118,7 @@ pub struct SamplingSpec {
     /// `face` or `tile` (`--tile-counts`).
     pub tile_counts: Option<crate::sampling::TileCounts>,
     /// Shadow rays: `auto` (default), `on` or `off` (`--visibility` overrides it).
-    pub visibility: Option<crate::visibility::Visibility>,
+    pub visibility: Option<crate::visibility::ShadowRays>,
 }
 
 #[derive(Clone, Debug, Deserialize)]

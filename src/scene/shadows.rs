@@ -1,11 +1,11 @@
 //! Shadow rays in a scene: which objects block them ([`Occluders`]), when a scene needs them at
-//! all (the `auto` rule of [`crate::visibility::Visibility`]), and the geometry the GPU traces
+//! all (the `auto` rule of [`crate::visibility::ShadowRays`]), and the geometry the GPU traces
 //! for them ([`Scene::shadow_bvh`]).
 
 use super::{Scene, Shape, TriMesh, sphere_mesh, square_mesh};
 use crate::visibility::{
     Bounds, FlatBlas, FlatBvh, FlatInstance, Hull, ObjectFromWorld, Occluder, Reach, ShadowPoint,
-    Tlas, Visibility, inverse, shadow_origin, slab_hit,
+    ShadowRays, Tlas, inverse, shadow_origin, slab_hit,
 };
 use glam::Vec3;
 use std::sync::Arc;
@@ -180,13 +180,13 @@ impl Scene {
 
     /// Whether to cast shadow rays under `mode` (`None`: the scene file's `visibility`, else
     /// `auto`), and why, for `--stats`.
-    pub fn shadows(&self, mode: Option<Visibility>) -> (bool, String) {
+    pub fn shadows(&self, mode: Option<ShadowRays>) -> (bool, String) {
         let mode = mode.or(self.file.sampling.visibility).unwrap_or_default();
         let casters: Vec<&Shape> = self.occluders().shapes;
         match mode {
-            Visibility::On => (true, "on (asked for)".into()),
-            Visibility::Off => (false, "off (asked for)".into()),
-            Visibility::Auto => auto_rule(&casters),
+            ShadowRays::On => (true, "on (asked for)".into()),
+            ShadowRays::Off => (false, "off (asked for)".into()),
+            ShadowRays::Auto => auto_rule(&casters),
         }
     }
 }

@@ -41,7 +41,9 @@ pub trait Occluder: Sync {
     }
 }
 
-/// Whether shadow rays are cast (`--visibility`, a scene file's `[sampling] visibility`).
+/// Whether shadow rays are cast (`--visibility`, a scene file's `[sampling] visibility`,
+/// `EnvironmentSampling::shadows`). Named so that it does not clash with Bevy's `Visibility`
+/// in a Bevy user's `use bevy::prelude::*; use envis::prelude::*;`.
 #[derive(
     Clone,
     Copy,
@@ -56,7 +58,7 @@ pub trait Occluder: Sync {
 #[serde(rename_all = "lowercase")]
 // Reflected for the Bevy camera component (`app::EnvironmentSampling`); the core stays Bevy-free.
 #[cfg_attr(feature = "app", derive(bevy::reflect::Reflect))]
-pub enum Visibility {
+pub enum ShadowRays {
     /// On when some object can shadow a visible point: two or more shadow-casting objects, or
     /// one that is not known to be convex; off for a lone convex object.
     #[default]
@@ -64,7 +66,11 @@ pub enum Visibility {
     On,
     Off,
 }
-crate::vocab::display_as_value_enum!(Visibility);
+crate::vocab::display_as_value_enum!(ShadowRays);
+
+/// The old name of [`ShadowRays`], kept so that code written against it still compiles.
+#[deprecated(note = "renamed `ShadowRays` (no clash with Bevy's `Visibility`)")]
+pub type Visibility = ShadowRays;
 
 /// How far a shadow ray starts from its surface, along the normal: relative to the point's
 /// distance from the origin (f32 positions carry about 1e-7 of it in error), with a floor.

@@ -7,7 +7,7 @@ use envis::render::Extras;
 use envis::render::reference::reference_image_with;
 use envis::scene::Scene;
 use envis::scene::shadows::Occluders;
-use envis::visibility::{Occluder, Visibility};
+use envis::visibility::{Occluder, ShadowRays};
 
 /// A scene file written to a temporary directory and loaded (the file is gone afterwards: the
 /// scene is in memory).
@@ -156,8 +156,8 @@ fn visibility_auto_rule() {
             why.starts_with(if want { "on" } else { "off" }),
             "{name}: {why}"
         );
-        assert!(!sc.shadows(Some(Visibility::Off)).0);
-        assert!(sc.shadows(Some(Visibility::On)).0);
+        assert!(!sc.shadows(Some(ShadowRays::Off)).0);
+        assert!(sc.shadows(Some(ShadowRays::On)).0);
     }
 }
 
@@ -397,4 +397,12 @@ fn point_culling_matches_full_query() {
         0,
         "40 spheres are too many to list"
     );
+}
+
+/// Code written against the old name of `ShadowRays` still compiles (a deprecated alias).
+#[test]
+#[allow(deprecated)]
+fn the_old_visibility_name_is_an_alias() {
+    let old: envis::visibility::Visibility = ShadowRays::Off;
+    assert_eq!(old, ShadowRays::Off);
 }

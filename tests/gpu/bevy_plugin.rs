@@ -390,7 +390,8 @@ fn bevy_reports_meshes_it_cannot_light() {
 
 /// `EnvisPlugin` sets itself up: deferred is the default renderer method, and each camera set
 /// up so that envis lights nothing, or with Bevy's environment light as well, gets one warning
-/// per problem (not one per frame); a well set-up camera gets none.
+/// per problem (not one per frame); a well set-up camera gets none. Its types meet Bevy's
+/// conventions: `EnvisMaterial` is reflected, `ShadowRays` does not clash with `Visibility`.
 #[test]
 fn bevy_plugin_sets_itself_up_and_warns_once() {
     let Some(_) = gpu() else { return };
@@ -439,6 +440,17 @@ fn bevy_plugin_sets_itself_up_and_warns_once() {
         .insert(GeneratedEnvironmentMapLight::default());
     h.update();
     assert_eq!(warnings(&h), 3, "a problem is warned about once per camera");
+    // Both preludes together name Bevy's `Visibility` and envis's `ShadowRays` without a clash.
+    let (_, _) = (Visibility::Hidden, ShadowRays::On);
+    // `EnvisMaterial` is reflected and registered, as Bevy's own materials are.
+    let registry = h.app.world().resource::<AppTypeRegistry>().read();
+    assert!(registry.contains(std::any::TypeId::of::<EnvisMaterial>()));
+    let m = EnvisMaterial::lambert(Vec3::ONE);
+    let brdf = m.reflect_ref().as_struct().unwrap().field("brdf").unwrap();
+    assert_eq!(
+        brdf.try_downcast_ref::<EnvisBrdf>(),
+        Some(&EnvisBrdf::Lambert { albedo: Vec3::ONE })
+    );
 }
 
 /// An `Image` asset modified on the CPU is rebuilt exactly once, and the lighting follows it.
@@ -567,7 +579,7 @@ fn bevy_gpu_written_image_rebuilds_every_frame() {
 /// samples, `shadows` as given; its `size^2` target.
 fn top_down_camera(
     h: &mut HeadlessApp,
-    shadows: envis::visibility::Visibility,
+    shadows: envis::visibility::ShadowRays,
     size: u32,
     half: f32,
 ) -> Handle<Image> {
@@ -608,7 +620,7 @@ fn bevy_environment_shadows() {
     let size = 48u32;
     // The view's half width: the ground reaches far enough from the sphere to be open sky.
     const HALF: f32 = 6.0;
-    let render = |plane: bool, caster: bool, shadows: envis::visibility::Visibility| {
+    let render = |plane: bool, caster: bool, shadows: envis::visibility::ShadowRays| {
         let mut h = standard_sphere_app(white_furnace_material());
         let world = h.app.world_mut();
         let sphere = world
@@ -645,7 +657,7 @@ fn bevy_environment_shadows() {
         }
         (img, h.counters())
     };
-    use envis::visibility::Visibility::{Off, On};
+    use envis::visibility::ShadowRays::{Off, On};
     // Mean luminance of the pixels whose ground distance from the contact point is in [r0, r1)
     // (top-down view over [-HALF, HALF]^2).
     let ring = |img: &[Vec3], r0: f32, r1: f32| {
@@ -748,7 +760,7 @@ fn bevy_shadows_follow_moving_meshes() {
         Transform::from_xyz(2.8, 0.05, -2.8),
         bevy::light::NotShadowCaster,
     ));
-    let target = top_down_camera(&mut h, envis::visibility::Visibility::On, size, 3.0);
+    let target = top_down_camera(&mut h, envis::visibility::ShadowRays::On, size, 3.0);
     // Mean luminance of the ground ring [1.05, 1.4) around (x, 0) in the top-down view (the
     // image's x runs along -X: the camera looks down with +Z up the image).
     let ring = |img: &[Vec3], x0: f32| {

@@ -290,7 +290,7 @@ fn sampling_ui(ui: &mut egui::Ui, settings: &mut EnvironmentSampling) {
     );
     ui.horizontal(|ui| {
         ui.label("environment shadows");
-        for &v in crate::visibility::Visibility::value_variants() {
+        for &v in crate::visibility::ShadowRays::value_variants() {
             ui.selectable_value(&mut settings.shadows, v, v.to_string());
         }
     });
