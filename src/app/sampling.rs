@@ -33,24 +33,48 @@ use std::collections::{HashMap, HashSet};
 #[derive(Resource, Clone, Default, ExtractResource)]
 pub struct EnvImageVersions(pub HashMap<AssetId<Image>, u64>);
 
-/// Counts changes to the scene (materials, meshes, transforms of meshes), extracted to the render
-/// world: accumulation restarts when it changes.
+/// Counts changes to the scene (materials, meshes, transforms of meshes, which meshes are drawn
+/// and cast shadows), extracted to the render world: accumulation restarts when it changes.
 #[derive(Resource, Clone, Copy, Default, ExtractResource)]
 pub struct SceneRevision(pub u64);
 
-/// Bump [`SceneRevision`] when a material or mesh asset changed, or a mesh moved, appeared or
-/// went away.
-#[allow(clippy::too_many_arguments)]
+/// A mesh entity now draws another mesh or material, or was hidden or shown. (Bevy writes
+/// `InheritedVisibility` only when it changes, so a still scene triggers none of these.)
+type MeshSwapped = (
+    With<Mesh3d>,
+    Or<(
+        Changed<Mesh3d>,
+        Changed<MeshMaterial3d<StandardMaterial>>,
+        Changed<MeshMaterial3d<super::EnvisMaterial>>,
+        Changed<InheritedVisibility>,
+    )>,
+);
+
+/// Bump [`SceneRevision`] when a material or mesh asset changed, a mesh moved, appeared, went
+/// away, was hidden or shown, took another mesh or material handle, or started or stopped
+/// casting shadows.
+#[allow(
+    clippy::too_many_arguments,
+    reason = "a Bevy system's parameters are the data it touches"
+)]
 pub fn track_scene_changes(
     mut standard: MessageReader<AssetEvent<StandardMaterial>>,
     mut envis: MessageReader<AssetEvent<super::EnvisMaterial>>,
     mut meshes: MessageReader<AssetEvent<Mesh>>,
     moved: Query<(), (With<Mesh3d>, Changed<GlobalTransform>)>,
+    swapped: Query<(), MeshSwapped>,
+    (opted_out, mut opted_in): (
+        Query<(), Added<bevy::light::NotShadowCaster>>,
+        RemovedComponents<bevy::light::NotShadowCaster>,
+    ),
     mut removed: RemovedComponents<Mesh3d>,
     mut revision: ResMut<SceneRevision>,
 ) {
     let changed = standard.read().count() + envis.read().count() + meshes.read().count() > 0
         || !moved.is_empty()
+        || !swapped.is_empty()
+        || !opted_out.is_empty()
+        || opted_in.read().count() > 0
         || removed.read().count() > 0;
     if changed {
         revision.0 += 1;

@@ -451,3 +451,84 @@ fn bevy_skipping_is_bit_identical_to_the_always_on_path() {
         "skipping rebuilds changed the image"
     );
 }
+
+/// The running mean restarts on every scene change docs/bevy.md lists beyond assets and
+/// transforms: a mesh that starts or stops casting shadows (`NotShadowCaster`), a mesh hidden or
+/// shown, and a material handle swapped for another (no asset event: the asset itself did not
+/// change).
+#[test]
+fn bevy_accumulation_restarts_on_casters_visibility_and_material_handles() {
+    use bevy::prelude::*;
+    let Some(_) = gpu() else { return };
+    let mut h = HeadlessSphere::new(
+        StreamSource::Sky {
+            hours: 15.0,
+            speed: 0.0,
+        },
+        8,
+        EnvisBrdf::Lambert {
+            albedo: Vec3::splat(0.8),
+        },
+        EnvironmentSampling {
+            light_samples: 2,
+            brdf_samples: 2,
+            accumulate: true,
+            ..Default::default()
+        },
+        16,
+    );
+    let other = h
+        .app
+        .add::<envis::app::EnvisMaterial>(envis::app::EnvisMaterial::lambert(Vec3::splat(0.5)));
+    type Change = Box<dyn Fn(&mut EntityWorldMut)>;
+    let changes: [(&str, Change); 5] = [
+        (
+            "NotShadowCaster added",
+            Box::new(|e| {
+                e.insert(bevy::light::NotShadowCaster);
+            }),
+        ),
+        (
+            "NotShadowCaster removed",
+            Box::new(|e| {
+                e.remove::<bevy::light::NotShadowCaster>();
+            }),
+        ),
+        (
+            "hidden",
+            Box::new(|e| {
+                e.insert(Visibility::Hidden);
+            }),
+        ),
+        (
+            "shown",
+            Box::new(|e| {
+                e.insert(Visibility::Inherited);
+            }),
+        ),
+        (
+            "material handle swapped",
+            Box::new(move |e| {
+                e.insert(MeshMaterial3d(other.clone()));
+            }),
+        ),
+    ];
+    for (what, change) in changes {
+        for _ in 0..4 {
+            h.update();
+        }
+        assert!(h.accumulated_frames() >= 3, "{what}: not accumulating");
+        let world = h.app.app.world_mut();
+        let sphere = world
+            .query_filtered::<Entity, With<Mesh3d>>()
+            .single(world)
+            .unwrap();
+        change(&mut world.entity_mut(sphere));
+        // (The change reaches the render world over the next frames: pipelined rendering.)
+        let restarted = (0..4).any(|_| {
+            h.update();
+            h.accumulated_frames() == 0
+        });
+        assert!(restarted, "{what}, but the average went on");
+    }
+}
