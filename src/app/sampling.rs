@@ -162,7 +162,8 @@ impl Plugin for EnvMapSamplingPlugin {
                     track_image_versions.after(bevy::asset::AssetEventSystems),
                     track_scene_changes
                         .after(bevy::asset::AssetEventSystems)
-                        .after(bevy::transform::TransformSystems::Propagate),
+                        .after(bevy::transform::TransformSystems::Propagate)
+                        .after(bevy::camera::visibility::VisibilitySystems::VisibilityPropagate),
                 ),
             );
         let Some(render_app) = app.get_sub_app_mut(RenderApp) else {

@@ -82,8 +82,11 @@ impl Plugin for EnvironmentShadowsPlugin {
             .add_plugins(ExtractResourcePlugin::<ShadowGeometry>::default())
             .add_systems(
                 PostUpdate,
+                // After this frame's transforms and visibility are known: a mesh spawned this
+                // frame is then built once, visible, not once hidden and again next frame.
                 gather_shadow_geometry
                     .after(bevy::transform::TransformSystems::Propagate)
+                    .after(bevy::camera::visibility::VisibilitySystems::VisibilityPropagate)
                     .after(bevy::asset::AssetEventSystems),
             );
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
