@@ -19,20 +19,34 @@ struct LightingView {
     world_from_clip: mat4x4<f32>,
     // The inverse of EnvisEnvironment::rotation: world directions -> the map's.
     env_from_world: mat4x4<f32>,
-    // xyz: camera position; w: 1 for an orthographic projection.
-    camera: vec4<f32>,
-    // xyz: camera forward (world); w: radiance scale (intensity x exposure).
-    forward: vec4<f32>,
+    // Camera position (world); 1 for an orthographic projection.
+    camera: vec3<f32>,
+    orthographic: u32,
+    // Camera forward (world); the radiance scale (intensity x exposure).
+    forward: vec3<f32>,
+    radiance_scale: f32,
     // Viewport origin and size in pixels.
     viewport: vec4<f32>,
-    // x: 1 to draw the environment where there is no geometry; y: overlay (0 none, 1 effective
-    // samples per pixel, 2 wasted fraction, 3 |fractional - integer|); z, w: the probed pixel
-    // (negative: none).
-    options: vec4<f32>,
-    // x: 1 to average frames; y: frames averaged before this one (0 restarts the mean); z: source
-    // layout (SOURCE_LATLONG / SOURCE_CUBE); w: nodes of the shadow BVH (0: no shadow rays).
-    accumulate: vec4<f32>,
+    // The probed pixel in the viewport (negative: none).
+    probe_pixel: vec2<f32>,
+    // 1 to draw the environment where there is no geometry.
+    show_background: u32,
+    // OVERLAY_*.
+    overlay: u32,
+    // 1 to average frames, and the frames averaged before this one (0 restarts the mean).
+    accumulate: u32,
+    frames: u32,
+    // SOURCE_* (image_source.wgsl).
+    source_layout: u32,
+    _pad: u32,
 }
+// The shadow BVH's node count is sp.bvh_nodes (shade.wgsl's ShadeParams; 0: no shadow rays).
+
+// app::Overlay::gpu_code (src/app/lighting_uniforms.rs).
+const OVERLAY_NONE: u32 = 0u;
+const OVERLAY_EFFECTIVE_SAMPLES: u32 = 1u;
+const OVERLAY_WASTED: u32 = 2u;
+const OVERLAY_COUNTS_DIFFERENCE: u32 = 3u;
 
 @group(0) @binding(0) var gbuffer: texture_2d<u32>;
 @group(0) @binding(1) var depth_tex: texture_depth_2d;
@@ -60,7 +74,7 @@ struct LightingView {
 // Sample radiance comes from the full-resolution image (the texel a direction falls in); the
 // texel table gives only densities (render::FrameData::fine is the CPU twin).
 fn env_radiance(d: vec3<f32>, coarse: vec3<f32>) -> vec3<f32> {
-    return source_nearest(source, u32(lv.accumulate.z), d);
+    return source_nearest(source, lv.source_layout, d);
 }
 
 // The shading point in world space and the map's rotation back to world space, set by the
@@ -71,13 +85,12 @@ var<private> world_from_env: mat3x3<f32>;
 // A shadow ray through the scene's meshes (app::shadows), from the shading point; no rays when
 // the camera's shadows are off (node count 0). Directions arrive in the map's frame.
 fn sample_blocked(px: GPixel, pixel_index: u32, d: vec3<f32>) -> bool {
-    let nodes = u32(lv.accumulate.w);
-    if (nodes == 0u) {
+    if (sp.bvh_nodes == 0u) {
         return false;
     }
     let dw = world_from_env * d;
     let o = shadow_origin(shadow_point, world_from_env * px.n.xyz, dw);
-    return bvh_occluded(o, dw, 1e-4, 3.4028235e38, nodes);
+    return bvh_occluded(o, dw, 1e-4, 3.4028235e38, sp.bvh_nodes);
 }
 
 const PBR_LIGHTING_PASS_ID: u32 = 1u;
@@ -141,22 +154,21 @@ fn lighting(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
     let depth = textureLoad(depth_tex, coord, 0);
     let uv = (pos.xy - lv.viewport.xy) / lv.viewport.zw;
     let ndc = vec2(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0);
-    let ortho = lv.camera.w > 0.5;
-    let scale = lv.forward.w;
+    let ortho = lv.orthographic != 0u;
+    let scale = lv.radiance_scale;
     let env = mat3x3(lv.env_from_world[0].xyz, lv.env_from_world[1].xyz, lv.env_from_world[2].xyz);
     if (depth <= 0.0) {
         // No geometry (reverse-Z far plane): the environment image in the direction of the
         // pixel's ray, or what Bevy drew there.
-        if (lv.options.x < 0.5) {
+        if (lv.show_background == 0u) {
             return vec4(0.0);
         }
-        var dir = lv.forward.xyz;
+        var dir = lv.forward;
         if (!ortho) {
             let p = lv.world_from_clip * vec4(ndc, 1.0, 1.0);
-            dir = p.xyz / p.w - lv.camera.xyz;
+            dir = p.xyz / p.w - lv.camera;
         }
-        let kind = u32(lv.accumulate.z);
-        return vec4(source_radiance(source, kind, normalize(env * dir)) * scale, 1.0);
+        return vec4(source_radiance(source, lv.source_layout, normalize(env * dir)) * scale, 1.0);
     }
     let pass_id = textureLoad(pass_ids, coord, 0).r;
     let g = textureLoad(gbuffer, coord, 0);
@@ -166,9 +178,9 @@ fn lighting(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
     }
     let wp = lv.world_from_clip * vec4(ndc, depth, 1.0);
     let world = wp.xyz / wp.w;
-    var o = -lv.forward.xyz;
+    var o = -lv.forward;
     if (!ortho) {
-        o = normalize(lv.camera.xyz - world);
+        o = normalize(lv.camera - world);
     }
     // Shade in the map's frame: rotating normal and view together leaves the BRDF unchanged.
     o = env * o;
@@ -184,35 +196,34 @@ fn lighting(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
     let local = vec2<u32>(max(pos.xy - lv.viewport.xy, vec2(0.0)));
     let pixel_index = local.y * u32(lv.viewport.z) + local.x;
     let r = shade(px, pixel_index);
-    if (all(vec2<f32>(local) == lv.options.zw)) {
+    if (all(vec2<f32>(local) == lv.probe_pixel)) {
         probe[0] = px.n;
         probe[1] = px.o;
         probe[2] = px.kd;
         probe[3] = px.ks;
         probe[4] = vec4(r.color, 1.0);
         probe[5] = vec4(f32(local.x), f32(local.y), f32(pixel_index), 1.0);
-        probe[6] = vec4(world, select(0.0, 1.0, lv.accumulate.w > 0.0));
+        probe[6] = vec4(world, select(0.0, 1.0, sp.bvh_nodes > 0u));
     }
-    let overlay = u32(lv.options.y);
-    if (overlay == 1u) {
+    if (lv.overlay == OVERLAY_EFFECTIVE_SAMPLES) {
         // Samples this pixel evaluated (used light samples + BRDF samples) over its budget.
         let used = f32(r.stats.y + r.stats.z + r.stats.w);
         return vec4(heat(used / max(f32(sp.nl + sp.nb), 1.0)), 1.0);
     }
-    if (overlay == 2u) {
-        // Fraction of the light samples used that had a negative cosine (the seed's yellow).
+    if (lv.overlay == OVERLAY_WASTED) {
+        // Fraction of the light samples used that had a negative cosine (the paper's yellow).
         let light = r.stats.y + r.stats.z;
         return vec4(heat(select(0.0, f32(r.stats.z) / f32(light), light > 0u)), 1.0);
     }
-    if (overlay == 3u) {
+    if (lv.overlay == OVERLAY_COUNTS_DIFFERENCE) {
         // Where integer counts differ from fractional ones (where integer counts pop).
-        let other = shade_counts(px, pixel_index, 1u - min(sp.counts, 1u));
+        let other = shade_counts(px, pixel_index, select(COUNTS_FRACTIONAL, COUNTS_INTEGER, sp.counts == COUNTS_FRACTIONAL));
         let d = length(r.color - other.color) / max(length(r.color), 1e-3);
         return vec4(heat(d * 4.0), 1.0);
     }
     var color = r.color;
-    if (lv.accumulate.x > 0.5) {
-        let k = lv.accumulate.y;
+    if (lv.accumulate != 0u) {
+        let k = f32(lv.frames);
         if (k > 0.0) {
             color = accum[pixel_index].xyz + (color - accum[pixel_index].xyz) / (k + 1.0);
         }

@@ -5,8 +5,10 @@
 // (render::FrameData::radiance), and `sample_blocked(px, pixel_index, d)`, whether a shadow ray
 // from the pixel's surface point is blocked (render::estimator's `Pixel::blocked`):
 // shade_compute.wgsl (headless backend, tests: the table's value; shadow rays through a BVH) or
-// lighting.wgsl (the Bevy lighting pass: the full-resolution image; no shadow rays yet). All of them are
-// written by distribution.wgsl on the GPU; nothing is read back to the CPU.
+// lighting.wgsl (the Bevy lighting pass: the full-resolution image; shadow rays through the
+// scene's BVH). All of them are written by distribution.wgsl on the GPU; nothing is read back to
+// the CPU. The `u32` codes (STRATEGY_*, POOL_*, TILE_COUNTS_*, and sampling.wgsl's) are the
+// `gpu_code()`s of src/gpu/codes.rs, which a test checks them against.
 
 struct ShadeParams {
     // Face size N and pool slots per face (M x pool_blocks).
@@ -15,12 +17,13 @@ struct ShadeParams {
     // Light and BRDF samples this strategy draws (already remapped as render::shade_pixel does).
     nl: u32,
     nb: u32,
-    // 0 paper (cosine face weights), 1 light (energy only), 2 brdf only.
+    // STRATEGY_*.
     strategy: u32,
+    // COUNTS_* and MIS_* (sampling.wgsl).
     counts: u32,
     mis: u32,
     seed: u32,
-    // render::PoolLayout: 0 shared, 1 offset, 2 blocks (pool_blocks of them).
+    // POOL_* (render::PoolLayout; pool_blocks blocks for POOL_BLOCKS).
     pool_layout: u32,
     pixel_count: u32,
     // 1: each pixel's material chooses the split of nl + nb (render::budget_for).
@@ -30,7 +33,7 @@ struct ShadeParams {
     pool_blocks: u32,
     // Tiles per face side K (sampling::tiles; 1: whole faces). Regions: 6 K^2.
     tiles: u32,
-    // 1: sampling::TileCounts::Face (counts per face, each sample drawing its tile); 0: per tile.
+    // TILE_COUNTS_*: sampling::TileCounts (per face, each sample drawing its tile; or per tile).
     tile_counts: u32,
     _pad2: u32,
 }
@@ -88,8 +91,11 @@ fn draw_tile(n: vec3<f32>, f: u32, fm: f32, u: f32, use_cosine: bool) -> u32 {
     return last;
 }
 
+const TILE_COUNTS_TILE: u32 = 0u;
+const TILE_COUNTS_FACE: u32 = 1u;
+
 fn face_tile_counts() -> bool {
-    return sp.tiles > 1u && sp.tile_counts == 1u;
+    return sp.tiles > 1u && sp.tile_counts == TILE_COUNTS_FACE;
 }
 
 // The light density N_t of region r (render::estimator: the `density` table the light loop
@@ -120,6 +126,7 @@ fn region_count(n: vec3<f32>, r: u32, total: f32, nl: u32, use_cosine: bool) -> 
     return mu * f32(nl);
 }
 
+const POOL_SHARED: u32 = 0u;
 const POOL_OFFSET: u32 = 1u;
 const POOL_BLOCKS: u32 = 2u;
 

@@ -10,7 +10,7 @@
 }
 
 struct EnvisMaterialUniform {
-    // rgb: diffuse albedo; w: lobe kind (0 none, 1 Phong, 2 GGX).
+    // rgb: diffuse albedo; w: the lobe's code (LOBE_* of shaders/sampling.wgsl, Lobe::gpu_code).
     kd: vec4<f32>,
     // rgb: specular albedo; w: Phong exponent or GGX alpha.
     ks: vec4<f32>,

@@ -6,14 +6,13 @@
 //! as the headless backend (`shaders/shade.wgsl`), limited to the camera's viewport.
 
 use super::components::{EnvironmentSampling, EnvisEnvironment};
+use super::lighting_uniforms::{PROBE_BYTES, decode_probe, lighting_view};
 use super::sampling::{EnvSamplers, ViewSampling};
 use super::timing::{AsyncRead, AsyncTimer, EnvisTimings};
-use super::{EnvisCounters, EnvisProbe, Overlay, ProbeResult};
-use crate::envmap::resample::SourceLayout;
+use super::{EnvisCounters, EnvisProbe, Overlay};
 use crate::gpu::shaders;
 use crate::gpu::shading::ShadeParams;
 use crate::render::Strategy;
-use crate::sampling::{Lobe, Material};
 use bevy::core_pipeline::core_3d::main_opaque_pass_3d;
 use bevy::core_pipeline::prepass::ViewPrepassTextures;
 use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
@@ -26,18 +25,6 @@ use std::collections::HashMap;
 use std::sync::Mutex;
 use wgpu::util::DeviceExt;
 
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-struct LightingView {
-    world_from_clip: [[f32; 4]; 4],
-    env_from_world: [[f32; 4]; 4],
-    camera: [f32; 4],
-    forward: [f32; 4],
-    viewport: [f32; 4],
-    options: [f32; 4],
-    accumulate: [f32; 4],
-}
-
 /// The lighting pipeline (raw wgpu, shared WGSL with the headless backend), one per target format.
 #[derive(Resource)]
 pub struct LightingPipelines {
@@ -47,7 +34,7 @@ pub struct LightingPipelines {
     by_format: Mutex<HashMap<wgpu::TextureFormat, wgpu::RenderPipeline>>,
     /// Times the first envis camera's lighting pass of a frame.
     timer: Option<AsyncTimer>,
-    /// The probed pixel's record (6 vec4) and its readback.
+    /// The probed pixel's record (`lighting_uniforms::PROBE_RECORD`) and its readback.
     probe: wgpu::Buffer,
     probe_read: AsyncRead,
     /// Bound in place of the shadow BVH when a camera casts no shadow rays.
@@ -121,13 +108,13 @@ impl LightingPipelines {
         let timer = AsyncTimer::new(device, queue, "envis lighting timer");
         let probe = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("envis probe"),
-            size: 112,
+            size: PROBE_BYTES,
             usage: wgpu::BufferUsages::STORAGE
                 | wgpu::BufferUsages::COPY_SRC
                 | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let probe_read = AsyncRead::new(device, "envis probe readback", 112);
+        let probe_read = AsyncRead::new(device, "envis probe readback", PROBE_BYTES);
         // Bound in place of the shadow BVH when there is none (one triangle's 48 bytes).
         let no_shadows = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("envis no shadow geometry"),
@@ -268,31 +255,8 @@ fn poll_lighting_readbacks(
         timings.set(|t| t.lighting_gpu_ms = Some(ms));
     }
     if let Some(bytes) = pipes.probe_read.poll() {
-        let v: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&bytes);
-        if v[5][3] == 1.0 {
-            let lobe = match v[2][3] as u32 {
-                1 => Lobe::Phong { exponent: v[3][3] },
-                2 => Lobe::Ggx { alpha: v[3][3] },
-                3 => Lobe::GgxSchlick { alpha: v[3][3] },
-                _ => Lobe::None,
-            };
-            let v3 = |a: [f32; 4]| Vec3::new(a[0], a[1], a[2]);
-            let r = ProbeResult {
-                pixel: UVec2::new(v[5][0] as u32, v[5][1] as u32),
-                gpixel: crate::render::GPixel {
-                    n: v3(v[0]),
-                    o: v3(v[1]),
-                    material: Material {
-                        kd: v3(v[2]),
-                        ks: v3(v[3]),
-                        lobe,
-                    },
-                },
-                estimate: v3(v[4]),
-                pixel_index: v[5][2] as u32,
-                seed: *pipes.probe_seed.lock().expect("probe seed"),
-                point: (v[6][3] == 1.0).then(|| v3(v[6])),
-            };
+        let seed = *pipes.probe_seed.lock().expect("probe seed");
+        if let Some(r) = decode_probe(&bytes, seed) {
             *probe.lock().expect("probe") = Some(r);
         }
     }
@@ -344,12 +308,12 @@ fn mis_lighting(
     }
     let vp = ev.viewport;
     s.seed = vs.seed;
-    let params = ShadeParams::new(&s, sampler.n, sampler.m, (vp.z * vp.w) as usize);
-    let mut lv = lighting_view(ev, cam, sampling, env, vs, slot.layout);
+    let mut params = ShadeParams::new(&s, sampler.n, sampler.m, (vp.z * vp.w) as usize);
+    let lv = lighting_view(ev, cam, sampling, env, vs, slot.layout);
     // Shadow rays when the camera asks for them and the uploaded geometry is this frame's.
     let geometry = match shadows {
         (Some(g), Some(gpu)) if g.enabled(sampling.shadows) && gpu.generation == g.generation => {
-            lv.accumulate[3] = gpu.node_count as f32;
+            params.bvh_nodes = gpu.node_count;
             Some(gpu)
         }
         _ => None,
@@ -437,52 +401,4 @@ fn mis_lighting(
     }
     let ms = t0.elapsed().as_secs_f64() * 1e3;
     timings.set(|t| t.lighting_cpu_ms = Some(ms));
-}
-
-/// The pass's per-view uniform.
-fn lighting_view(
-    ev: &ExtractedView,
-    cam: &ExtractedCamera,
-    sampling: &EnvironmentSampling,
-    env: &EnvisEnvironment,
-    vs: &ViewSampling,
-    layout: SourceLayout,
-) -> LightingView {
-    let vp = ev.viewport;
-    let world_from_view = ev.world_from_view.to_matrix();
-    let ortho = ev.clip_from_view.w_axis.w == 1.0;
-    let overlay = Overlay::ALL
-        .iter()
-        .position(|o| *o == sampling.overlay)
-        .unwrap_or(0) as f32;
-    let p = sampling
-        .probe
-        .map_or([-1.0, -1.0], |p| [p.x as f32, p.y as f32]);
-    let kind = match layout {
-        SourceLayout::LatLong => 0.0,
-        SourceLayout::Cube => 1.0,
-    };
-    LightingView {
-        world_from_clip: (world_from_view * ev.clip_from_view.inverse()).to_cols_array_2d(),
-        env_from_world: Mat4::from_quat(env.rotation.inverse()).to_cols_array_2d(),
-        camera: ev
-            .world_from_view
-            .translation()
-            .extend(ortho as u32 as f32)
-            .to_array(),
-        forward: ev
-            .world_from_view
-            .forward()
-            .as_vec3()
-            .extend(env.intensity * cam.exposure)
-            .to_array(),
-        viewport: [vp.x as f32, vp.y as f32, vp.z as f32, vp.w as f32],
-        options: [env.show_background as u32 as f32, overlay, p[0], p[1]],
-        accumulate: [
-            sampling.accumulate as u32 as f32,
-            vs.frame as f32,
-            kind,
-            0.0,
-        ],
-    }
 }

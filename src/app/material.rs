@@ -191,8 +191,7 @@ impl EnvisMaterial {
     }
 }
 
-/// The GPU form of [`EnvisMaterial`]: kd (w = lobe kind: 0 none, 1 Phong, 2 GGX), ks (w = the
-/// lobe parameter).
+/// The GPU form of [`EnvisMaterial`]: kd (w = [`Lobe::gpu_code`]), ks (w = [`Lobe::gpu_param`]).
 #[derive(Clone, Default, ShaderType)]
 pub struct EnvisMaterialUniform {
     pub kd: Vec4,
@@ -202,15 +201,9 @@ pub struct EnvisMaterialUniform {
 impl AsBindGroupShaderType<EnvisMaterialUniform> for EnvisMaterial {
     fn as_bind_group_shader_type(&self, _: &RenderAssets<GpuImage>) -> EnvisMaterialUniform {
         let m = self.brdf.material();
-        let (kind, param) = match m.lobe {
-            Lobe::None => (0.0, 0.0),
-            Lobe::Phong { exponent } => (1.0, exponent),
-            Lobe::Ggx { alpha } => (2.0, alpha),
-            Lobe::GgxSchlick { alpha } => (3.0, alpha),
-        };
         EnvisMaterialUniform {
-            kd: m.kd.extend(kind),
-            ks: m.ks.extend(param),
+            kd: m.kd.extend(m.lobe.gpu_code() as f32),
+            ks: m.ks.extend(m.lobe.gpu_param()),
         }
     }
 }

@@ -35,6 +35,7 @@ pub mod coverage;
 pub mod demo;
 pub mod headless;
 pub mod lighting;
+mod lighting_uniforms;
 pub mod material;
 pub mod sampling;
 pub mod scene_objects;

@@ -7,6 +7,7 @@
 //! backend ([`render_gpu`], `envis render --backend wgpu`) and the Bevy render world, which hands
 //! over its own device and encoder.
 
+pub mod codes;
 pub mod context;
 pub mod resample;
 pub mod sampler;

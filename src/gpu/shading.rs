@@ -4,11 +4,11 @@
 use super::sampler::{EnvSampler, check_binding};
 use super::{GpuContext, dispatch_size, shaders};
 use crate::error::Result;
-use crate::render::{GPixel, PoolLayout, Settings, Strategy};
-use crate::sampling::{Counts, Heuristic, Lobe};
+use crate::render::{GPixel, Settings};
 
-/// A G-buffer texel as the shader reads it: `n.w = 1` where there is geometry, `kd.w` = lobe kind
-/// (0 none, 1 Phong, 2 GGX), `ks.w` = Phong exponent or GGX alpha.
+/// A G-buffer texel as the shader reads it: `n.w = 1` where there is geometry, `kd.w` = the lobe's
+/// [`crate::sampling::Lobe::gpu_code`], `ks.w` = its
+/// [`crate::sampling::Lobe::gpu_param`].
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct GpuGPixel {
@@ -23,13 +23,8 @@ impl From<&Option<GPixel>> for GpuGPixel {
         let Some(p) = p else {
             return GpuGPixel::default();
         };
-        let (kind, param) = match p.material.lobe {
-            Lobe::None => (0.0, 0.0),
-            Lobe::Phong { exponent } => (1.0, exponent),
-            Lobe::Ggx { alpha } => (2.0, alpha),
-            Lobe::GgxSchlick { alpha } => (3.0, alpha),
-        };
         let m = &p.material;
+        let (kind, param) = (m.lobe.gpu_code() as f32, m.lobe.gpu_param());
         GpuGPixel {
             n: p.n.extend(1.0).into(),
             o: p.o.extend(0.0).into(),
@@ -46,54 +41,49 @@ pub struct ShadeParams {
     pub m: u32,
     pub nl: u32,
     pub nb: u32,
+    /// [`crate::render::Strategy::gpu_code`].
     pub strategy: u32,
+    /// [`crate::sampling::Counts::gpu_code`].
     pub counts: u32,
+    /// [`crate::sampling::Heuristic::gpu_code`].
     pub mis: u32,
     pub seed: u32,
-    /// `PoolLayout`: 0 shared, 1 offset, 2 blocks.
+    /// [`crate::render::PoolLayout::gpu_code`].
     pub pool_layout: u32,
     pub pixel_count: u32,
     pub material_budget: u32,
-    /// Nodes of the shadow-ray BVH; 0: no shadow rays.
+    /// Nodes of the shadow-ray BVH; 0: no shadow rays. The one place the GPU passes learn it.
     pub bvh_nodes: u32,
     /// Blocks of the pool (1 unless `PoolLayout::Blocks`).
     pub pool_blocks: u32,
-    /// Tiles per face side `K` (1: the seed's whole faces).
+    /// Tiles per face side `K` (1: the paper's whole faces).
     pub tiles: u32,
-    /// 1: [`crate::sampling::TileCounts::Face`].
+    /// [`crate::sampling::TileCounts::gpu_code`].
     pub tile_counts: u32,
     pub _pad: u32,
 }
 
 impl ShadeParams {
-    /// The shader's view of [`Settings`] (the same remapping of N_L / N_B per strategy as the CPU).
+    /// The shader's view of [`Settings`] (the same remapping of N_L / N_B per strategy as the CPU:
+    /// [`Settings::strategy_budget`]; the material budget's split is made per pixel).
     pub fn new(s: &Settings, n: usize, m: usize, pixel_count: usize) -> Self {
-        let (nl, nb, strategy) = match s.strategy {
-            Strategy::Paper => (s.light_samples, s.brdf_samples, 0),
-            Strategy::Light => (s.light_samples + s.brdf_samples, 0, 1),
-            Strategy::Brdf => (0, s.light_samples + s.brdf_samples, 2),
-            Strategy::Global => (s.light_samples, s.brdf_samples, 3),
-        };
+        let (nl, nb) = s.strategy_budget();
         ShadeParams {
             n: n as u32,
             m: m as u32,
             nl: nl as u32,
             nb: nb as u32,
-            strategy,
-            counts: (s.counts == Counts::Integer) as u32,
-            mis: (s.mis == Heuristic::Power) as u32,
+            strategy: s.strategy.gpu_code(),
+            counts: s.counts.gpu_code(),
+            mis: s.mis.gpu_code(),
             seed: s.seed,
-            pool_layout: match s.pool_layout {
-                PoolLayout::Shared => 0,
-                PoolLayout::Offset => 1,
-                PoolLayout::Blocks => 2,
-            },
+            pool_layout: s.pool_layout.gpu_code(),
             pixel_count: pixel_count as u32,
             material_budget: s.material_budget as u32,
             bvh_nodes: 0,
             pool_blocks: s.pool_block_count() as u32,
             tiles: crate::sampling::TileGrid::new(n, s.tiles).k as u32,
-            tile_counts: (s.tile_counts == crate::sampling::TileCounts::Face) as u32,
+            tile_counts: s.tile_counts.gpu_code(),
             _pad: 0,
         }
     }

@@ -192,9 +192,18 @@ impl Settings {
             Strategy::Paper if self.material_budget => {
                 budget_for(m, self.light_samples, self.brdf_samples)
             }
+            _ => self.strategy_budget(),
+        }
+    }
+
+    /// `(N_L, N_B)` as the strategy alone splits the budget: light-only and BRDF-only strategies
+    /// spend all of `light_samples + brdf_samples` on their one technique.
+    pub fn strategy_budget(&self) -> (usize, usize) {
+        let all = self.light_samples + self.brdf_samples;
+        match self.strategy {
             Strategy::Paper | Strategy::Global => (self.light_samples, self.brdf_samples),
-            Strategy::Light => (self.light_samples + self.brdf_samples, 0),
-            Strategy::Brdf => (0, self.light_samples + self.brdf_samples),
+            Strategy::Light => (all, 0),
+            Strategy::Brdf => (0, all),
         }
     }
 

@@ -1,0 +1,206 @@
+//! What the lighting pass (`lighting.rs`) tells its shader and reads back from it: the per-view
+//! uniform `LightingView` (named fields, the twin of `shaders/lighting.wgsl`'s struct) and the
+//! probed pixel's record. The `u32` codes are the `gpu_code()`s of `crate::gpu::codes` and of
+//! [`Overlay::gpu_code`].
+
+use super::components::{EnvironmentSampling, EnvisEnvironment};
+use super::sampling::ViewSampling;
+use super::{Overlay, ProbeResult};
+use crate::envmap::resample::SourceLayout;
+use crate::render::GPixel;
+use crate::sampling::{Lobe, Material};
+use bevy::prelude::*;
+use bevy::render::camera::ExtractedCamera;
+use bevy::render::view::ExtractedView;
+
+/// `LightingView` of `shaders/lighting.wgsl`, field for field (offsets checked by a test).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub(super) struct LightingView {
+    world_from_clip: [[f32; 4]; 4],
+    /// The inverse of [`EnvisEnvironment::rotation`]: world directions -> the map's.
+    env_from_world: [[f32; 4]; 4],
+    camera: [f32; 3],
+    orthographic: u32,
+    forward: [f32; 3],
+    /// [`EnvisEnvironment::intensity`] x the camera's exposure.
+    radiance_scale: f32,
+    /// Viewport origin and size in pixels.
+    viewport: [f32; 4],
+    /// The probed pixel in the viewport; negative: none.
+    probe_pixel: [f32; 2],
+    show_background: u32,
+    /// [`Overlay::gpu_code`].
+    overlay: u32,
+    accumulate: u32,
+    /// Frames averaged before this one (0 restarts the mean).
+    frames: u32,
+    /// [`SourceLayout::gpu_code`].
+    source_layout: u32,
+    _pad: u32,
+}
+
+impl Overlay {
+    /// `OVERLAY_*` in `shaders/lighting.wgsl`.
+    pub const fn gpu_code(self) -> u32 {
+        match self {
+            Overlay::None => 0,
+            Overlay::EffectiveSamples => 1,
+            Overlay::Wasted => 2,
+            Overlay::CountsDifference => 3,
+        }
+    }
+}
+
+/// The pass's per-view uniform.
+pub(super) fn lighting_view(
+    ev: &ExtractedView,
+    cam: &ExtractedCamera,
+    sampling: &EnvironmentSampling,
+    env: &EnvisEnvironment,
+    vs: &ViewSampling,
+    layout: SourceLayout,
+) -> LightingView {
+    let vp = ev.viewport;
+    let world_from_view = ev.world_from_view.to_matrix();
+    LightingView {
+        world_from_clip: (world_from_view * ev.clip_from_view.inverse()).to_cols_array_2d(),
+        env_from_world: Mat4::from_quat(env.rotation.inverse()).to_cols_array_2d(),
+        camera: ev.world_from_view.translation().to_array(),
+        orthographic: (ev.clip_from_view.w_axis.w == 1.0) as u32,
+        forward: ev.world_from_view.forward().as_vec3().to_array(),
+        radiance_scale: env.intensity * cam.exposure,
+        viewport: [vp.x as f32, vp.y as f32, vp.z as f32, vp.w as f32],
+        probe_pixel: sampling
+            .probe
+            .map_or([-1.0, -1.0], |p| [p.x as f32, p.y as f32]),
+        show_background: env.show_background as u32,
+        overlay: sampling.overlay.gpu_code(),
+        accumulate: sampling.accumulate as u32,
+        frames: vs.frame,
+        source_layout: layout.gpu_code(),
+        _pad: 0,
+    }
+}
+
+/// The probed pixel's record as `lighting.wgsl` writes it: n, o, kd (w: lobe code), ks (w: lobe
+/// parameter), the estimate, (x, y, index, 1 when written), (world position, 1 when shadow rays
+/// were cast).
+pub(super) const PROBE_RECORD: [&str; 7] = ["n", "o", "kd", "ks", "estimate", "pixel", "point"];
+
+/// Bytes of the probe record.
+pub(super) const PROBE_BYTES: u64 = PROBE_RECORD.len() as u64 * 16;
+
+/// The probed pixel of a record read back, or `None` if no pixel wrote it this time.
+pub(super) fn decode_probe(bytes: &[u8], seed: u32) -> Option<ProbeResult> {
+    let v: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(bytes);
+    if v.len() < PROBE_RECORD.len() || v[5][3] != 1.0 {
+        return None;
+    }
+    let v3 = |a: [f32; 4]| Vec3::new(a[0], a[1], a[2]);
+    Some(ProbeResult {
+        pixel: UVec2::new(v[5][0] as u32, v[5][1] as u32),
+        gpixel: GPixel {
+            n: v3(v[0]),
+            o: v3(v[1]),
+            material: Material {
+                kd: v3(v[2]),
+                ks: v3(v[3]),
+                lobe: Lobe::from_gpu(v[2][3] as u32, v[3][3]),
+            },
+        },
+        estimate: v3(v[4]),
+        pixel_index: v[5][2] as u32,
+        seed,
+        point: (v[6][3] == 1.0).then(|| v3(v[6])),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gpu::codes::tests::{all_wgsl_consts, check_families, wgsl_u32_consts};
+
+    #[test]
+    fn app_wgsl_codes_match_their_rust_twins() {
+        let wgsl = all_wgsl_consts();
+        let overlays: Vec<(&str, u32)> = Overlay::ALL
+            .iter()
+            .map(|o| {
+                let name = match o {
+                    Overlay::None => "NONE",
+                    Overlay::EffectiveSamples => "EFFECTIVE_SAMPLES",
+                    Overlay::Wasted => "WASTED",
+                    Overlay::CountsDifference => "COUNTS_DIFFERENCE",
+                };
+                (name, o.gpu_code())
+            })
+            .collect();
+        check_families(&wgsl, &[("OVERLAY_", overlays)]);
+        let id = super::super::material::ENVIS_LIGHTING_PASS_ID as u32;
+        assert_eq!(wgsl["ENVIS_LIGHTING_PASS_ID"], id);
+        let material = wgsl_u32_consts(include_str!("envis_material.wgsl"));
+        assert_eq!(material["ENVIS_LIGHTING_PASS_ID"], id);
+        assert_eq!(
+            wgsl["PBR_LIGHTING_PASS_ID"],
+            bevy::pbr::deferred::DEFAULT_PBR_DEFERRED_LIGHTING_PASS_ID as u32
+        );
+    }
+
+    /// WGSL's uniform layout of a struct body: each field's name and byte offset, and the size.
+    fn wgsl_layout(body: &str) -> (Vec<(String, usize)>, usize) {
+        let (mut fields, mut at, mut max_align) = (Vec::new(), 0usize, 4usize);
+        for line in body.lines().map(str::trim).filter(|l| !l.starts_with("//")) {
+            let Some((name, ty)) = line.split_once(':') else {
+                continue;
+            };
+            let (align, size) = match ty.trim().trim_end_matches(',') {
+                "mat4x4<f32>" => (16, 64),
+                "vec4<f32>" => (16, 16),
+                "vec3<f32>" => (16, 12),
+                "vec2<f32>" => (8, 8),
+                "u32" | "f32" => (4, 4),
+                other => panic!("no layout rule for {other}"),
+            };
+            at = at.next_multiple_of(align);
+            fields.push((name.trim().to_string(), at));
+            at += size;
+            max_align = max_align.max(align);
+        }
+        (fields, at.next_multiple_of(max_align))
+    }
+
+    /// The Rust struct has the WGSL struct's fields, in order, at the same offsets: a field out
+    /// of place would show only as garbage in test images.
+    #[test]
+    fn lighting_view_matches_the_wgsl_struct() {
+        use std::mem::offset_of;
+        let body = crate::gpu::shaders::LIGHTING
+            .split("struct LightingView {")
+            .nth(1)
+            .and_then(|s| s.split('}').next())
+            .expect("LightingView in lighting.wgsl");
+        let (wgsl, size) = wgsl_layout(body);
+        macro_rules! rust_fields {
+            ($($f:ident),*) => { vec![$((stringify!($f).to_string(), offset_of!(LightingView, $f))),*] };
+        }
+        let rust = rust_fields!(
+            world_from_clip,
+            env_from_world,
+            camera,
+            orthographic,
+            forward,
+            radiance_scale,
+            viewport,
+            probe_pixel,
+            show_background,
+            overlay,
+            accumulate,
+            frames,
+            source_layout,
+            _pad
+        );
+        assert_eq!(wgsl, rust);
+        assert_eq!(size, std::mem::size_of::<LightingView>());
+    }
+}
