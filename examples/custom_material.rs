@@ -1,11 +1,11 @@
 //! envis's own deferred material, `EnvisMaterial` (Lambert, normalised Phong, GGX, a Lambert +
 //! GGX mix), next to a plain `StandardMaterial`, under envis's animated built-in sky: a stream
-//! played into an `Image` by `EnvMapStreamPlugin` (file sequences and the carousel work the same).
+//! played into an `Image` by `EnvisStreamPlugin` (file sequences and the carousel work the same).
 //!
 //! `cargo run --release --example custom_material`
 
 use bevy::prelude::*;
-use envis::app::{EnvMapStream, EnvMapStreamPlugin};
+use envis::app::{EnvMapStream, EnvisStreamPlugin};
 use envis::prelude::*;
 use envis::stream::StreamSource;
 
@@ -18,7 +18,7 @@ fn main() {
 
 /// The scene and the sky stream (everything but the window and `EnvisPlugin`).
 pub fn example(app: &mut App) {
-    app.add_plugins(EnvMapStreamPlugin {
+    app.add_plugins(EnvisStreamPlugin {
         // From 7 am, an hour of sky per second.
         source: StreamSource::Sky {
             hours: 7.0,

@@ -7,7 +7,7 @@
 //   pdf_table       one thread per texel: pdf per unit face area, P(texel | region) (N/2)^2
 //   build_pool      one thread per pool sample: stratified point -> texel -> direction, radiance, pdf
 // With K x K tiles per face (src/sampling/tiles.rs) a region is a tile and each column has K
-// bands, one per tile row; K = 1 is the seed's, a region per face and one band.
+// bands, one per tile row; K = 1 is the paper's, a region per face and one band.
 // Sums are hierarchical (a serial run of ceil(N/256) texels per thread, then a 256-wide scan), so the
 // rounding error grows like log N, not N: a lone bright texel among 2048^2 keeps its probability.
 
@@ -18,7 +18,7 @@ struct Params {
     m: u32,
     // Pool seed (already hashed: the CPU twin's hash(seed ^ 0xA511E9B3)).
     seed: u32,
-    // Independent stratified blocks of M / blocks samples per region (1: the seed's pool).
+    // Independent stratified blocks of M / blocks samples per region (1: the paper's pool).
     blocks: u32,
     // Tiles per face side K.
     tiles: u32,
@@ -166,11 +166,11 @@ fn pdf_table(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg:
 }
 
 // sampling::pool::pool_point: Latin hypercube with hash permutations, (p + xi) / M kept below 1.
-fn pool_point(seed: u32, face: u32, i: u32, m: u32) -> vec2<f32> {
-    let pu = permute(i, m, hash3(seed, face, 0x5eed0001u));
-    let pv = permute(i, m, hash3(seed, face, 0x5eed0002u));
-    let ju = to_unit(hash4(seed, face, i, 1u));
-    let jv = to_unit(hash4(seed, face, i, 2u));
+fn pool_point(seed: u32, region: u32, i: u32, m: u32) -> vec2<f32> {
+    let pu = permute(i, m, hash3(seed, region, 0x5eed0001u));
+    let pv = permute(i, m, hash3(seed, region, 0x5eed0002u));
+    let ju = to_unit(hash4(seed, region, i, 1u));
+    let jv = to_unit(hash4(seed, region, i, 2u));
     let u = min((f32(pu) + ju) / f32(m), ONE_MINUS_EPSILON);
     let v = min((f32(pv) + jv) / f32(m), ONE_MINUS_EPSILON);
     return vec2(u, v);

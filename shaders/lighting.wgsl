@@ -38,7 +38,8 @@ struct LightingView {
     frames: u32,
     // SOURCE_* (image_source.wgsl).
     source_layout: u32,
-    _pad: u32,
+    // The camera's RenderLayers as visibility::Layers: the shadow casters it sees.
+    render_layers: u32,
 }
 // The shadow BVH's node count is sp.bvh_nodes (shade.wgsl's ShadeParams; 0: no shadow rays).
 
@@ -90,7 +91,7 @@ fn sample_blocked(px: GPixel, pixel_index: u32, d: vec3<f32>) -> bool {
     }
     let dw = world_from_env * d;
     let o = shadow_origin(shadow_point, world_from_env * px.n.xyz, dw);
-    return bvh_occluded(o, dw, 1e-4, 3.4028235e38, sp.bvh_nodes);
+    return bvh_occluded(o, dw, 1e-4, 3.4028235e38, sp.bvh_nodes, lv.render_layers);
 }
 
 const PBR_LIGHTING_PASS_ID: u32 = 1u;

@@ -1,4 +1,4 @@
-// envis — BRDFs, warps, MIS and face weighting (twins of src/sampling/{warp,brdf,mis,faceweights}.rs).
+// envis — BRDFs, warps, MIS and sample counts (twins of src/sampling/{warp,brdf/,mis,counts}.rs).
 // Every routine has its pdf beside it; directions are in the shading frame (z = normal) unless
 // the name says world.
 
@@ -221,7 +221,7 @@ fn mis_weight_over_density(h: u32, na: f32, nb: f32) -> f32 {
     return a / (m * (a * a + b * b));
 }
 
-// sampling::faceweights::face_count: N_f -> (taken, weight of the last, density).
+// sampling::counts::face_count: N_f -> (taken, weight of the last, density).
 const COUNTS_FRACTIONAL: u32 = 0u;
 const COUNTS_INTEGER: u32 = 1u;
 struct FaceCount {

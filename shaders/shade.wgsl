@@ -138,7 +138,7 @@ struct PoolWindow {
 }
 
 // render::estimator::pool_window: the pixel's first random number picks its start (offset) or its
-// block, read from its first slot (blocks); the seed's shared pool draws none.
+// block, read from its first slot (blocks); the paper's shared pool draws none.
 fn pool_window(rng: ptr<function, Rng>, m: u32) -> PoolWindow {
     var w = PoolWindow(0u, m, 0u);
     if (m == 0u) {
@@ -224,7 +224,7 @@ fn shade_counts(px: GPixel, pixel_index: u32, counts: u32) -> Shaded {
     let use_cosine = sp.strategy == STRATEGY_PAPER;
     var total = 0.0;
     var window_len = 0u;
-    // With whole faces (K = 1) the light loop keeps each face's density, as the seed's shader
+    // With whole faces (K = 1) the light loop keeps each face's density, as the paper's shader
     // did; with tiles a BRDF sample recomputes its tile's (region_density).
     var face_density: array<f32, 6>;
 

@@ -8,7 +8,7 @@
 @group(0) @binding(3) var<storage, read> gbuf: array<GPixel>;
 // Per pixel: (r, g, b, 1 where shaded).
 @group(0) @binding(4) var<storage, read_write> out_color: array<vec4<f32>>;
-// Per pixel: (available, green, yellow, brdf) sample counts (the seed's red / green / yellow).
+// Per pixel: (available, green, yellow, brdf) sample counts (the paper's red / green / yellow).
 @group(0) @binding(5) var<storage, read_write> out_stats: array<vec4<u32>>;
 @group(0) @binding(6) var<uniform> sp: ShadeParams;
 // The `global` distribution (global_layout.wgsl); a dummy unless the strategy is global.
@@ -50,7 +50,7 @@ fn sample_blocked(px: GPixel, pixel_index: u32, d: vec3<f32>) -> bool {
     }
     shadow_rays += 1u;
     let o = shadow_origin(points[pixel_index].xyz, normalize_or_zero(px.n.xyz), d);
-    return bvh_occluded(o, d, 1e-4, 3.4028235e38, sp.bvh_nodes);
+    return bvh_occluded(o, d, 1e-4, 3.4028235e38, sp.bvh_nodes, ALL_LAYERS);
 }
 
 // The headless backend reads radiance from the texel table itself.

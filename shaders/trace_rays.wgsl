@@ -13,7 +13,7 @@ struct Ray {
 @group(0) @binding(2) var<storage, read> rays: array<Ray>;
 // One per ray: 1 blocked, 0 free.
 @group(0) @binding(3) var<storage, read_write> blocked: array<u32>;
-// x: node count; y: ray count.
+// x: node count; y: ray count; z: the layers the rays are cast for (visibility::Layers).
 @group(0) @binding(4) var<uniform> counts: vec4<u32>;
 
 @compute @workgroup_size(64)
@@ -23,5 +23,5 @@ fn trace_rays(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let r = rays[i];
-    blocked[i] = select(0u, 1u, bvh_occluded(r.o.xyz, r.d.xyz, r.o.w, r.d.w, counts.x));
+    blocked[i] = select(0u, 1u, bvh_occluded(r.o.xyz, r.d.xyz, r.o.w, r.d.w, counts.x, counts.z));
 }

@@ -1,13 +1,13 @@
 // envis — shadow rays on the GPU: any-hit traversal of a flattened two-level BVH2 (twin of
 // visibility::FlatBvh::occluded, step for step) and Möller–Trumbore (visibility::ray_triangle).
 // The including module declares `bvh_nodes` and `bvh_triangles` (laid out as FlatBvh: the top
-// level over instances first, then each mesh's BVH in object space; the instance records, the
-// rows of object_from_world, come first in bvh_triangles).
+// level over instances first, then each mesh's BVH in object space; the instance records come
+// first in bvh_triangles, two entries each: the rows of object_from_world, then its layers).
 
 struct BvhNode {
     min: vec3<f32>,
     // Inner node: the first child (the second follows it); mesh leaf: the first triangle;
-    // top-level leaf: the instance record.
+    // top-level leaf: the instance record (its transform; its layers follow).
     first: u32,
     max: vec3<f32>,
     // 0: inner node; mesh leaf: its triangle count; top-level leaf: its mesh's root node.
@@ -16,6 +16,13 @@ struct BvhNode {
 
 // flat_bvh::STACK_SIZE.
 const BVH_STACK_SIZE: u32 = 64u;
+// visibility::Layers::ALL: every instance counts.
+const ALL_LAYERS: u32 = 0xffffffffu;
+
+// visibility::Layers::from_record: the layer bits, stored as two exact 16-bit halves.
+fn instance_layers(r: array<vec4<f32>, 3>) -> u32 {
+    return u32(r[0].x) | (u32(r[0].y) << 16u);
+}
 
 // visibility::ray_offset / shadow_origin: off the surface, on the side d leaves by.
 fn shadow_origin(p: vec3<f32>, n: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
@@ -75,9 +82,10 @@ fn safe_inverse3(d: vec3<f32>) -> vec3<f32> {
     return vec3(safe_inverse(d.x), safe_inverse(d.y), safe_inverse(d.z));
 }
 
-// Whether any triangle meets the ray with t in (t_min, t_max): the top level, and at each
-// instance its mesh with the ray in object space (t is the same in both).
-fn bvh_occluded(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, node_count: u32) -> bool {
+// Whether a triangle of an instance on one of `layers` meets the ray with t in (t_min, t_max)
+// (FlatBvh::occluded_on): the top level, and at each such instance its mesh with the ray in
+// object space (t is the same in both).
+fn bvh_occluded(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, node_count: u32, layers: u32) -> bool {
     if (node_count == 0u) {
         return false;
     }
@@ -92,6 +100,9 @@ fn bvh_occluded(o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, node_count: 
             continue;
         }
         if (n.count > 0u) {
+            if ((instance_layers(bvh_triangles[n.first + 1u]) & layers) == 0u) {
+                continue;
+            }
             let m = bvh_triangles[n.first];
             if (blas_occluded(n.count, to_object(m, o, 1.0), to_object(m, d, 0.0), t_min, t_max)) {
                 return true;

@@ -194,7 +194,7 @@ struct RenderArgs {
     /// M, pool samples per face (default: N_L).
     #[arg(long, default_value_t = 0)]
     pool: usize,
-    /// How pixels share the pool: `shared` (the seed's), `offset` (a random start per pixel),
+    /// How pixels share the pool: `shared` (the paper's), `offset` (a random start per pixel),
     /// `blocks` (one of K independent pools per pixel).
     #[arg(long, value_enum, default_value_t = Settings::default().pool_layout)]
     pool_layout: PoolLayout,
@@ -205,11 +205,11 @@ struct RenderArgs {
     #[arg(long, hide = true, conflicts_with = "pool_layout")]
     pixel_offset: bool,
     /// K: cut each cube face into K x K tiles, each weighted and sampled on its own (1: the
-    /// seed's whole faces). Tiles differ by one texel when K does not divide the face size.
+    /// paper's whole faces). Tiles differ by one texel when K does not divide the face size.
     #[arg(long, default_value_t = Settings::default().tiles)]
     tiles: usize,
-    /// With tiles: `face` (the seed's counts per face, each sample drawing its tile) or `tile`
-    /// (the seed's counts per tile: at least one sample per lit tile).
+    /// With tiles: `face` (the paper's counts per face, each sample drawing its tile) or `tile`
+    /// (the paper's counts per tile: at least one sample per lit tile).
     #[arg(long, value_enum, default_value_t = Settings::default().tile_counts)]
     tile_counts: envis::sampling::TileCounts,
     /// Let each pixel's material choose the light / BRDF split of the budget (`paper` only):

@@ -1,6 +1,6 @@
 //! Environment-map streams: where each frame's cube map comes from. Plain Rust (no Bevy), so the
 //! fault handling and the memory behaviour are tested without a window; the Bevy
-//! `EnvMapStreamPlugin` is a thin wrapper that advances a stream once per app update.
+//! `EnvisStreamPlugin` is a thin wrapper that advances a stream once per app update.
 //!
 //! Sources: the built-in animated sky; one `.exr`/`.hdr` file; a directory of frames played at a
 //! chosen rate (looping, decoded on a background thread, double-buffered: the decoder works on

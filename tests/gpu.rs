@@ -141,6 +141,10 @@ mod bevy_app;
 mod bevy_plugin;
 
 #[cfg(feature = "app")]
+#[path = "gpu/bevy_post.rs"]
+mod bevy_post;
+
+#[cfg(feature = "app")]
 #[path = "gpu/examples.rs"]
 mod examples;
 

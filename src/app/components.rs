@@ -27,13 +27,13 @@ pub struct EnvironmentSampling {
     /// `paper` (the method: cosine face weights), `light` (energy only), `brdf`, or `global`
     /// (one lat-long distribution: the baseline).
     pub strategy: Strategy,
-    /// `fractional` counts are unbiased and do not pop; `integer` counts are the seed's toggle.
+    /// `fractional` counts are unbiased and do not pop; `integer` counts are the paper's toggle.
     pub counts: Counts,
     /// The MIS heuristic (balance or power).
     pub heuristic: Heuristic,
     /// Light samples drawn per cube face per frame, `M` (0: `light_samples`).
     pub pool_size: u32,
-    /// How pixels share the pool: `shared` (the seed's: the same samples everywhere, coherent
+    /// How pixels share the pool: `shared` (the paper's: the same samples everywhere, coherent
     /// error), `offset` (a random start per pixel) or `blocks` (one of `pool_blocks`
     /// independent pools per pixel: the error becomes noise; `docs/benchmarks.md`).
     pub pool_layout: PoolLayout,
@@ -43,9 +43,9 @@ pub struct EnvironmentSampling {
     /// BRDF samples); `paper` only.
     pub material_budget: bool,
     /// `K`: each cube face cut into `K x K` tiles, each weighted and sampled on its own (1: the
-    /// seed's whole faces; at most [`crate::sampling::MAX_TILES`]).
+    /// paper's whole faces; at most [`crate::sampling::MAX_TILES`]).
     pub tiles: u32,
-    /// With tiles: `Face` (the seed's counts per face, each sample drawing its tile) or `Tile`
+    /// With tiles: `Face` (the paper's counts per face, each sample drawing its tile) or `Tile`
     /// (counts per tile).
     pub tile_counts: crate::sampling::TileCounts,
     /// Random seed of the pool and the per-pixel streams.
@@ -148,7 +148,9 @@ pub struct EnvisEnvironment {
     /// Rebuild the distribution every frame: for images written on the GPU (a compute shader,
     /// a render target), which change detection cannot see.
     pub dynamic: bool,
-    /// Draw the map where there is no geometry (off: Bevy's clear colour, or the user's skybox).
+    /// Draw the map where there is no geometry (off: Bevy's clear colour). A camera with a
+    /// `Skybox` (with an image) has Bevy's skybox there instead, whatever this says: one
+    /// background, with one brightness (`Skybox::brightness`).
     pub show_background: bool,
 }
 

@@ -7,7 +7,7 @@
 
 use super::components::{EnvironmentSampling, EnvisEnvironment, exposure_multiplier};
 use super::{
-    EnvMapStream, EnvMapStreamPlugin, EnvisBrdf, EnvisCounters, EnvisMaterial, EnvisPlugin,
+    EnvMapStream, EnvisBrdf, EnvisCounters, EnvisMaterial, EnvisPlugin, EnvisStreamPlugin,
 };
 use crate::stream::StreamSource;
 use bevy::asset::RenderAssetUsages;
@@ -222,7 +222,7 @@ impl HeadlessSphere {
         size: u32,
     ) -> Self {
         let mut h = HeadlessApp::new();
-        h.app.add_plugins(EnvMapStreamPlugin {
+        h.app.add_plugins(EnvisStreamPlugin {
             source,
             face_size: face,
         });
@@ -247,7 +247,7 @@ impl HeadlessSphere {
         };
         let face = sc.file.environment.face_size;
         let mut h = HeadlessApp::new();
-        h.app.add_plugins(EnvMapStreamPlugin {
+        h.app.add_plugins(EnvisStreamPlugin {
             source,
             face_size: face,
         });

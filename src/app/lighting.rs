@@ -1,4 +1,4 @@
-//! `MisLightingPlugin`: the face-weighted MIS lighting pass of every camera with
+//! `EnvisLightingPlugin`: the face-weighted MIS lighting pass of every camera with
 //! [`EnvironmentSampling`] and an [`EnvisEnvironment`]. It runs after Bevy's deferred lighting
 //! (which keeps lighting `StandardMaterial` pixels with Bevy's own lights and shadows) and adds
 //! the environment term on top; `EnvisMaterial` pixels get the environment alone; the background
@@ -6,18 +6,20 @@
 //! as the headless backend (`shaders/shade.wgsl`), limited to the camera's viewport.
 
 use super::components::{EnvironmentSampling, EnvisEnvironment};
-use super::lighting_uniforms::{PROBE_BYTES, decode_probe, lighting_view};
+use super::lighting_uniforms::{PROBE_BYTES, ViewParts, decode_probe, lighting_view};
 use super::sampling::{EnvSamplers, ViewSampling};
 use super::timing::{AsyncRead, AsyncTimer, EnvisTimings};
 use super::{EnvisCounters, EnvisProbe, Overlay};
 use crate::gpu::shaders;
 use crate::gpu::shading::ShadeParams;
 use crate::render::Strategy;
+use bevy::camera::visibility::RenderLayers;
 use bevy::core_pipeline::core_3d::main_opaque_pass_3d;
 use bevy::core_pipeline::prepass::ViewPrepassTextures;
 use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
+use bevy::light::Skybox;
 use bevy::prelude::*;
-use bevy::render::camera::ExtractedCamera;
+use bevy::render::camera::{ExtractedCamera, TemporalJitter};
 use bevy::render::renderer::{RenderContext, RenderDevice, ViewQuery};
 use bevy::render::view::{ExtractedView, ViewTarget};
 use bevy::render::{Render, RenderApp, RenderStartup, RenderSystems};
@@ -199,9 +201,9 @@ impl LightingPipelines {
 
 /// Adds the envis lighting pass to every camera with [`EnvironmentSampling`] and an
 /// [`EnvisEnvironment`].
-pub struct MisLightingPlugin;
+pub struct EnvisLightingPlugin;
 
-impl Plugin for MisLightingPlugin {
+impl Plugin for EnvisLightingPlugin {
     fn build(&self, app: &mut App) {
         super::share_resources(app);
         app.add_systems(PostUpdate, super::coverage::warn_forward_meshes);
@@ -262,19 +264,30 @@ fn poll_lighting_readbacks(
     }
 }
 
+/// What else of a view changes its lighting: which casters it sees, TAA's jitter, a skybox.
+type ViewExtras = (
+    Option<&'static RenderLayers>,
+    Option<&'static TemporalJitter>,
+    Option<&'static Skybox>,
+);
+
+/// A lit view's components: Bevy's target, prepass and extracted view, envis's settings.
+type LightingViewData = (
+    &'static ViewTarget,
+    &'static ViewPrepassTextures,
+    &'static ExtractedView,
+    &'static ExtractedCamera,
+    &'static EnvironmentSampling,
+    &'static EnvisEnvironment,
+    &'static ViewSampling,
+    ViewExtras,
+);
+
 /// The per-view lighting pass: G-buffer + this frame's distribution and pool -> HDR radiance,
 /// added to Bevy's lighting inside the view's viewport.
 #[allow(clippy::too_many_arguments)]
 fn mis_lighting(
-    view: ViewQuery<(
-        &ViewTarget,
-        &ViewPrepassTextures,
-        &ExtractedView,
-        &ExtractedCamera,
-        &EnvironmentSampling,
-        &EnvisEnvironment,
-        &ViewSampling,
-    )>,
+    view: ViewQuery<LightingViewData>,
     pipes: Option<Res<LightingPipelines>>,
     samplers: Res<EnvSamplers>,
     shadows: (
@@ -287,7 +300,8 @@ fn mis_lighting(
 ) {
     let t0 = std::time::Instant::now();
     let view_entity = view.entity();
-    let (target, prepass, ev, cam, sampling, env, vs) = view.into_inner();
+    let (target, prepass, ev, cam, sampling, env, vs, (render_layers, jitter, skybox)) =
+        view.into_inner();
     let (Some(pipes), Some(slot)) = (pipes, samplers.slots.get(&vs.key)) else {
         return;
     };
@@ -309,7 +323,14 @@ fn mis_lighting(
     let vp = ev.viewport;
     s.seed = vs.seed;
     let mut params = ShadeParams::new(&s, sampler.n, sampler.m, (vp.z * vp.w) as usize);
-    let lv = lighting_view(ev, cam, sampling, env, vs, slot.layout);
+    let parts = ViewParts {
+        ev,
+        cam,
+        jitter,
+        render_layers,
+        skybox: skybox.is_some_and(|s| s.image.is_some()),
+    };
+    let lv = lighting_view(parts, sampling, env, vs, slot.layout);
     // Shadow rays when the camera asks for them and the uploaded geometry is this frame's.
     let geometry = match shadows {
         (Some(g), Some(gpu)) if g.enabled(sampling.shadows) && gpu.generation == g.generation => {

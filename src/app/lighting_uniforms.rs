@@ -9,8 +9,9 @@ use super::{Overlay, ProbeResult};
 use crate::envmap::resample::SourceLayout;
 use crate::render::GPixel;
 use crate::sampling::{Lobe, Material};
+use bevy::camera::visibility::RenderLayers;
 use bevy::prelude::*;
-use bevy::render::camera::ExtractedCamera;
+use bevy::render::camera::{ExtractedCamera, TemporalJitter};
 use bevy::render::view::ExtractedView;
 
 /// `LightingView` of `shaders/lighting.wgsl`, field for field (offsets checked by a test).
@@ -37,7 +38,8 @@ pub(super) struct LightingView {
     frames: u32,
     /// [`SourceLayout::gpu_code`].
     source_layout: u32,
-    _pad: u32,
+    /// The camera's `RenderLayers` ([`super::shadows::layers_of`]): the casters its rays meet.
+    render_layers: u32,
 }
 
 impl Overlay {
@@ -52,19 +54,52 @@ impl Overlay {
     }
 }
 
+/// What of the view the pass needs besides its settings: Bevy's extracted view and camera, and
+/// the components that change how its pixels map to the world and which casters it sees.
+pub(super) struct ViewParts<'a> {
+    pub ev: &'a ExtractedView,
+    pub cam: &'a ExtractedCamera,
+    /// TAA's sub-pixel jitter, if any: the depth buffer was rasterised with it.
+    pub jitter: Option<&'a TemporalJitter>,
+    pub render_layers: Option<&'a RenderLayers>,
+    /// The view has a `Skybox` with an image: Bevy draws the background, and envis's defers.
+    pub skybox: bool,
+}
+
+/// `clip_from_view` as the view's depth was rasterised: jittered as Bevy's
+/// `prepare_view_uniforms` does under TAA, so a pixel's depth unprojects onto the surface it
+/// sampled (`unjittered` would move each point off it by the jitter).
+pub(super) fn rasterised_clip_from_view(
+    ev: &ExtractedView,
+    jitter: Option<&TemporalJitter>,
+) -> Mat4 {
+    let mut clip_from_view = ev.clip_from_view;
+    if let Some(j) = jitter {
+        j.jitter_projection(&mut clip_from_view, ev.viewport.zw().as_vec2());
+    }
+    clip_from_view
+}
+
 /// The pass's per-view uniform.
 pub(super) fn lighting_view(
-    ev: &ExtractedView,
-    cam: &ExtractedCamera,
+    view: ViewParts,
     sampling: &EnvironmentSampling,
     env: &EnvisEnvironment,
     vs: &ViewSampling,
     layout: SourceLayout,
 ) -> LightingView {
+    let ViewParts {
+        ev,
+        cam,
+        jitter,
+        render_layers,
+        skybox,
+    } = view;
     let vp = ev.viewport;
     let world_from_view = ev.world_from_view.to_matrix();
+    let clip_from_view = rasterised_clip_from_view(ev, jitter);
     LightingView {
-        world_from_clip: (world_from_view * ev.clip_from_view.inverse()).to_cols_array_2d(),
+        world_from_clip: (world_from_view * clip_from_view.inverse()).to_cols_array_2d(),
         env_from_world: Mat4::from_quat(env.rotation.inverse()).to_cols_array_2d(),
         camera: ev.world_from_view.translation().to_array(),
         orthographic: (ev.clip_from_view.w_axis.w == 1.0) as u32,
@@ -74,12 +109,12 @@ pub(super) fn lighting_view(
         probe_pixel: sampling
             .probe
             .map_or([-1.0, -1.0], |p| [p.x as f32, p.y as f32]),
-        show_background: env.show_background as u32,
+        show_background: (env.show_background && !skybox) as u32,
         overlay: sampling.overlay.gpu_code(),
         accumulate: sampling.accumulate as u32,
         frames: vs.frame,
         source_layout: layout.gpu_code(),
-        _pad: 0,
+        render_layers: super::shadows::layers_of(render_layers).0,
     }
 }
 
@@ -198,7 +233,7 @@ mod tests {
             accumulate,
             frames,
             source_layout,
-            _pad
+            render_layers
         );
         assert_eq!(wgsl, rust);
         assert_eq!(size, std::mem::size_of::<LightingView>());

@@ -18,12 +18,14 @@
 //!
 //! One plugin per capability, all added by [`EnvisPlugin`]:
 //! - [`EnvisMaterialPlugin`]: the [`EnvisMaterial`] deferred material.
-//! - [`EnvMapSamplingPlugin`] (render world): per environment image, the resample, distribution
+//! - [`EnvisSamplingPlugin`] (render world): per environment image, the resample, distribution
 //!   and light pool on the GPU, in the `RenderGraph` schedule before `camera_driver`.
-//! - [`MisLightingPlugin`] (render world): per camera, the face-weighted MIS pass after Bevy's
+//! - [`EnvisShadowsPlugin`] (both worlds): the scene's shadow geometry (a two-level BVH of the
+//!   shadow-casting meshes) for envis's shadow rays.
+//! - [`EnvisLightingPlugin`] (render world): per camera, the face-weighted MIS pass after Bevy's
 //!   deferred lighting (`Core3d`, main pass, before the opaque pass).
 //!
-//! [`EnvMapStreamPlugin`] (not in [`EnvisPlugin`]) plays envis's own streams (file sequences,
+//! [`EnvisStreamPlugin`] (not in [`EnvisPlugin`]) plays envis's own streams (file sequences,
 //! the carousel, the built-in sky) into an `Image` for [`EnvisEnvironment`].
 //!
 //! [`EnvisCounters`] is shared by both worlds and counts the work done (builds, lighting passes,
@@ -45,14 +47,41 @@ pub mod stream;
 pub mod timing;
 
 pub use components::{EnvironmentSampling, EnvisEnvironment, exposure_multiplier};
-pub use lighting::MisLightingPlugin;
+pub use lighting::EnvisLightingPlugin;
 pub use material::{
     ENVIS_LIGHTING_PASS_ID, EnvisBrdf, EnvisMaterial, EnvisMaterialPlugin,
     standard_material_decoded,
 };
-pub use sampling::EnvMapSamplingPlugin;
-pub use stream::{EnvFrame, EnvMapStream, EnvMapStreamPlugin};
+pub use sampling::EnvisSamplingPlugin;
+pub use shadows::EnvisShadowsPlugin;
+pub use stream::{EnvFrame, EnvMapStream, EnvisStreamPlugin};
 pub use timing::{EnvisTimings, PassTimes};
+
+/// The plugins' names before they were all `Envis*` (issue 28): each old name is a deprecated
+/// type alias and, for the unit-struct plugins, a deprecated constant, so both
+/// `add_plugins(MisLightingPlugin)` and `MisLightingPlugin::default()`-style code still build.
+#[allow(non_upper_case_globals)]
+mod renamed {
+    use super::*;
+
+    /// Renamed [`EnvisLightingPlugin`].
+    #[deprecated(since = "0.1.0", note = "renamed `EnvisLightingPlugin`")]
+    pub type MisLightingPlugin = EnvisLightingPlugin;
+    /// Renamed [`EnvisLightingPlugin`].
+    #[deprecated(since = "0.1.0", note = "renamed `EnvisLightingPlugin`")]
+    pub const MisLightingPlugin: EnvisLightingPlugin = EnvisLightingPlugin;
+    /// Renamed [`EnvisSamplingPlugin`].
+    #[deprecated(since = "0.1.0", note = "renamed `EnvisSamplingPlugin`")]
+    pub type EnvMapSamplingPlugin = EnvisSamplingPlugin;
+    /// Renamed [`EnvisSamplingPlugin`].
+    #[deprecated(since = "0.1.0", note = "renamed `EnvisSamplingPlugin`")]
+    pub const EnvMapSamplingPlugin: EnvisSamplingPlugin = EnvisSamplingPlugin;
+    /// Renamed [`EnvisStreamPlugin`].
+    #[deprecated(since = "0.1.0", note = "renamed `EnvisStreamPlugin`")]
+    pub type EnvMapStreamPlugin = EnvisStreamPlugin;
+}
+#[allow(deprecated)]
+pub use renamed::*;
 
 use bevy::prelude::*;
 use std::sync::Arc;
@@ -74,9 +103,9 @@ impl Plugin for EnvisPlugin {
             .add_systems(PostUpdate, setup::warn_camera_setup)
             .add_plugins((
                 EnvisMaterialPlugin,
-                EnvMapSamplingPlugin,
-                shadows::EnvironmentShadowsPlugin,
-                MisLightingPlugin,
+                EnvisSamplingPlugin,
+                shadows::EnvisShadowsPlugin,
+                EnvisLightingPlugin,
             ));
     }
 }
@@ -117,7 +146,7 @@ pub enum Overlay {
     None,
     /// Samples each pixel evaluated (used light + BRDF) over its budget, as a heat map.
     EffectiveSamples,
-    /// Fraction of the used light samples with a negative cosine (the seed's yellow).
+    /// Fraction of the used light samples with a negative cosine (the paper's yellow).
     Wasted,
     /// |fractional - integer| / fractional: where integer counts pop.
     CountsDifference,
@@ -152,7 +181,7 @@ impl Overlay {
             Overlay::Wasted => (
                 100.0,
                 "%",
-                "share of the used light samples below the horizon (the seed's yellow)",
+                "share of the used light samples below the horizon (the paper's yellow)",
             ),
             // The shader draws heat(4 d): red at a 25% relative difference.
             Overlay::CountsDifference => (

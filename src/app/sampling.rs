@@ -1,4 +1,4 @@
-//! `EnvMapSamplingPlugin`: the sampling distribution and light pool of every environment in use,
+//! `EnvisSamplingPlugin`: the sampling distribution and light pool of every environment in use,
 //! built on the GPU from the `Image` texture itself (resample, distribution, pool) in the render
 //! world's `RenderGraph` schedule before `camera_driver`, so every camera of the frame shades with
 //! this frame's distribution.
@@ -16,8 +16,10 @@ use crate::envmap::resample::SourceLayout;
 use crate::gpu::resample::source_view;
 use crate::gpu::{EnvSampler, ImageResampler};
 use crate::render::{Strategy, pool_seed};
+use bevy::camera::visibility::RenderLayers;
 use bevy::core_pipeline::schedule::camera_driver;
 use bevy::prelude::*;
+use bevy::render::camera::TemporalJitter;
 use bevy::render::extract_component::ExtractComponentPlugin;
 use bevy::render::extract_resource::{ExtractResource, ExtractResourcePlugin};
 use bevy::render::render_asset::RenderAssets;
@@ -38,8 +40,9 @@ pub struct EnvImageVersions(pub HashMap<AssetId<Image>, u64>);
 #[derive(Resource, Clone, Copy, Default, ExtractResource)]
 pub struct SceneRevision(pub u64);
 
-/// A mesh entity now draws another mesh or material, or was hidden or shown. (Bevy writes
-/// `InheritedVisibility` only when it changes, so a still scene triggers none of these.)
+/// A mesh entity now draws another mesh or material, was hidden or shown, or put on other
+/// layers. (Bevy writes `InheritedVisibility` only when it changes, so a still scene triggers
+/// none of these.)
 type MeshSwapped = (
     With<Mesh3d>,
     Or<(
@@ -47,12 +50,13 @@ type MeshSwapped = (
         Changed<MeshMaterial3d<StandardMaterial>>,
         Changed<MeshMaterial3d<super::EnvisMaterial>>,
         Changed<InheritedVisibility>,
+        Changed<RenderLayers>,
     )>,
 );
 
 /// Bump [`SceneRevision`] when a material or mesh asset changed, a mesh moved, appeared, went
-/// away, was hidden or shown, took another mesh or material handle, or started or stopped
-/// casting shadows.
+/// away, was hidden or shown, took another mesh or material handle or other layers, or started
+/// or stopped casting shadows.
 #[allow(
     clippy::too_many_arguments,
     reason = "a Bevy system's parameters are the data it touches"
@@ -63,9 +67,10 @@ pub fn track_scene_changes(
     mut meshes: MessageReader<AssetEvent<Mesh>>,
     moved: Query<(), (With<Mesh3d>, Changed<GlobalTransform>)>,
     swapped: Query<(), MeshSwapped>,
-    (opted_out, mut opted_in): (
+    (opted_out, mut opted_in, mut unlayered): (
         Query<(), Added<bevy::light::NotShadowCaster>>,
         RemovedComponents<bevy::light::NotShadowCaster>,
+        RemovedComponents<RenderLayers>,
     ),
     mut removed: RemovedComponents<Mesh3d>,
     mut revision: ResMut<SceneRevision>,
@@ -75,6 +80,7 @@ pub fn track_scene_changes(
         || !swapped.is_empty()
         || !opted_out.is_empty()
         || opted_in.read().count() > 0
+        || unlayered.read().count() > 0
         || removed.read().count() > 0;
     if changed {
         revision.0 += 1;
@@ -137,13 +143,15 @@ pub struct EnvSamplers {
     pool_timer: Option<AsyncTimer>,
     /// Per view: what its accumulation key was and how many frames it has averaged.
     accumulation: HashMap<Entity, (u64, u32)>,
+    /// Per jittered view that does not accumulate: frames drawn, so that each draws new samples.
+    ticks: HashMap<Entity, u32>,
     /// Images already reported as unusable (reported once).
     refused: HashSet<AssetId<Image>>,
 }
 
-pub struct EnvMapSamplingPlugin;
+pub struct EnvisSamplingPlugin;
 
-impl Plugin for EnvMapSamplingPlugin {
+impl Plugin for EnvisSamplingPlugin {
     fn build(&self, app: &mut App) {
         super::share_resources(app);
         app.init_resource::<EnvImageVersions>()
@@ -219,6 +227,10 @@ pub fn track_image_versions(
     }
 }
 
+/// What else of a view its distribution and seed depend on: its layers (which casters shadow
+/// it, for the accumulation key) and whether it is jittered (TAA: a new seed every frame).
+type ViewExtras = (Option<&'static RenderLayers>, Has<TemporalJitter>);
+
 /// Per view: choose (and allocate) its distribution, decide whether that needs a rebuild, and
 /// track accumulation. Drops distributions and view state that no view uses any more.
 #[allow(clippy::too_many_arguments)]
@@ -230,6 +242,7 @@ pub fn prepare_samplers(
         &ExtractedView,
         &EnvironmentSampling,
         &EnvisEnvironment,
+        ViewExtras,
     )>,
     accumulated: Res<super::AccumulatedFrames>,
     images: Res<RenderAssets<GpuImage>>,
@@ -257,7 +270,7 @@ pub fn prepare_samplers(
     if let Some(f) = frames.as_mut() {
         f.clear();
     }
-    for (entity, main, view, sampling, env) in &views {
+    for (entity, main, view, sampling, env, (layers, jittered)) in &views {
         let Some(gpu) = images.get(env.image.id()) else {
             continue; // not loaded yet: Bevy's lighting alone until it is
         };
@@ -279,7 +292,8 @@ pub fn prepare_samplers(
         let face_size = (sampling.face_size as usize).clamp(1, 2048);
         // Accumulation: restart the mean whenever anything the image depends on changed.
         let scene = scene.as_ref().map_or(0, |s| s.0);
-        let acc_key = accumulation_key(sampling, env, view, (version, scene));
+        let layers = super::shadows::layers_of(layers);
+        let acc_key = accumulation_key(sampling, env, (view, layers), (version, scene));
         let frame = {
             let e = samplers.accumulation.entry(entity).or_insert((acc_key, 0));
             if !sampling.accumulate || e.0 != acc_key || env.dynamic {
@@ -292,18 +306,21 @@ pub fn prepare_samplers(
         if let Some(f) = frames.as_mut() {
             f.insert(main.id(), frame);
         }
-        let seed = if sampling.accumulate && frame > 0 {
-            crate::sampling::rng::hash_combine(&[sampling.seed, frame])
-        } else {
-            sampling.seed
-        };
+        // A jittered view is averaged over frames by its temporal antialiasing (TAA): each of
+        // its frames draws new samples too, or TAA would average the same noise.
+        let tick = (jittered && !sampling.accumulate).then(|| {
+            let t = samplers.ticks.entry(entity).or_insert(0);
+            *t = t.wrapping_add(1);
+            *t
+        });
+        let seed = frame_seed(sampling.seed, frame, tick);
         let key = SamplerKey {
             image: env.image.id(),
             face_size,
             tiles: crate::sampling::TileGrid::new(face_size, settings.tiles).k,
             pool_slots: settings.pool_slots(),
             pool_blocks: settings.pool_block_count(),
-            seed: if sampling.accumulate {
+            seed: if sampling.accumulate || tick.is_some() {
                 SeedOwner::View(entity)
             } else {
                 SeedOwner::Shared(sampling.seed)
@@ -346,6 +363,7 @@ pub fn prepare_samplers(
         std::sync::atomic::Ordering::Relaxed,
     );
     samplers.accumulation.retain(|e, _| live_views.contains(e));
+    samplers.ticks.retain(|e, _| live_views.contains(e));
 }
 
 /// The timer, when it can take a measurement and none was taken yet this frame.
@@ -378,11 +396,24 @@ fn check_source(gpu: &GpuImage) -> Result<SourceLayout, String> {
     SourceLayout::detect(d.size.width, d.size.height, d.size.depth_or_array_layers)
 }
 
-/// A hash of everything a view's image depends on besides the frame's seed.
+/// The seed of a view's frame: the camera's own for a still, unjittered view; one per frame
+/// averaged while accumulating; one per frame drawn (`tick`) for a jittered view that does not
+/// accumulate.
+fn frame_seed(seed: u32, frame: u32, tick: Option<u32>) -> u32 {
+    use crate::sampling::rng::hash_combine;
+    match tick {
+        _ if frame > 0 => hash_combine(&[seed, frame]),
+        Some(t) => hash_combine(&[seed, t, 0x7aa]),
+        None => seed,
+    }
+}
+
+/// A hash of everything a view's image depends on besides the frame's seed (its layers decide
+/// which meshes shadow it).
 fn accumulation_key(
     s: &EnvironmentSampling,
     env: &EnvisEnvironment,
-    view: &ExtractedView,
+    (view, layers): (&ExtractedView, crate::visibility::Layers),
     version: (u64, u64),
 ) -> u64 {
     use std::hash::{Hash, Hasher};
@@ -402,7 +433,14 @@ fn accumulation_key(
     {
         x.to_bits().hash(&mut h);
     }
-    (env.image.id(), env.show_background, view.viewport, version).hash(&mut h);
+    (
+        env.image.id(),
+        env.show_background,
+        view.viewport,
+        version,
+        layers.0,
+    )
+        .hash(&mut h);
     h.finish()
 }
 

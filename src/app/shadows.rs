@@ -1,4 +1,4 @@
-//! `EnvironmentShadowsPlugin`: shadow rays in the Bevy pass. The main world keeps one BVH per
+//! `EnvisShadowsPlugin`: shadow rays in the Bevy pass. The main world keeps one BVH per
 //! shadow-casting mesh asset, in object space, built once (`visibility::MeshBvh`, flattened as
 //! the GPU reads it), and a top-level BVH over the placed meshes (every visible `Mesh3d` without
 //! `NotShadowCaster`, through its `GlobalTransform`). When meshes come, go or change, the top
@@ -7,13 +7,19 @@
 //! (`shaders/visibility.wgsl`) for every light and BRDF sample of a camera whose
 //! `EnvironmentSampling::shadows` is on. The geometry traced is the geometry rasterised (a
 //! tessellated sphere is traced as its triangles).
+//!
+//! `RenderLayers`: a mesh casts shadows only for the cameras that see one of its layers, as Bevy
+//! draws it only for them. Each instance record keeps its layers and each camera's rays are cast
+//! for its own ([`Layers`], 32 bits: layer `l` is bit `l mod 32`, so layers 32 apart share a bit
+//! and a mesh on layer 33 casts for a camera on layer 1).
 
 use super::components::EnvironmentSampling;
 use super::{Counters, EnvisCounters};
 use crate::visibility::{
-    Bounds, FlatBlas, FlatBvh, FlatInstance, MeshBvh, ObjectFromWorld, ShadowRays, Tlas,
+    Bounds, FlatBlas, FlatBvh, FlatInstance, Layers, MeshBvh, ObjectFromWorld, ShadowRays, Tlas,
     world_bounds,
 };
+use bevy::camera::visibility::RenderLayers;
 use bevy::light::NotShadowCaster;
 use bevy::mesh::{Indices, PrimitiveTopology};
 use bevy::platform::collections::HashMap;
@@ -72,9 +78,9 @@ pub struct GpuShadowGeometry {
     pub node_count: u32,
 }
 
-pub struct EnvironmentShadowsPlugin;
+pub struct EnvisShadowsPlugin;
 
-impl Plugin for EnvironmentShadowsPlugin {
+impl Plugin for EnvisShadowsPlugin {
     fn build(&self, app: &mut App) {
         super::share_resources(app);
         app.init_resource::<ShadowGeometry>()
@@ -106,12 +112,23 @@ type Casters<'w, 's> = Query<
         &'static Mesh3d,
         &'static GlobalTransform,
         &'static InheritedVisibility,
+        Option<&'static RenderLayers>,
     ),
     Without<NotShadowCaster>,
 >;
 
-/// A mesh was swapped, or shown or hidden.
-type CasterChanged = Or<(Changed<Mesh3d>, Changed<InheritedVisibility>)>;
+/// A mesh was swapped, shown or hidden, or put on other layers.
+type CasterChanged = Or<(
+    Changed<Mesh3d>,
+    Changed<InheritedVisibility>,
+    Changed<RenderLayers>,
+)>;
+
+/// The [`Layers`] of an entity's or a camera's `RenderLayers` (none: Bevy's default, layer 0).
+pub fn layers_of(render_layers: Option<&RenderLayers>) -> Layers {
+    let layers = render_layers.unwrap_or(bevy::camera::visibility::DEFAULT_LAYERS);
+    Layers(layers.iter().fold(0, |bits, l| bits | 1 << (l % 32)))
+}
 
 /// A shadow-casting mesh moved.
 type CasterMoved = (Without<NotShadowCaster>, Changed<GlobalTransform>);
@@ -139,10 +156,11 @@ pub fn gather_shadow_geometry(
     changed: Query<(), (With<Mesh3d>, CasterChanged)>,
     moved: Query<(), (With<Mesh3d>, CasterMoved)>,
     mut removed: RemovedComponents<Mesh3d>,
-    // Meshes that started or stopped casting shadows.
-    (opted_out, mut opted_in): (
+    // Meshes that started or stopped casting shadows, or went back to the default layer.
+    (opted_out, mut opted_in, mut unlayered): (
         Query<(), Added<NotShadowCaster>>,
         RemovedComponents<NotShadowCaster>,
+        RemovedComponents<RenderLayers>,
     ),
     mut events: MessageReader<AssetEvent<Mesh>>,
     meshes: Res<Assets<Mesh>>,
@@ -168,6 +186,7 @@ pub fn gather_shadow_geometry(
         | (!new_cameras.is_empty() && geometry.generation == 0)
         | !opted_out.is_empty()
         | (opted_in.read().count() > 0)
+        | (unlayered.read().count() > 0)
         | (removed.read().count() > 0)
         | assets_changed;
     let change = match (structure, moved.is_empty()) {
@@ -199,7 +218,7 @@ fn rebuild(
     let (mut object_bounds, mut bounds) = (Vec::new(), Vec::new());
     let mut triangles = 0;
     scene.waiting = false;
-    for (entity, mesh, transform, visible) in casters {
+    for (entity, mesh, transform, visible, render_layers) in casters {
         let id = mesh.id();
         if !visible.get() {
             continue;
@@ -225,7 +244,11 @@ fn rebuild(
         });
         triangles += blas.triangles.len();
         instances.push(entity);
-        placed.push(FlatInstance { blas: k, to_object });
+        placed.push(FlatInstance {
+            blas: k,
+            to_object,
+            layers: layers_of(render_layers),
+        });
         object_bounds.push(b);
         bounds.push(world_bounds(b, &transform.affine()));
     }
@@ -251,7 +274,7 @@ fn rebuild(
 fn refit(scene: &mut ShadowScene, geometry: &mut ShadowGeometry, casters: &Casters) -> bool {
     let mut bounds: Vec<Bounds> = Vec::with_capacity(scene.instances.len());
     for (i, &entity) in scene.instances.iter().enumerate() {
-        let Ok((_, _, transform, _)) = casters.get(entity) else {
+        let Ok((_, _, transform, _, _)) = casters.get(entity) else {
             return false;
         };
         let Some(to_object) = ObjectFromWorld::new(transform.affine()) else {

@@ -1,4 +1,4 @@
-//! `EnvMapStreamPlugin`: envis's own environment streams (the built-in sky, file sequences, the
+//! `EnvisStreamPlugin`: envis's own environment streams (the built-in sky, file sequences, the
 //! carousel) played into a Bevy `Image`, so they light cameras through the same
 //! [`super::EnvisEnvironment`] as any other image.
 
@@ -58,14 +58,14 @@ impl EnvMapStream {
 
 /// Adds [`EnvMapStream`] and [`EnvFrame`] (the built-in animated sky by default); frames are
 /// `face_size` texels per cube face.
-pub struct EnvMapStreamPlugin {
+pub struct EnvisStreamPlugin {
     pub source: StreamSource,
     pub face_size: usize,
 }
 
-impl Default for EnvMapStreamPlugin {
+impl Default for EnvisStreamPlugin {
     fn default() -> Self {
-        EnvMapStreamPlugin {
+        EnvisStreamPlugin {
             source: StreamSource::Sky {
                 hours: 9.0,
                 speed: 0.5,
@@ -75,7 +75,7 @@ impl Default for EnvMapStreamPlugin {
     }
 }
 
-impl Plugin for EnvMapStreamPlugin {
+impl Plugin for EnvisStreamPlugin {
     fn build(&self, app: &mut App) {
         let stream = EnvStream::open(self.source.clone(), self.face_size).unwrap_or_else(|e| {
             error!("envis: {e}; falling back to the built-in sky");

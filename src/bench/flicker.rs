@@ -1,7 +1,7 @@
 //! Suite `flicker`: how much one frame's image mean moves from seed to seed on a white furnace,
 //! for the pool layouts envis has today. Every pixel shading from the same per-frame pool makes
 //! the error coherent across the image: in a live view, whole-image flicker. This measures the
-//! pool layouts of issue 14 part 1: the seed's shared pool, a random per-pixel start offset into
+//! pool layouts of issue 14 part 1: the paper's shared pool, a random per-pixel start offset into
 //! pools of `N_L`, 4 `N_L` and 16 `N_L` samples per face, `K` = 4, 16, 64 independent blocks of
 //! `N_L` (one per pixel), and the `global` baseline (independent samples per pixel).
 //!
@@ -39,7 +39,7 @@ fn layouts(base: Settings) -> Vec<(String, Settings)> {
         pool_layout: PoolLayout::Shared,
         ..base
     };
-    let mut v = vec![("shared (the seed's)".to_string(), shared)];
+    let mut v = vec![("shared (the paper's)".to_string(), shared)];
     for mult in [1, 4, 16] {
         v.push((
             format!("offset, pool {mult} N_L"),

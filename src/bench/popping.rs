@@ -1,8 +1,8 @@
-//! Suite `popping`: integer against fractional counts while the sun moves (the seed's popping).
+//! Suite `popping`: integer against fractional counts while the sun moves (the paper's popping).
 
 use super::*;
 
-/// Suite `popping`: temporal stability of integer vs fractional counts (the seed's "smooth
+/// Suite `popping`: temporal stability of integer vs fractional counts (the paper's "smooth
 /// transitions"). The built-in sun moves from 9h to 11h over `frames` frames; every frame uses the
 /// same seed, so frame-to-frame change comes only from the environment and the counts. For each
 /// mode: mean |change| per pixel relative to the reference's own mean |change| (1 = as smooth as

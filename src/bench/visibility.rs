@@ -191,7 +191,7 @@ pub(super) fn bunny_grid_scene(dir: &Path) -> Result<PathBuf> {
 
 /// Time each level of the bunny grid's shadow geometry (`repeat` times, medians).
 fn instanced_row(sc: &Scene, repeat: usize) -> Result<InstancedRow> {
-    use crate::visibility::{FlatBvh, FlatInstance, ObjectFromWorld, Tlas, world_bounds};
+    use crate::visibility::{FlatBvh, FlatInstance, Layers, ObjectFromWorld, Tlas, world_bounds};
     let bunnies: Vec<&crate::scene::MeshInstance> = sc
         .objects
         .iter()
@@ -229,7 +229,11 @@ fn instanced_row(sc: &Scene, repeat: usize) -> Result<InstancedRow> {
                     glam::Affine3A::from_translation(glam::Vec3::X * shift) * b.world_from_object;
                 let to_object = ObjectFromWorld::new(world).unwrap_or(b.to_object);
                 (
-                    FlatInstance { blas: 0, to_object },
+                    FlatInstance {
+                        blas: 0,
+                        to_object,
+                        layers: Layers::ALL,
+                    },
                     world_bounds(local, &world),
                 )
             })

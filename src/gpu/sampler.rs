@@ -44,10 +44,10 @@ pub fn totals_columns(k: usize) -> usize {
 pub struct EnvSampler {
     pub n: usize,
     pub m: usize,
-    /// Tiles per face side `K` (1: the seed's whole faces).
+    /// Tiles per face side `K` (1: the paper's whole faces).
     pub tiles: usize,
     /// Independent stratified blocks the `m` slots are split into (`PoolLayout::Blocks`; 1: the
-    /// seed's pool). Set with [`Self::set_blocks`].
+    /// paper's pool). Set with [`Self::set_blocks`].
     pub blocks: usize,
     /// Per texel `(r, g, b, pdf_area)`: radiance in, sanitised radiance + pdf table out.
     pub texels: wgpu::Buffer,
@@ -123,7 +123,7 @@ impl BufferSizes {
 }
 
 impl EnvSampler {
-    /// The seed's sampler: whole faces, `m` pool slots per face.
+    /// The paper's sampler: whole faces, `m` pool slots per face.
     pub fn new(ctx: &GpuContext, n: usize, m: usize) -> Result<Self> {
         Self::with_device(
             &ctx.device,

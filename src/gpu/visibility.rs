@@ -5,7 +5,7 @@
 
 use super::{GpuContext, compute_pipeline, shaders};
 use crate::error::Result;
-use crate::visibility::{FlatBvh, FlatTop};
+use crate::visibility::{FlatBvh, FlatTop, Layers};
 use glam::Vec3;
 use wgpu::util::DeviceExt;
 
@@ -101,6 +101,17 @@ impl GpuBvh {
 
     /// Trace `rays`; `true` where a ray is blocked.
     pub fn trace(&self, ctx: &GpuContext, rays: &[ShadowRay]) -> Result<Vec<bool>> {
+        self.trace_on(ctx, rays, Layers::ALL)
+    }
+
+    /// Trace `rays` cast for `layers` (only instances on one of them block;
+    /// `FlatBvh::occluded_on` is the twin); `true` where a ray is blocked.
+    pub fn trace_on(
+        &self,
+        ctx: &GpuContext,
+        rays: &[ShadowRay],
+        layers: Layers,
+    ) -> Result<Vec<bool>> {
         let device = &ctx.device;
         let packed: Vec<[f32; 8]> = rays
             .iter()
@@ -116,7 +127,7 @@ impl GpuBvh {
         });
         let counts = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("envis ray counts"),
-            contents: bytemuck::cast_slice(&[self.node_count, rays.len() as u32, 0, 0]),
+            contents: bytemuck::cast_slice(&[self.node_count, rays.len() as u32, layers.0, 0]),
             usage: wgpu::BufferUsages::UNIFORM,
         });
         let bufs = [&self.nodes, &self.triangles, &rays_buf, &out, &counts];

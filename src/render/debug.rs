@@ -1,4 +1,4 @@
-//! The seed's sample-debug view on the CPU: how each pool sample serves one pixel (red:
+//! The paper's sample-debug view on the CPU: how each pool sample serves one pixel (red:
 //! discarded by face weighting, green: used, yellow: used but below the horizon, blue: used but
 //! blocked by the scene).
 
@@ -8,7 +8,7 @@ use crate::sampling::tiles::draw_tile;
 use crate::sampling::{MAX_REGIONS, TileCounts, face_count};
 use glam::Vec3;
 
-/// How one pool sample serves a pixel (the seed's sample-debug colours).
+/// How one pool sample serves a pixel (the paper's sample-debug colours).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 pub enum SampleKind {
     /// Red: not taken, discarded by face weighting (beyond the face's (or tile's) `ceil(N_f)`, or
@@ -78,7 +78,7 @@ pub fn debug_pixel_at(
     let mut rng = Rng::new(s.seed, pixel_index);
     let window = super::estimator::pool_window(&mut rng, s, &fd.pool);
     // The pixel's own part of the pool (one block with `PoolLayout::Blocks`): the slots it can
-    // take, as the seed's view shows them.
+    // take, as the paper's view shows them.
     let mut samples = Vec::with_capacity(regions * window.len);
     let live = matches!(s.strategy, Strategy::Paper | Strategy::Light)
         && super::estimator::shading_directions(px).is_some();

@@ -5,7 +5,7 @@
 //! - [`settings`]: what a render is asked to do (strategy, budget, seeds);
 //! - [`estimator`]: one pixel's estimate (light pool / global / BRDF samples, MIS);
 //! - [`stats`]: sample accounting and `--stats`;
-//! - [`debug`]: the seed's red / green / yellow classification of one pixel's pool samples;
+//! - [`debug`]: the paper's red / green / yellow classification of one pixel's pool samples;
 //! - [`reference`](mod@reference): the exact f64 quadrature the estimators are tested against.
 
 pub mod debug;

@@ -14,7 +14,7 @@ use crate::sampling::{Counts, Heuristic};
 #[cfg_attr(feature = "app", derive(bevy::reflect::Reflect))]
 #[serde(rename_all = "lowercase")]
 pub enum Strategy {
-    /// The seed's method: per-pixel face weighting (light energy x pseudo form factor) of the
+    /// The paper's method: per-pixel face weighting (light energy x pseudo form factor) of the
     /// shared pool, N_L light + N_B BRDF samples combined by MIS.
     Paper,
     /// pbrt-style: one lat-long distribution for the whole sphere, N_L samples per pixel, MIS
@@ -38,7 +38,7 @@ crate::vocab::display_as_value_enum!(Strategy);
 #[cfg_attr(feature = "app", derive(bevy::reflect::Reflect))]
 #[serde(rename_all = "lowercase")]
 pub enum PoolLayout {
-    /// The seed's: one pool of `M` samples per face, every pixel takes its first `N_f`. The
+    /// The paper's: one pool of `M` samples per face, every pixel takes its first `N_f`. The
     /// error is the same pattern in every pixel (whole-image flicker from frame to frame).
     Shared,
     /// One pool; each pixel starts at a random slot and wraps. With `M > N_L` pixels decorrelate,
@@ -46,7 +46,7 @@ pub enum PoolLayout {
     Offset,
     /// `K` independent stratified pools ("blocks", `--pool-blocks K`) of `M` samples per face;
     /// each pixel takes one block at random and reads it as the seed reads its pool. A pixel sees
-    /// exactly a seed pool, so its own error is the seed's, while the image averages `K` pools.
+    /// exactly a paper pool, so its own error is the paper's, while the image averages `K` pools.
     Blocks,
 }
 
@@ -81,7 +81,7 @@ pub struct Settings {
     /// [`budget_for`].
     pub material_budget: bool,
     /// `K`: each face cut into `K x K` tiles, each weighted and sampled on its own
-    /// (`--tiles`; `1` is the seed's whole faces; [`crate::sampling::tiles`]).
+    /// (`--tiles`; `1` is the paper's whole faces; [`crate::sampling::tiles`]).
     pub tiles: usize,
     /// How the light samples are spread over tiles (`--tile-counts`; no effect with one tile).
     pub tile_counts: crate::sampling::TileCounts,
@@ -128,8 +128,8 @@ impl Default for Settings {
             counts: Counts::Fractional,
             mis: Heuristic::Balance,
             seed: 0,
-            // Not the seed's shared pool: blocks meet the FLIP and flicker targets at the seed's
-            // per-pixel error (`docs/benchmarks.md`, "Pool layouts"); `Shared` keeps the seed's.
+            // Not the paper's shared pool: blocks meet the FLIP and flicker targets at the paper's
+            // per-pixel error (`docs/benchmarks.md`, "Pool layouts"); `Shared` keeps the paper's.
             pool_layout: PoolLayout::Blocks,
             pool_blocks: DEFAULT_POOL_BLOCKS,
             material_budget: false,

@@ -3,7 +3,7 @@
 
 use super::Settings;
 
-/// Per-pixel sample accounting (the seed's red / green / yellow).
+/// Per-pixel sample accounting (the paper's red / green / yellow).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct PixelStats {
     /// Light samples available to the pixel (6 K^2 M for the pool, N_L for `global`).
@@ -45,7 +45,7 @@ pub struct RenderStats {
     /// `shared`, `offset` or `blocks`, and the pool's blocks (1 unless `blocks`).
     pub pool_layout: String,
     pub pool_blocks: usize,
-    /// `K`: tiles per face side (1: the seed's whole faces).
+    /// `K`: tiles per face side (1: the paper's whole faces).
     pub tiles: usize,
     /// `face` or `tile` ([`crate::sampling::TileCounts`]).
     pub tile_counts: String,

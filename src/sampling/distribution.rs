@@ -2,7 +2,7 @@
 //!
 //! Per face (or, with `--tiles K`, per tile of a face: [`super::tiles`]): texel weight
 //! `w(c, r) = Y(c, r) * Omega(c, r)` (luminance x texel solid angle); marginal CDF over columns `u`
-//! and, per column, a conditional CDF over rows `v` (the seed's CDF(u) and CDF(v|u)). Sums are accumulated in f64 and stored normalised in f32, so a single
+//! and, per column, a conditional CDF over rows `v` (the paper's CDF(u) and CDF(v|u)). Sums are accumulated in f64 and stored normalised in f32, so a single
 //! bright texel among millions is still found with the right probability. Inside the chosen texel
 //! the direction is uniform in face coordinates; the returned pdf is per unit *solid angle*:
 //! `p(w) = P(texel) / A_texel * (1 + a^2 + b^2)^(3/2)` with `A_texel = (2/N)^2` (cube-face Jacobian).
@@ -110,7 +110,7 @@ pub struct TileDistribution {
     pub area_scale: f32,
 }
 
-/// The tabulated distribution of one cube face, as `K x K` tiles (`K = 1`: the seed's, one
+/// The tabulated distribution of one cube face, as `K x K` tiles (`K = 1`: the paper's, one
 /// distribution per face), each with its own marginal over its columns and, in the shared
 /// [`Conditionals`], its own band of each column.
 #[derive(Clone, Debug)]
@@ -285,7 +285,7 @@ pub fn face_solid_angles(n: usize) -> std::sync::Arc<Vec<f32>> {
 }
 
 /// Texel weights `Y * Omega` of one face (`N * N`, same layout as the map's face).
-pub fn face_weights(face: &[Vec3], omega: &[f32]) -> Vec<f32> {
+pub fn face_texel_weights(face: &[Vec3], omega: &[f32]) -> Vec<f32> {
     // Zipped with the face's solid angles: no division or modulo per texel.
     face.iter()
         .zip(omega)
@@ -299,12 +299,19 @@ pub fn texel_weights(map: &CubeMap) -> Vec<f32> {
     let omega = face_solid_angles(n);
     map.data
         .chunks(n * n)
-        .flat_map(|face| face_weights(face, &omega))
+        .flat_map(|face| face_texel_weights(face, &omega))
         .collect()
 }
 
+/// The old name of [`face_texel_weights`], which read as the per-pixel face weights `mu_f`
+/// ([`super::faceweights::face_weights`]).
+#[deprecated(since = "0.1.0", note = "renamed `face_texel_weights`")]
+pub fn face_weights(face: &[Vec3], omega: &[f32]) -> Vec<f32> {
+    face_texel_weights(face, omega)
+}
+
 impl CubeDistribution {
-    /// The seed's distribution: one per face.
+    /// The paper's distribution: one per face.
     pub fn build(map: &CubeMap) -> Self {
         Self::build_tiled(map, 1)
     }

@@ -1,4 +1,8 @@
-//! Per-pixel face weighting (the seed's "dynamic sample distribution").
+//! Per-pixel face weighting (the paper's "dynamic sample distribution"), per whole face: the
+//! paper's formula as written, kept as the labelled test oracle of the estimator's weighting.
+//! The estimator weights regions with [`super::tiles::TileWeights`] (the same formula per
+//! sub-face tile; one tile per face gives exactly this, checked by
+//! `one_tile_per_face_gives_the_paper_face_weights`).
 //!
 //! `C_f = sum over the 4 corners of max(0, <n, corner>)`, `F_f = C_f / sum C_f`,
 //! `mu_f = F_f I_f / sum(F_f I_f)`, `N_f = mu_f N_L`. A face whose four corners all have
@@ -24,23 +28,6 @@ pub const FACE_CORNERS: [[usize; 4]; 6] = [
     [0, 1, 2, 3], // z > 0: bit 4 clear
     [4, 5, 6, 7], // z < 0
 ];
-
-/// How the per-face counts `N_f` become samples.
-#[derive(
-    Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum,
-)]
-// Reflected for the Bevy camera component (`app::EnvironmentSampling`); the core stays Bevy-free.
-#[cfg_attr(feature = "app", derive(bevy::reflect::Reflect))]
-#[serde(rename_all = "lowercase")]
-pub enum Counts {
-    /// floor(N_f) samples of weight 1 plus one of weight frac(N_f), divided by N_f: unbiased, no popping.
-    Fractional,
-    /// round(N_f) samples, each weighted as if N_f were drawn (1 / (N_L mu_f p_f)): biased by a
-    /// factor round(N_f) / N_f per face, and pops when round(N_f) changes. Exists to show that.
-    Integer,
-}
-
-crate::vocab::display_as_value_enum!(Counts);
 
 /// Face weights of one pixel.
 #[derive(Clone, Copy, Debug, Default)]
@@ -81,59 +68,6 @@ pub fn face_weights(n: Vec3, energy: &[f64; 6], use_cosine: bool) -> FaceWeights
     w
 }
 
-/// Which pool samples a face uses, and with what weight.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct FaceCount {
-    /// Samples taken from the pool: floor(N_f) (+1 if frac > 0) or round(N_f), at most M.
-    pub taken: usize,
-    /// Weight of the last taken sample (frac for fractional counts; 1 otherwise).
-    pub last_weight: f32,
-    /// The count the estimator divides by, i.e. the sampling density is `density * p_f(w)`.
-    pub density: f32,
-}
-
-/// Turn `N_f = mu_f N_L` into taken samples, clamped to the pool size `m` (clamping only changes
-/// the count that is divided by, so it stays unbiased in fractional mode).
-#[inline]
-pub fn face_count(n_f: f32, m: usize, counts: Counts) -> FaceCount {
-    let n_f = if n_f.is_finite() {
-        n_f.clamp(0.0, m as f32)
-    } else {
-        0.0
-    };
-    if n_f <= 0.0 {
-        return FaceCount {
-            taken: 0,
-            last_weight: 0.0,
-            density: 0.0,
-        };
-    }
-    match counts {
-        Counts::Fractional => {
-            let whole = n_f.floor();
-            let frac = n_f - whole;
-            if frac > 0.0 {
-                FaceCount {
-                    taken: whole as usize + 1,
-                    last_weight: frac,
-                    density: n_f,
-                }
-            } else {
-                FaceCount {
-                    taken: whole as usize,
-                    last_weight: 1.0,
-                    density: n_f,
-                }
-            }
-        }
-        Counts::Integer => FaceCount {
-            taken: (n_f.round() as usize).min(m),
-            last_weight: 1.0,
-            density: n_f,
-        },
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -145,15 +79,6 @@ mod tests {
             for &c in &FACE_CORNERS[f] {
                 assert!((corner(c).dot(axes[f]) - 1.0 / 3f32.sqrt()).abs() < 1e-6);
             }
-        }
-    }
-
-    #[test]
-    fn fractional_weights_sum_to_n_f() {
-        for &n in &[0.3f32, 1.0, 2.5, 7.999_999, 8.0] {
-            let c = face_count(n, 8, Counts::Fractional);
-            let sum = (c.taken.saturating_sub(1)) as f32 + c.last_weight;
-            assert!((sum - n).abs() < 1e-5, "{n}: {c:?}");
         }
     }
 }

@@ -4,6 +4,7 @@
 
 pub mod brdf;
 pub mod conditionals;
+pub mod counts;
 pub mod distribution;
 pub mod faceweights;
 pub mod fastmath;
@@ -15,8 +16,9 @@ pub mod tiles;
 pub mod warp;
 
 pub use brdf::{Ggx, LANES, Lambert, Lobe, LocalBsdf, Material, Phong, SampleLanes};
+pub use counts::{Counts, FaceCount, face_count};
 pub use distribution::{CubeDistribution, Distribution1D, FaceDistribution, TileDistribution};
-pub use faceweights::{Counts, FaceWeights, face_count, face_weights};
+pub use faceweights::{FaceWeights, face_weights};
 pub use global::GlobalDistribution;
 pub use mis::Heuristic;
 pub use pool::{LightPool, PoolSample};

@@ -21,7 +21,7 @@ pub struct PoolSample {
     pub pdf: f32,
 }
 
-/// `M` samples per region (face, or tile) in each of `B` blocks (`B = 1`: the seed's pool),
+/// `M` samples per region (face, or tile) in each of `B` blocks (`B = 1`: the paper's pool),
 /// region-major: slot `j` of region `r` is `samples[r * per_region + j]`, and block `b` holds slots
 /// `b M .. (b + 1) M`.
 #[derive(Clone, Debug)]
@@ -33,20 +33,21 @@ pub struct LightPool {
     pub samples: Vec<PoolSample>,
 }
 
-/// The 2D point of pool sample `i` of face `face` (`m` samples per face) for `seed`.
+/// The 2D point of pool sample `i` of region `region` (a face, or a tile; `m` samples per
+/// region) for `seed`.
 #[inline]
-pub fn pool_point(seed: u32, face: u32, i: u32, m: u32) -> Vec2 {
-    let pu = permute(i, m, hash_combine(&[seed, face, 0x5eed_0001]));
-    let pv = permute(i, m, hash_combine(&[seed, face, 0x5eed_0002]));
-    let ju = to_unit(hash_combine(&[seed, face, i, 1]));
-    let jv = to_unit(hash_combine(&[seed, face, i, 2]));
+pub fn pool_point(seed: u32, region: u32, i: u32, m: u32) -> Vec2 {
+    let pu = permute(i, m, hash_combine(&[seed, region, 0x5eed_0001]));
+    let pv = permute(i, m, hash_combine(&[seed, region, 0x5eed_0002]));
+    let ju = to_unit(hash_combine(&[seed, region, i, 1]));
+    let jv = to_unit(hash_combine(&[seed, region, i, 2]));
     // (p + xi) / m, kept strictly below 1.
     let u = ((pu as f32 + ju) / m as f32).min(ONE_MINUS_EPSILON);
     let v = ((pv as f32 + jv) / m as f32).min(ONE_MINUS_EPSILON);
     Vec2::new(u, v)
 }
 
-/// The seed of block `b` of a pool seeded `seed`: block 0 is the seed's pool itself, so a pool of
+/// The seed of block `b` of a pool seeded `seed`: block 0 is the paper's pool itself, so a pool of
 /// one block is the same with or without blocks.
 #[inline]
 pub fn block_seed(seed: u32, b: u32) -> u32 {
@@ -57,15 +58,15 @@ pub fn block_seed(seed: u32, b: u32) -> u32 {
     }
 }
 
-/// The 2D point of slot `j` of face `face` in a pool of blocks of `m` samples: a Latin-hypercube
-/// point of its own block.
+/// The 2D point of slot `j` of region `region` in a pool of blocks of `m` samples: a
+/// Latin-hypercube point of its own block.
 #[inline]
-pub fn block_point(seed: u32, face: u32, j: u32, m: u32) -> Vec2 {
-    pool_point(block_seed(seed, j / m), face, j % m, m)
+pub fn block_point(seed: u32, region: u32, j: u32, m: u32) -> Vec2 {
+    pool_point(block_seed(seed, j / m), region, j % m, m)
 }
 
 impl LightPool {
-    /// The seed's pool: `per_face` samples per region in one block.
+    /// The paper's pool: `per_face` samples per region in one block.
     pub fn build(map: &CubeMap, dist: &CubeDistribution, per_face: usize, seed: u32) -> Self {
         Self::build_blocks(map, dist, per_face, 1, seed)
     }

@@ -1,13 +1,13 @@
 //! Sub-face tiles (`--tiles K`): each cube face cut into `K x K` tiles, each with its own energy,
-//! CDFs and pool, weighted per pixel like the seed's faces (`docs/method.md`, "Tiles").
+//! CDFs and pool, weighted per pixel like the paper's faces (`docs/method.md`, "Tiles").
 //!
 //! A face weighted as a whole sends samples below the horizon of any normal its face straddles;
 //! a tile straddles it over a smaller area. Per pixel, tile `t` gets
 //! `C_t = sum over its 4 corners of max(0, <n, corner>)` and `mu_t = C_t I_t / sum(C_t I_t)`,
-//! `N_t = mu_t N_L` (the seed's pseudo form factor and face energy, per tile). The seed's
+//! `N_t = mu_t N_L` (the paper's pseudo form factor and face energy, per tile). The paper's
 //! argument for skipping a tile carries over: a tile is planar, so `<n, p>` is linear on it and a
 //! tile whose four corners all have `cos <= 0` lies wholly below the horizon. `K = 1` is the
-//! seed's method.
+//! paper's method.
 //!
 //! Tile `i` of a row (or column) covers texels `ceil(i N / K) .. ceil((i + 1) N / K)`, so a texel's
 //! tile is `floor(x K / N)`; when `K` does not divide `N` the tiles differ by one texel in width.
@@ -25,13 +25,13 @@ use glam::Vec3;
 #[cfg_attr(feature = "app", derive(bevy::reflect::Reflect))]
 #[serde(rename_all = "lowercase")]
 pub enum TileCounts {
-    /// The seed's counts per tile: tile `t` takes `N_t = mu_t N_L` samples (fractional or integer,
+    /// The paper's counts per tile: tile `t` takes `N_t = mu_t N_L` samples (fractional or integer,
     /// [`super::Counts`]). Every lit tile above the horizon costs at least one sample, so the
     /// samples evaluated grow with `K^2`.
     Tile,
-    /// The seed's counts per face, `N_f = sum of its tiles' N_t`; each of the face's samples
+    /// The paper's counts per face, `N_f = sum of its tiles' N_t`; each of the face's samples
     /// draws its tile with probability `N_t / N_f` (one random number) and takes that tile's
-    /// next pool sample. The samples evaluated stay the seed's.
+    /// next pool sample. The samples evaluated stay the paper's.
     Face,
 }
 
@@ -245,7 +245,7 @@ mod tests {
     }
 
     #[test]
-    fn one_tile_per_face_gives_the_seed_face_weights() {
+    fn one_tile_per_face_gives_the_paper_face_weights() {
         let energy = [1.0, 2.0, 0.5, 3.0, 0.0, 1.5];
         let w = TileWeights::new(TileGrid::new(16, 1), &energy);
         let mut mass = [0.0; 6];

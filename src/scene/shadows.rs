@@ -4,8 +4,8 @@
 
 use super::{Scene, Shape, TriMesh, sphere_mesh, square_mesh};
 use crate::visibility::{
-    Bounds, FlatBlas, FlatBvh, FlatInstance, Hull, ObjectFromWorld, Occluder, Reach, ShadowPoint,
-    ShadowRays, Tlas, inverse, shadow_origin, slab_hit,
+    Bounds, FlatBlas, FlatBvh, FlatInstance, Hull, Layers, ObjectFromWorld, Occluder, Reach,
+    ShadowPoint, ShadowRays, Tlas, inverse, shadow_origin, slab_hit,
 };
 use glam::Vec3;
 use std::sync::Arc;
@@ -83,7 +83,11 @@ impl<'a> Occluders<'a> {
             };
             let world = shape.world_from_object();
             if let (Some(b), Some(to_object)) = (blases[blas].bounds, ObjectFromWorld::new(world)) {
-                instances.push(FlatInstance { blas, to_object });
+                instances.push(FlatInstance {
+                    blas,
+                    to_object,
+                    layers: Layers::ALL,
+                });
                 bounds.push(crate::visibility::world_bounds(b, &world));
             }
         }

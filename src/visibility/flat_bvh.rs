@@ -13,8 +13,8 @@ pub const STACK_SIZE: usize = 64;
 
 /// One node: inner (`count == 0`, children at `first` and `first + 1`) or leaf. A mesh leaf
 /// holds `count` triangles from `first`; a top-level leaf holds one instance, whose record is
-/// `triangles[first]`, and `count` is the root of its mesh's BVH (never 0: node 0 is the
-/// top-level root).
+/// `triangles[first]` (its transform) and `triangles[first + 1]` (its layers), and `count` is
+/// the root of its mesh's BVH (never 0: node 0 is the top-level root).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[cfg_attr(feature = "gpu", derive(bytemuck::Pod, bytemuck::Zeroable))]
@@ -34,12 +34,45 @@ pub struct FlatBlas {
     pub bounds: Option<Bounds>,
 }
 
-/// One placement of a mesh: which [`FlatBlas`], and the transform into its object space.
+/// One placement of a mesh: which [`FlatBlas`], the transform into its object space, and the
+/// layers it casts shadows on (a ray cast for `layers` meets it only when the two share a bit).
 #[derive(Clone, Copy, Debug)]
 pub struct FlatInstance {
     pub blas: usize,
     pub to_object: ObjectFromWorld,
+    pub layers: Layers,
 }
+
+/// A set of up to 32 layers, one bit each (the app maps Bevy's `RenderLayers` onto it): an
+/// instance casts shadows for a view when their sets meet.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Layers(pub u32);
+
+impl Layers {
+    /// Every layer: what the CLI's scenes use (they have no layers), and a view that sees all.
+    pub const ALL: Layers = Layers(u32::MAX);
+
+    /// Whether the two sets share a layer.
+    #[inline]
+    pub fn meet(self, other: Layers) -> bool {
+        self.0 & other.0 != 0
+    }
+
+    /// The instance record's second entry: the set as two exact 16-bit halves in floats (the
+    /// triangle buffer holds floats, and a float's bits need not survive every GPU's loads).
+    fn record(self) -> [[f32; 4]; 3] {
+        let (lo, hi) = ((self.0 & 0xffff) as f32, (self.0 >> 16) as f32);
+        [[lo, hi, 0.0, 0.0], [0.0; 4], [0.0; 4]]
+    }
+
+    /// The inverse of [`Self::record`] (`instance_layers` in the WGSL).
+    fn from_record(r: [[f32; 4]; 3]) -> Layers {
+        Layers(r[0][0] as u32 | (r[0][1] as u32) << 16)
+    }
+}
+
+/// Entries of the triangle array an instance's record takes: its transform, then its layers.
+const RECORD_ENTRIES: usize = 2;
 
 /// A scene's shadow geometry, ready to upload: as the GPU reads it, one node array (the top
 /// level's nodes, then every mesh's) and one triangle array (the instance records, then every
@@ -50,8 +83,9 @@ pub struct FlatBvh {
     pub meshes: std::sync::Arc<FlatMeshes>,
 }
 
-/// The part instances move: the top level and the instance records (rows of
-/// [`ObjectFromWorld`]). Its size depends only on the number of instances.
+/// The part instances move: the top level and the instance records (per instance, the rows of
+/// its [`ObjectFromWorld`], then its [`Layers`]). Its size depends only on the number of
+/// instances.
 #[derive(Clone, Debug, Default)]
 pub struct FlatTop {
     pub nodes: Vec<FlatNode>,
@@ -110,6 +144,7 @@ impl MeshBvh {
             .map(|_| FlatInstance {
                 blas: 0,
                 to_object: ObjectFromWorld::IDENTITY,
+                layers: Layers::ALL,
             })
             .collect();
         FlatBvh::build(&[blas], &instances, &Tlas::build(&bounds))
@@ -133,7 +168,8 @@ impl FlatBvh {
         instances: &[FlatInstance],
         tlas: &Tlas,
     ) -> Result<FlatBvh, String> {
-        let (top_nodes, top_records) = (tlas.bvh.nodes.len() as u32, instances.len() as u32);
+        let top_nodes = tlas.bvh.nodes.len() as u32;
+        let top_records = (RECORD_ENTRIES * instances.len()) as u32;
         let mut meshes = FlatMeshes::default();
         for b in blases.iter().map(|b| b.borrow()) {
             let node0 = top_nodes + meshes.nodes.len() as u32;
@@ -165,7 +201,7 @@ impl FlatBvh {
     }
 
     pub fn instances(&self) -> usize {
-        self.top.records.len()
+        self.top.records.len() / RECORD_ENTRIES
     }
 
     /// Node `i` of the whole node array.
@@ -210,24 +246,37 @@ impl FlatMeshes {
                     .get(i)
                     .and_then(|inst| self.roots.get(inst.blas))
                     .ok_or_else(|| format!("instance {i} has no mesh"))?;
-                (f.first, f.count) = (i as u32, *root);
+                (f.first, f.count) = ((RECORD_ENTRIES * i) as u32, *root);
             }
             nodes.push(f);
         }
-        let records = instances.iter().map(|i| i.to_object.0).collect();
+        let records = instances
+            .iter()
+            .flat_map(|i| [i.to_object.0, i.layers.record()])
+            .collect();
         Ok(FlatTop { nodes, records })
     }
 }
 
 impl FlatBvh {
-    /// Whether any triangle meets the ray with `t` in `(t_min, t_max)`: the traversal of
-    /// `bvh_occluded` in `shaders/visibility.wgsl`, step for step: the top level, and at each
-    /// instance leaf its mesh, the ray carried into object space.
+    /// Whether any triangle meets the ray with `t` in `(t_min, t_max)`, every instance counted
+    /// ([`Self::occluded_on`] for [`Layers::ALL`]).
     pub fn occluded(&self, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> bool {
+        self.occluded_on(o, d, t_min, t_max, Layers::ALL)
+    }
+
+    /// Whether a triangle of an instance on one of `layers` meets the ray with `t` in
+    /// `(t_min, t_max)`: the traversal of `bvh_occluded` in `shaders/visibility.wgsl`, step for
+    /// step: the top level, and at each instance leaf on those layers its mesh, the ray carried
+    /// into object space.
+    pub fn occluded_on(&self, o: Vec3, d: Vec3, t_min: f32, t_max: f32, layers: Layers) -> bool {
         if self.top.nodes.is_empty() {
             return false;
         }
         self.walk(0, o, d, t_max, |n| {
+            if !Layers::from_record(self.triangle(n.first + 1)).meet(layers) {
+                return false;
+            }
             let m = ObjectFromWorld(self.triangle(n.first));
             self.blas_occluded(n.count, m.point(o), m.vector(d), t_min, t_max)
         })

@@ -15,7 +15,9 @@ mod point;
 mod sse;
 mod wide_bvh;
 
-pub use flat_bvh::{FlatBlas, FlatBvh, FlatInstance, FlatMeshes, FlatNode, FlatTop, STACK_SIZE};
+pub use flat_bvh::{
+    FlatBlas, FlatBvh, FlatInstance, FlatMeshes, FlatNode, FlatTop, Layers, STACK_SIZE,
+};
 pub use flat_bvh::{inverse, slab_hit};
 pub use instances::{Bounds, ObjectFromWorld, Tlas, world_bounds};
 pub use mesh_bvh::{MeshBvh, TriangleHit, ray_triangle};

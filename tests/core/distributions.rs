@@ -345,8 +345,8 @@ fn light_pool_chi2_per_slot() {
     }
 }
 
-/// A pool of blocks (`PoolLayout::Blocks`) is `K` seed pools side by side: block 0 is the seed's
-/// pool of the same seed, block `b` the seed's pool drawn with `block_seed(seed, b)`, and the
+/// A pool of blocks (`PoolLayout::Blocks`) is `K` paper pools side by side: block 0 is the paper's
+/// pool of the same seed, block `b` the paper's pool drawn with `block_seed(seed, b)`, and the
 /// blocks differ (independent draws), so a pixel that takes one whole block takes a stratified
 /// pool whose every slot is distributed as the face pdf (`light_pool_chi2_per_slot`).
 #[test]

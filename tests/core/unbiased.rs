@@ -262,7 +262,7 @@ fn estimators_are_unbiased() {
                 ..base
             },
         ),
-        // Tiles of 6, 5 and 5 texels (3 does not divide 16) on the seed's shared pool, and 2 x 2
+        // Tiles of 6, 5 and 5 texels (3 does not divide 16) on the paper's shared pool, and 2 x 2
         // tiles on blocks, with counts per face (each sample drawing its tile); then counts per
         // tile.
         (

@@ -310,6 +310,46 @@ fn instances_match_world_space_triangles() {
     check(&flat, &refitted, "moved and refitted");
 }
 
+/// Layers (Bevy's `RenderLayers` as the Bevy pass maps them): a ray cast for a set of layers
+/// answers exactly as the scene built of only the instances on those layers, ray by ray. Each
+/// instance is on its own layer, the plane on layer 20 (the record's upper half), and the view
+/// sees the first bunny and the plane; a view on no layer of theirs sees nothing, and one on
+/// every layer answers as the scene without layers.
+#[test]
+fn layers_keep_only_the_instances_a_view_sees() {
+    use envis::visibility::{FlatBvh, FlatInstance, Layers, Tlas};
+    let (_, rays) = support::bunny_on_plane_rays();
+    let at = support::instanced_bunnies(0.35);
+    let layer = |i: usize| Layers(if i == 4 { 1 << 20 } else { 1 << i });
+    let placed: Vec<FlatInstance> = (at.placed.iter().enumerate())
+        .map(|(i, p)| FlatInstance {
+            layers: layer(i),
+            ..*p
+        })
+        .collect();
+    let layered = FlatBvh::build(&at.blases, &placed, &at.tlas).unwrap();
+    let view = Layers(1 | 1 << 20);
+    let seen: Vec<usize> = (0..placed.len()).filter(|&i| layer(i).meet(view)).collect();
+    assert_eq!(seen, [0, 4]);
+    let only: Vec<FlatInstance> = seen.iter().map(|&i| at.placed[i]).collect();
+    let bounds: Vec<_> = seen.iter().map(|&i| at.bounds[i]).collect();
+    let subset = FlatBvh::build(&at.blases, &only, &Tlas::build(&bounds)).unwrap();
+    let (mut blocked, mut all) = (0, 0);
+    for &(o, d) in &rays {
+        let got = layered.occluded_on(o, d, 1e-4, f32::MAX, view);
+        assert_eq!(got, subset.occluded(o, d, 1e-4, f32::MAX), "ray {o} {d}");
+        let every = layered.occluded_on(o, d, 1e-4, f32::MAX, Layers::ALL);
+        assert_eq!(every, at.flat.occluded(o, d, 1e-4, f32::MAX), "ray {o} {d}");
+        assert!(!layered.occluded_on(o, d, 1e-4, f32::MAX, Layers(1 << 9)));
+        (blocked, all) = (blocked + got as usize, all + every as usize);
+    }
+    eprintln!("layers: {blocked} rays blocked on the view's layers, {all} on all");
+    assert!(
+        blocked > 1_000 && blocked + 1_000 < all,
+        "{blocked} of {all}"
+    );
+}
+
 /// A pixel's shadow rays set up once ([`Occluder::at_point`]: the shapes its hemisphere can
 /// reach, as cones) get the same answer as the full query through the top level, ray by ray:
 /// on the occluded scene (spheres, the bunny, a plane), on the showcase (the torus too), and on

@@ -16,7 +16,7 @@ use envis::envmap::luminance;
 use envis::prelude::*;
 
 /// A `2w x w` lat-long `Rgba32Float` image with `f(direction)` in every texel.
-fn latlong_image(w: u32, f: impl Fn(Vec3) -> Vec3) -> (Image, envis::envmap::Image) {
+pub(crate) fn latlong_image(w: u32, f: impl Fn(Vec3) -> Vec3) -> (Image, envis::envmap::Image) {
     let (width, height) = (2 * w, w);
     let mut cpu = envis::envmap::Image::new(width as usize, height as usize);
     for y in 0..height {
@@ -613,14 +613,20 @@ fn top_down_camera(
 /// With shadow rays the ground around the sphere darkens (the sphere hides part of the sky) and
 /// the ground far from it does not change; `NotShadowCaster` removes the shadow; a lone sphere
 /// does not shadow itself (its triangles are traced, so this checks the ray offsets); a static
-/// scene builds its BVH once.
+/// scene builds its BVH once. `RenderLayers`: a sphere on a layer the camera does not see casts
+/// no shadow, and does once the camera sees that layer too, or once it moves to the camera's.
 #[test]
 fn bevy_environment_shadows() {
     let Some(_) = gpu() else { return };
     let size = 48u32;
     // The view's half width: the ground reaches far enough from the sphere to be open sky.
     const HALF: f32 = 6.0;
-    let render = |plane: bool, caster: bool, shadows: envis::visibility::ShadowRays| {
+    use bevy::camera::visibility::RenderLayers;
+    // The sphere's layer and the camera's layers (Bevy's default is layer 0 for both).
+    let render_on = |plane: bool,
+                     caster: bool,
+                     shadows: envis::visibility::ShadowRays,
+                     (sphere_layer, camera_layers): (usize, &[usize])| {
         let mut h = standard_sphere_app(white_furnace_material());
         let world = h.app.world_mut();
         let sphere = world
@@ -635,12 +641,26 @@ fn bevy_environment_shadows() {
                 .entity_mut(sphere)
                 .insert(bevy::light::NotShadowCaster);
         }
+        if sphere_layer != 0 {
+            world
+                .entity_mut(sphere)
+                .insert(RenderLayers::layer(sphere_layer));
+        }
         if plane {
             let mesh = h.add::<Mesh>(Plane3d::default().mesh().size(14.0, 14.0));
             let mat = h.add::<StandardMaterial>(white_furnace_material());
             h.app.world_mut().spawn((Mesh3d(mesh), MeshMaterial3d(mat)));
         }
         let target = top_down_camera(&mut h, shadows, size, HALF);
+        if camera_layers != [0] {
+            let world = h.app.world_mut();
+            let camera = world
+                .query_filtered::<Entity, With<Camera3d>>()
+                .single(world)
+                .unwrap();
+            let layers = RenderLayers::from_layers(camera_layers);
+            world.entity_mut(camera).insert(layers);
+        }
         let img = h.capture(&target).unwrap();
         if let Ok(dir) = std::env::var("ENVIS_TEST_DUMP") {
             let name = format!("bevy-shadows-plane{plane}-caster{caster}-{shadows}.png");
@@ -655,6 +675,10 @@ fn bevy_environment_shadows() {
         for _ in 0..5 {
             h.update();
         }
+        (img, h, target, sphere)
+    };
+    let render = |plane: bool, caster: bool, shadows: envis::visibility::ShadowRays| {
+        let (img, h, _, _) = render_on(plane, caster, shadows, (0, &[0]));
         (img, h.counters())
     };
     use envis::visibility::ShadowRays::{Off, On};
@@ -718,6 +742,32 @@ fn bevy_environment_shadows() {
     assert!(
         (a - b).abs() < 0.01 * a,
         "the lone sphere shadows itself: {b} vs {a}"
+    );
+    // RenderLayers: the sphere on layer 1, the camera (and the plane) on layer 0.
+    let near = |img: &[Vec3]| ring(img, 1.05, 1.4);
+    let (unseen, mut h, target, sphere) = render_on(true, true, On, (1, &[0]));
+    assert!(
+        (near(&unseen) - near_off).abs() < 0.03 * near_off,
+        "a sphere on a layer the camera does not see shadows: {} vs {near_off}",
+        near(&unseen)
+    );
+    let builds = h.counters().get(|c| &c.shadow_tlas_builds);
+    h.app
+        .world_mut()
+        .entity_mut(sphere)
+        .insert(RenderLayers::layer(0));
+    let moved = h.capture(&target).unwrap();
+    assert!(
+        near(&moved) < 0.85 * near_off,
+        "the sphere moved to the camera's layer casts no shadow: {} vs {near_off}",
+        near(&moved)
+    );
+    assert_eq!(h.counters().get(|c| &c.shadow_tlas_builds), builds + 1);
+    let (both, ..) = render_on(true, true, On, (1, &[0, 1]));
+    assert!(
+        near(&both) < 0.85 * near_off,
+        "a camera on the sphere's layer too sees no shadow: {} vs {near_off}",
+        near(&both)
     );
 }
 

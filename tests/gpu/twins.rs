@@ -262,7 +262,7 @@ fn gpu_global_distribution_matches_cpu() {
 
 /// The pool stage alone: the CPU twin draws the pool from the GPU's own tables, so every sample
 /// must match (same hashes, same binary search); the only allowed difference is float rounding.
-/// The seed's pool and a pool of independent blocks (`PoolLayout::Blocks`).
+/// The paper's pool and a pool of independent blocks (`PoolLayout::Blocks`).
 #[test]
 fn gpu_pool_matches_cpu_twin() {
     let Some(ctx) = gpu() else { return };

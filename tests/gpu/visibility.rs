@@ -49,6 +49,34 @@ fn gpu_shadow_rays_match_cpu() {
             rays.len()
         );
     }
+    // Layers: each instance on its own layer, the plane on layer 20 (the record's upper
+    // half); rays cast for the first bunny's and the plane's layers.
+    use envis::visibility::{FlatBvh, FlatInstance, Layers};
+    let at = support::instanced_bunnies(0.35);
+    let placed: Vec<FlatInstance> = (at.placed.iter().enumerate())
+        .map(|(i, p)| FlatInstance {
+            layers: Layers(if i == 4 { 1 << 20 } else { 1 << i }),
+            ..*p
+        })
+        .collect();
+    let layered = FlatBvh::build(&at.blases, &placed, &at.tlas).unwrap();
+    let view = Layers(1 | 1 << 20);
+    let got = GpuBvh::new(ctx, &layered)
+        .trace_on(ctx, &rays, view)
+        .unwrap();
+    let (mut differ, mut blocked, mut all) = (0, 0, 0);
+    for (r, g) in rays.iter().zip(&got) {
+        let want = layered.occluded_on(r.o, r.d, r.t_min, r.t_max, view);
+        differ += (want != *g) as usize;
+        blocked += want as usize;
+        all += layered.occluded(r.o, r.d, r.t_min, r.t_max) as usize;
+    }
+    eprintln!("shadow rays on layers: {blocked} blocked (all layers: {all}), {differ} differ");
+    assert!(
+        blocked > 1_000 && blocked + 1_000 < all,
+        "{blocked} of {all}"
+    );
+    assert!(differ * 1000 <= rays.len(), "layers: {differ} rays differ");
     // An empty BVH blocks nothing.
     let empty = GpuBvh::new(ctx, &envis::visibility::FlatBvh::default());
     assert!(empty.trace(ctx, &rays[..10]).unwrap().iter().all(|b| !b));

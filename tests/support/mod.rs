@@ -135,12 +135,14 @@ pub struct Instanced {
     pub tlas: envis::visibility::Tlas,
     pub bounds: Vec<envis::visibility::Bounds>,
     pub placed: Vec<envis::visibility::FlatInstance>,
+    /// The bunny's and the plane's BVHs (`placed[i].blas` indexes them).
+    pub blases: Vec<envis::visibility::FlatBlas>,
     pub instances: Vec<envis::scene::MeshInstance>,
     pub world: envis::scene::TriMesh,
 }
 
 pub fn instanced_bunnies(shift: f32) -> Instanced {
-    use envis::visibility::{FlatBvh, FlatInstance, Tlas, world_bounds};
+    use envis::visibility::{FlatBvh, FlatInstance, Layers, Tlas, world_bounds};
     use glam::{Affine3A, Quat, Vec3};
     use std::sync::Arc;
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -189,6 +191,7 @@ pub fn instanced_bunnies(shift: f32) -> Instanced {
         tlas: Tlas::default(),
         bounds: Vec::new(),
         placed: Vec::new(),
+        blases: Vec::new(),
         instances: Vec::new(),
         world: envis::scene::TriMesh::default(),
     };
@@ -207,11 +210,13 @@ pub fn instanced_bunnies(shift: f32) -> Instanced {
         out.placed.push(FlatInstance {
             blas,
             to_object: inst.to_object,
+            layers: Layers::ALL,
         });
         out.instances.push(inst);
     }
     out.tlas = Tlas::build(&out.bounds);
     out.flat = FlatBvh::build(&blases, &out.placed, &out.tlas).unwrap();
+    out.blases = blases.into();
     out
 }
 

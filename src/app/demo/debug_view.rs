@@ -1,4 +1,4 @@
-//! The seed's sample-debug view: the CPU twin classifies the probed pixel's pool samples
+//! The paper's sample-debug view: the CPU twin classifies the probed pixel's pool samples
 //! (red: discarded by face weighting, green: used, yellow: used below the horizon) and draws
 //! them on the sky.
 

@@ -1,5 +1,5 @@
 //! The interactive demo (`envis` with no subcommand): real objects lit only by the environment,
-//! an orbit camera, the egui tweak panel, the seed's red / green / yellow sample-debug view and
+//! an orbit camera, the egui tweak panel, the paper's red / green / yellow sample-debug view and
 //! full-screen overlays. `--script DIR` runs a scripted sequence (for CI under Xvfb): it takes
 //! screenshots, writes `report.json` and exits.
 
@@ -10,8 +10,8 @@ mod ui;
 
 use super::scene_objects::{SceneObject, spawn_object, spawn_scene_objects};
 use super::{
-    EnvFrame, EnvMapStream, EnvMapStreamPlugin, EnvisBrdf, EnvisCounters, EnvisMaterial,
-    EnvisPlugin, EnvisProbe, EnvisTimings, Overlay,
+    EnvFrame, EnvMapStream, EnvisBrdf, EnvisCounters, EnvisMaterial, EnvisPlugin, EnvisProbe,
+    EnvisStreamPlugin, EnvisTimings, Overlay,
 };
 use crate::envmap::{CROSS_BLOCKS, CubeMap, dir_to_face_ab};
 use crate::prelude::{EnvironmentSampling, EnvisEnvironment, exposure_multiplier};
@@ -72,7 +72,7 @@ pub fn run(opts: DemoOptions) -> AppExit {
     )
     .add_plugins((
         EnvisPlugin,
-        EnvMapStreamPlugin {
+        EnvisStreamPlugin {
             source: opts.source.clone(),
             face_size: stream_face_size(opts.face_size),
         },
