@@ -43,6 +43,7 @@ pub mod sampling;
 pub mod scene_objects;
 pub mod setup;
 pub mod shadows;
+pub mod skinning;
 pub mod stream;
 pub mod timing;
 
@@ -261,6 +262,8 @@ pub struct Counters {
     /// static scene) and refitted (meshes only moved).
     pub shadow_tlas_builds: AtomicU64,
     pub shadow_tlas_refits: AtomicU64,
+    /// Skinned casters' BVHs refitted to a new pose (one per skinned mesh whose joints moved).
+    pub shadow_skin_refits: AtomicU64,
     /// Lighting passes recorded (one per camera per frame).
     pub lighting_passes: AtomicU64,
     /// Lighting passes that ran an overlay (the overlay is a branch of the lighting pass: with

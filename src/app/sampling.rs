@@ -54,9 +54,16 @@ type MeshSwapped = (
     )>,
 );
 
+/// Meshes that moved; skinned meshes and the transforms that changed (their joints' among them).
+type Moves<'w, 's> = (
+    Query<'w, 's, (), (With<Mesh3d>, Changed<GlobalTransform>)>,
+    Query<'w, 's, &'static bevy::mesh::skinning::SkinnedMesh, With<Mesh3d>>,
+    Query<'w, 's, (), Changed<GlobalTransform>>,
+);
+
 /// Bump [`SceneRevision`] when a material or mesh asset changed, a mesh moved, appeared, went
-/// away, was hidden or shown, took another mesh or material handle or other layers, or started
-/// or stopped casting shadows.
+/// away, was hidden or shown, took another mesh or material handle or other layers, started
+/// or stopped casting shadows, or a skinned mesh's joints moved.
 #[allow(
     clippy::too_many_arguments,
     reason = "a Bevy system's parameters are the data it touches"
@@ -65,7 +72,7 @@ pub fn track_scene_changes(
     mut standard: MessageReader<AssetEvent<StandardMaterial>>,
     mut envis: MessageReader<AssetEvent<super::EnvisMaterial>>,
     mut meshes: MessageReader<AssetEvent<Mesh>>,
-    moved: Query<(), (With<Mesh3d>, Changed<GlobalTransform>)>,
+    (moved, skins, transformed): Moves,
     swapped: Query<(), MeshSwapped>,
     (opted_out, mut opted_in, mut unlayered): (
         Query<(), Added<bevy::light::NotShadowCaster>>,
@@ -77,6 +84,7 @@ pub fn track_scene_changes(
 ) {
     let changed = standard.read().count() + envis.read().count() + meshes.read().count() > 0
         || !moved.is_empty()
+        || (skins.iter()).any(|s| s.joints.iter().any(|&j| transformed.contains(j)))
         || !swapped.is_empty()
         || !opted_out.is_empty()
         || opted_in.read().count() > 0

@@ -8,12 +8,17 @@
 //! `EnvironmentSampling::shadows` is on. The geometry traced is the geometry rasterised (a
 //! tessellated sphere is traced as its triangles).
 //!
+//! Skinned meshes (`SkinnedMesh`) cast the pose Bevy draws: their vertices skinned on the CPU
+//! as Bevy's shader skins them (`super::skinning`), their BVH built once per entity in world
+//! space and refitted, not rebuilt, whenever a joint moves.
+//!
 //! `RenderLayers`: a mesh casts shadows only for the cameras that see one of its layers, as Bevy
 //! draws it only for them. Each instance record keeps its layers and each camera's rays are cast
 //! for its own ([`Layers`], 32 bits: layer `l` is bit `l mod 32`, so layers 32 apart share a bit
 //! and a mesh on layer 33 casts for a camera on layer 1).
 
 use super::components::EnvironmentSampling;
+use super::skinning::{Poses, skinned_positions};
 use super::{Counters, EnvisCounters};
 use crate::visibility::{
     Bounds, FlatBlas, FlatBvh, FlatInstance, Layers, MeshBvh, ObjectFromWorld, ShadowRays, Tlas,
@@ -21,6 +26,8 @@ use crate::visibility::{
 };
 use bevy::camera::visibility::RenderLayers;
 use bevy::light::NotShadowCaster;
+use bevy::math::Affine3A;
+use bevy::mesh::skinning::SkinnedMesh;
 use bevy::mesh::{Indices, PrimitiveTopology};
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
@@ -58,14 +65,26 @@ impl ShadowGeometry {
 #[derive(Resource, Default)]
 pub struct ShadowScene {
     meshes: HashMap<AssetId<Mesh>, Arc<FlatBlas>>,
+    /// Skinned casters' BVHs, in world space, one per entity.
+    skinned: HashMap<Entity, SkinnedBlas>,
     instances: Vec<Entity>,
     placed: Vec<FlatInstance>,
-    /// Each instance's mesh bounds (object space).
+    /// The BVHs the instances place (`placed[i].blas` indexes them).
+    blases: Vec<Arc<FlatBlas>>,
+    /// Each instance's mesh bounds (object space; world space for a skinned one).
     object_bounds: Vec<Bounds>,
     tlas: Tlas,
     /// A visible caster's mesh was not loaded at the last build: a mesh that loads since may be
     /// it.
     waiting: bool,
+}
+
+/// A skinned caster's BVH over its posed vertices (world space), and what a refit needs.
+struct SkinnedBlas {
+    mesh: AssetId<Mesh>,
+    blas: Arc<FlatBlas>,
+    triangles: Vec<[u32; 3]>,
+    order: Vec<u32>,
 }
 
 /// The geometry on the GPU (render world).
@@ -113,6 +132,7 @@ type Casters<'w, 's> = Query<
         &'static GlobalTransform,
         &'static InheritedVisibility,
         Option<&'static RenderLayers>,
+        Option<&'static SkinnedMesh>,
     ),
     Without<NotShadowCaster>,
 >;
@@ -139,6 +159,8 @@ enum Change {
     None,
     /// Instances moved: refit the top level.
     Moved,
+    /// A skinned caster's joints moved: refit its BVH (and the top level).
+    Posed,
     /// Meshes or instances came, went or changed: build the top level anew.
     Structure,
 }
@@ -163,7 +185,7 @@ pub fn gather_shadow_geometry(
         RemovedComponents<RenderLayers>,
     ),
     mut events: MessageReader<AssetEvent<Mesh>>,
-    meshes: Res<Assets<Mesh>>,
+    (meshes, mut poses): (Res<Assets<Mesh>>, Poses),
     (mut scene, mut geometry): (ResMut<ShadowScene>, ResMut<ShadowGeometry>),
     counters: Res<EnvisCounters>,
 ) {
@@ -173,7 +195,9 @@ pub fn gather_shadow_geometry(
     for e in events.read() {
         match e {
             AssetEvent::Modified { id } | AssetEvent::Removed { id } => {
-                assets_changed |= scene.meshes.remove(id).is_some();
+                let skinned = scene.skinned.values().any(|s| s.mesh == *id);
+                scene.skinned.retain(|_, s| s.mesh != *id);
+                assets_changed |= scene.meshes.remove(id).is_some() | skinned;
             }
             AssetEvent::Added { .. } | AssetEvent::LoadedWithDependencies { .. } => {
                 assets_changed |= scene.waiting;
@@ -188,20 +212,44 @@ pub fn gather_shadow_geometry(
         | (opted_in.read().count() > 0)
         | (unlayered.read().count() > 0)
         | (removed.read().count() > 0)
+        | (poses.bindposes_loaded() && scene.waiting)
         | assets_changed;
-    let change = match (structure, moved.is_empty()) {
-        (true, _) => Change::Structure,
-        (false, false) => Change::Moved,
-        (false, true) => Change::None,
+    // A skinned caster still waiting for its bind poses is built when it moves.
+    let posed = poses.any_moved();
+    let change = match (
+        structure || (posed && scene.waiting),
+        posed,
+        moved.is_empty(),
+    ) {
+        (true, ..) => Change::Structure,
+        (false, true, _) => Change::Posed,
+        (false, false, false) => Change::Moved,
+        (false, false, true) => Change::None,
     };
     if change == Change::None || cameras.is_empty() {
         return;
     }
-    if change == Change::Moved && refit(&mut scene, &mut geometry, &casters) {
+    let done = match change {
+        Change::Moved => refit(&mut scene, &mut geometry, &casters),
+        Change::Posed => repose(
+            &mut scene,
+            &mut geometry,
+            (&casters, &meshes, &poses),
+            &counters,
+        ),
+        _ => false,
+    };
+    if done {
         counters.bump(|c: &Counters| &c.shadow_tlas_refits);
         return;
     }
-    rebuild(&mut scene, &mut geometry, &casters, &meshes, &counters);
+    rebuild(
+        &mut scene,
+        &mut geometry,
+        &casters,
+        (&meshes, &poses),
+        &counters,
+    );
 }
 
 /// Build the top level over every visible caster whose mesh is loaded (and each new mesh's BVH).
@@ -209,16 +257,17 @@ fn rebuild(
     scene: &mut ShadowScene,
     geometry: &mut ShadowGeometry,
     casters: &Casters,
-    meshes: &Assets<Mesh>,
+    (meshes, poses): (&Assets<Mesh>, &Poses),
     counters: &EnvisCounters,
 ) {
     let mut used: HashMap<AssetId<Mesh>, usize> = HashMap::default();
     let mut blases: Vec<Arc<FlatBlas>> = Vec::new();
     let (mut instances, mut placed) = (Vec::new(), Vec::new());
     let (mut object_bounds, mut bounds) = (Vec::new(), Vec::new());
+    let mut skinned = HashMap::default();
     let mut triangles = 0;
     scene.waiting = false;
-    for (entity, mesh, transform, visible, render_layers) in casters {
+    for (entity, mesh, transform, visible, render_layers, skin) in casters {
         let id = mesh.id();
         if !visible.get() {
             continue;
@@ -227,21 +276,40 @@ fn rebuild(
             scene.waiting = true;
             continue;
         };
-        let blas = scene
-            .meshes
-            .entry(id)
-            .or_insert_with(|| {
-                counters.bump(|c: &Counters| &c.shadow_bvh_builds);
-                Arc::new(mesh_blas(m))
-            })
-            .clone();
-        let Some((b, to_object)) = blas.bounds.zip(ObjectFromWorld::new(transform.affine())) else {
+        // A skinned caster: its own BVH, in world space (kept if its mesh is the same).
+        let (blas, to_object, world) = if let Some(skin) = skin {
+            let old = scene.skinned.remove(&entity).filter(|s| s.mesh == id);
+            let Some(s) = old.or_else(|| skinned_blas(m, id, skin, poses, counters)) else {
+                scene.waiting = true; // its bind poses or joints are not there yet
+                continue;
+            };
+            let blas = s.blas.clone();
+            skinned.insert(entity, s);
+            (blas, Some(ObjectFromWorld::IDENTITY), Affine3A::IDENTITY)
+        } else {
+            let blas = scene
+                .meshes
+                .entry(id)
+                .or_insert_with(|| {
+                    counters.bump(|c: &Counters| &c.shadow_bvh_builds);
+                    Arc::new(mesh_blas(m))
+                })
+                .clone();
+            let to_object = ObjectFromWorld::new(transform.affine());
+            (blas, to_object, transform.affine())
+        };
+        let Some((b, to_object)) = blas.bounds.zip(to_object) else {
             continue; // no triangles, or a zero scale
         };
-        let k = *used.entry(id).or_insert_with(|| {
+        let k = if skin.is_some() {
             blases.push(blas.clone());
             blases.len() - 1
-        });
+        } else {
+            *used.entry(id).or_insert_with(|| {
+                blases.push(blas.clone());
+                blases.len() - 1
+            })
+        };
         triangles += blas.triangles.len();
         instances.push(entity);
         placed.push(FlatInstance {
@@ -250,15 +318,16 @@ fn rebuild(
             layers: layers_of(render_layers),
         });
         object_bounds.push(b);
-        bounds.push(world_bounds(b, &transform.affine()));
+        bounds.push(world_bounds(b, &world));
     }
     scene.meshes.retain(|id, _| used.contains_key(id));
+    scene.skinned = skinned;
     let tlas = Tlas::build(&bounds);
     let bvh = FlatBvh::build(&blases, &placed, &tlas).unwrap_or_else(|e| {
         error!("envis: no shadows: {e}");
         FlatBvh::default()
     });
-    (scene.instances, scene.placed) = (instances, placed);
+    (scene.instances, scene.placed, scene.blases) = (instances, placed, blases);
     (scene.object_bounds, scene.tlas) = (object_bounds, tlas);
     *geometry = ShadowGeometry {
         generation: geometry.generation + 1,
@@ -272,22 +341,103 @@ fn rebuild(
 /// Instances moved: their new transforms into the records, the top level refitted. `false`
 /// when that cannot be done (an instance is gone or lost its inverse): build anew instead.
 fn refit(scene: &mut ShadowScene, geometry: &mut ShadowGeometry, casters: &Casters) -> bool {
+    if !place_instances(scene, casters) {
+        return false;
+    }
+    if geometry.bvh.place(&scene.placed, &scene.tlas).is_err() {
+        return false;
+    }
+    geometry.placement += 1;
+    true
+}
+
+/// Every instance's record and world bounds from its transform now (a skinned one stays in
+/// world space, with its BVH's bounds), and the top level refitted to them.
+fn place_instances(scene: &mut ShadowScene, casters: &Casters) -> bool {
     let mut bounds: Vec<Bounds> = Vec::with_capacity(scene.instances.len());
     for (i, &entity) in scene.instances.iter().enumerate() {
-        let Ok((_, _, transform, _, _)) = casters.get(entity) else {
+        let Ok((_, _, transform, _, _, skin)) = casters.get(entity) else {
             return false;
         };
+        if skin.is_some() {
+            bounds.push(scene.object_bounds[i]);
+            continue;
+        }
         let Some(to_object) = ObjectFromWorld::new(transform.affine()) else {
             return false;
         };
         scene.placed[i].to_object = to_object;
         bounds.push(world_bounds(scene.object_bounds[i], &transform.affine()));
     }
-    if !scene.tlas.refit(&bounds) || geometry.bvh.place(&scene.placed, &scene.tlas).is_err() {
+    scene.tlas.refit(&bounds)
+}
+
+/// Skinned casters' joints moved: each moved one's BVH refitted to its new pose (the tree
+/// kept), every instance placed anew, and the whole geometry uploaded again (the meshes' part
+/// changed). `false` when that cannot be done: build anew instead.
+fn repose(
+    scene: &mut ShadowScene,
+    geometry: &mut ShadowGeometry,
+    (casters, meshes, poses): (&Casters, &Assets<Mesh>, &Poses),
+    counters: &EnvisCounters,
+) -> bool {
+    for (i, &entity) in scene.instances.iter().enumerate() {
+        let Ok((_, mesh, _, _, _, Some(skin))) = casters.get(entity) else {
+            continue;
+        };
+        let Some(s) = scene.skinned.get_mut(&entity) else {
+            return false;
+        };
+        if !poses.moved(skin) {
+            continue;
+        }
+        let posed = meshes.get(mesh.id()).zip(poses.joints(skin));
+        let Some(p) = posed.and_then(|(m, joints)| skinned_positions(m, &joints)) else {
+            return false;
+        };
+        let blas = Arc::make_mut(&mut s.blas);
+        if !blas.refit(&p, &s.triangles, &s.order) {
+            return false;
+        }
+        counters.bump(|c: &Counters| &c.shadow_skin_refits);
+        let Some(b) = s.blas.bounds else { return false };
+        scene.object_bounds[i] = b;
+        scene.blases[scene.placed[i].blas] = s.blas.clone();
+    }
+    if !place_instances(scene, casters) {
         return false;
     }
-    geometry.placement += 1;
+    let Ok(bvh) = FlatBvh::build(&scene.blases, &scene.placed, &scene.tlas) else {
+        return false;
+    };
+    geometry.bvh = bvh;
+    (geometry.generation, geometry.placement) = (geometry.generation + 1, geometry.placement + 1);
     true
+}
+
+/// A skinned caster's BVH over its pose now, in world space; `None` until its bind poses and
+/// joints are there (or when its mesh has no joint attributes: it then casts nothing).
+fn skinned_blas(
+    mesh: &Mesh,
+    id: AssetId<Mesh>,
+    skin: &SkinnedMesh,
+    poses: &Poses,
+    counters: &EnvisCounters,
+) -> Option<SkinnedBlas> {
+    let p = skinned_positions(mesh, &poses.joints(skin)?)?;
+    let (_, triangles) = mesh_triangles(mesh);
+    let bvh = MeshBvh::build(&p, &triangles);
+    let blas = bvh.flat_blas(&p, &triangles).unwrap_or_else(|e| {
+        error!("envis: a skinned mesh casts no shadow: {e}");
+        FlatBlas::default()
+    });
+    counters.bump(|c: &Counters| &c.shadow_bvh_builds);
+    Some(SkinnedBlas {
+        mesh: id,
+        blas: Arc::new(blas),
+        order: bvh.leaf_order().to_vec(),
+        triangles,
+    })
 }
 
 /// The BVH of `mesh` in object space, flattened (triangle lists with float positions; anything

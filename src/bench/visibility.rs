@@ -2,7 +2,9 @@
 //! time with visibility off and on (same process, same G-buffer, same settings), the shadow rays
 //! cast and their rate; the BVH build time against triangle count (the bunny, Suzanne, and the
 //! bunny merged 100 times into one mesh); and for the bunny placed 100 times (two levels), the
-//! one mesh BVH, the top level's build and refit, and the GPU layout's build and rewrite.
+//! one mesh BVH, the top level's build and refit, and the GPU layout's build and rewrite; and a
+//! skinned mesh of 10k and 100k triangles posed anew: skinning, refit and layout per frame,
+//! against building its BVH anew (the baseline, same process).
 
 use super::{BenchArgs, median};
 use crate::envmap::load::{EnvSource, load_env};
@@ -43,6 +45,23 @@ struct InstancedRow {
     flat_place_ms: f64,
 }
 
+/// A skinned mesh's shadow geometry per new pose (what the Bevy pass does on the CPU each frame
+/// a skinned caster's joints move; the upload comes on top).
+#[derive(serde::Serialize)]
+struct SkinnedRow {
+    triangles: usize,
+    /// Linear blend skinning of every vertex (two joints).
+    skin_ms: f64,
+    /// The BVH refitted to the new pose, and the GPU layout built over it.
+    refit_ms: f64,
+    layout_ms: f64,
+    /// All three: the per-frame cost.
+    frame_ms: f64,
+    /// The baseline: the BVH built anew over the new pose (and laid out).
+    rebuild_ms: f64,
+    rebuild_over_frame: f64,
+}
+
 #[derive(serde::Serialize)]
 struct BuildRow {
     mesh: String,
@@ -68,6 +87,10 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
     let sc = Scene::load(&grid)?;
     scenes.push(scene_row("bunny x100 (instanced)", &sc, w, h, repeat)?);
     let instanced = instanced_row(&sc, repeat.max(3))?;
+    let skinned = [(71, 71), (224, 224)]
+        .map(|(nu, nv)| skinned_row(nu, nv, repeat.max(3)))
+        .into_iter()
+        .collect::<Result<Vec<_>>>()?;
     let mut builds = Vec::new();
     for (name, mesh) in meshes(&root)? {
         let t: Vec<f64> = (0..repeat.max(3))
@@ -89,7 +112,7 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
     }
     let out = serde_json::json!({
         "width": w, "height": h, "threads": rayon::current_num_threads(),
-        "scenes": scenes, "bvh_builds": builds, "instanced": instanced,
+        "scenes": scenes, "bvh_builds": builds, "instanced": instanced, "skinned": skinned,
     });
     let path = dir.join("bench-visibility.json");
     crate::render::output::write_json(&path, &out)?;
@@ -277,4 +300,66 @@ fn instanced_row(sc: &Scene, repeat: usize) -> Result<InstancedRow> {
         row.instances, mesh_bvh_ms, tlas_build_ms, tlas_refit_ms, flat_build_ms, flat_place_ms
     );
     Ok(row)
+}
+
+/// A sphere of `2 nu nv` triangles skinned to two joints (weights by height, the upper joint
+/// bent), posed anew `repeat` times: medians of each step.
+fn skinned_row(nu: u32, nv: u32, repeat: usize) -> Result<SkinnedRow> {
+    use crate::visibility::skin::skin_points;
+    use crate::visibility::{FlatBvh, FlatInstance, Layers, ObjectFromWorld, Tlas};
+    use glam::Mat4;
+    let mesh = crate::scene::sphere_mesh(nu, nv);
+    let (p, tris) = (&mesh.positions, &mesh.indices);
+    let index = vec![[0u16, 1, 0, 0]; p.len()];
+    let weight: Vec<[f32; 4]> = p
+        .iter()
+        .map(|v| {
+            let w = (0.5 + 0.5 * v.y).clamp(0.0, 1.0);
+            [1.0 - w, w, 0.0, 0.0]
+        })
+        .collect();
+    let pose = |k: usize| [Mat4::IDENTITY, Mat4::from_rotation_z(0.02 * k as f32)];
+    let bvh = MeshBvh::build(p, tris);
+    let mut blas = bvh
+        .flat_blas(p, tris)
+        .map_err(crate::error::Error::invalid)?;
+    let (mut skin, mut refit, mut layout, mut rebuild) = (vec![], vec![], vec![], vec![]);
+    let ms = |t0: Instant| t0.elapsed().as_secs_f64() * 1e3;
+    for k in 1..=repeat {
+        let t0 = Instant::now();
+        let posed = skin_points(p, &index, &weight, &pose(k))
+            .ok_or_else(|| crate::error::Error::invalid("skinning: bad joints"))?;
+        skin.push(ms(t0));
+        let t0 = Instant::now();
+        blas.refit(&posed, tris, bvh.leaf_order());
+        refit.push(ms(t0));
+        let t0 = Instant::now();
+        let bounds = [blas.bounds.unwrap_or_default()];
+        let placed = [FlatInstance {
+            blas: 0,
+            to_object: ObjectFromWorld::IDENTITY,
+            layers: Layers::ALL,
+        }];
+        let _ = FlatBvh::build(std::slice::from_ref(&blas), &placed, &Tlas::build(&bounds));
+        layout.push(ms(t0));
+        let t0 = Instant::now();
+        let _ = MeshBvh::build(&posed, tris).flat_blas(&posed, tris);
+        rebuild.push(ms(t0));
+    }
+    let (skin_ms, refit_ms, layout_ms) = (median(skin), median(refit), median(layout));
+    let frame_ms = skin_ms + refit_ms + layout_ms;
+    let rebuild_ms = median(rebuild);
+    eprintln!(
+        "  skinned {} triangles: skin {skin_ms:.2} + refit {refit_ms:.2} + layout {layout_ms:.2} ms per pose; BVH anew {rebuild_ms:.2} ms",
+        tris.len()
+    );
+    Ok(SkinnedRow {
+        triangles: tris.len(),
+        skin_ms,
+        refit_ms,
+        layout_ms,
+        frame_ms,
+        rebuild_ms,
+        rebuild_over_frame: rebuild_ms / frame_ms.max(1e-9),
+    })
 }

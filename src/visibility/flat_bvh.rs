@@ -151,6 +151,52 @@ impl MeshBvh {
     }
 }
 
+impl FlatBlas {
+    /// The same tree over moved vertices `p` (a deforming mesh: a skinned pose): each leaf's
+    /// triangles rewritten from `tris` in the BVH's leaf order `order` ([`MeshBvh::leaf_order`]),
+    /// and every box refitted bottom-up. Traced, it answers as the tree it was; only its quality
+    /// (box overlap) may degrade as the shape moves away from the one it was built for. `false`,
+    /// changing nothing, when `order` or an index does not fit.
+    pub fn refit(&mut self, p: &[Vec3], tris: &[[u32; 3]], order: &[u32]) -> bool {
+        let fits = order.len() == self.triangles.len()
+            && order.iter().all(|&i| {
+                tris.get(i as usize)
+                    .is_some_and(|t| t.iter().all(|&k| (k as usize) < p.len()))
+            });
+        if !fits || self.nodes.is_empty() {
+            return fits;
+        }
+        for (slot, &i) in self.triangles.iter_mut().zip(order) {
+            *slot = tris[i as usize].map(|k| p[k as usize].extend(0.0).to_array());
+        }
+        self.bounds = Some(self.refit_node(0));
+        true
+    }
+
+    /// Node `i`'s box from its triangles or children (recursion as deep as the tree, which
+    /// [`MeshBvh::flat_blas`] keeps below [`STACK_SIZE`]).
+    fn refit_node(&mut self, i: usize) -> Bounds {
+        let n = self.nodes[i];
+        let b = if n.count > 0 {
+            let tris = &self.triangles[n.first as usize..(n.first + n.count) as usize];
+            let mut b = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+            for v in tris.iter().flatten() {
+                let v = Vec3::new(v[0], v[1], v[2]);
+                b = (b.0.min(v), b.1.max(v));
+            }
+            b
+        } else {
+            let (l, r) = (
+                self.refit_node(n.first as usize),
+                self.refit_node(n.first as usize + 1),
+            );
+            (l.0.min(r.0), l.1.max(r.1))
+        };
+        (self.nodes[i].min, self.nodes[i].max) = (b.0.to_array(), b.1.to_array());
+        b
+    }
+}
+
 fn flat_node(n: &obvhs::bvh2::node::Bvh2Node) -> FlatNode {
     FlatNode {
         min: n.aabb().min.to_array(),

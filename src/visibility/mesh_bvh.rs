@@ -77,6 +77,12 @@ impl MeshBvh {
         MeshBvh { wide, bvh, packets }
     }
 
+    /// The triangles' order in the BVH's leaves (what [`Self::flat_blas`] lays out and
+    /// [`super::FlatBlas::refit`] rewrites): leaf slot `k` holds triangle `leaf_order()[k]`.
+    pub fn leaf_order(&self) -> &[u32] {
+        &self.bvh.primitive_indices
+    }
+
     /// The closest hit with `t` in `(t_min, t_max)` of the ray `o + t d`.
     pub fn intersect(&self, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> Option<TriangleHit> {
         let mut best: Option<TriangleHit> = None;

@@ -11,6 +11,7 @@ mod flat_bvh;
 mod instances;
 mod mesh_bvh;
 mod point;
+pub mod skin;
 #[cfg(target_arch = "x86_64")]
 mod sse;
 mod wide_bvh;

@@ -310,6 +310,50 @@ fn instances_match_world_space_triangles() {
     check(&flat, &refitted, "moved and refitted");
 }
 
+/// A refitted BVH (a skinned mesh's new pose) answers as a BVH built anew over the moved
+/// vertices, ray by ray: the bunny on its plane, the bunny's vertices bent (each shifted
+/// sideways by an amount growing with its height) with the tree of the rest pose kept. Refitted
+/// to the rest pose it is the BVH it was, box for box.
+#[test]
+fn refitted_blas_answers_as_a_new_build() {
+    use envis::visibility::{FlatBvh, FlatInstance, Layers, MeshBvh, ObjectFromWorld, Tlas};
+    let (mesh, rays) = support::bunny_on_plane_rays();
+    let (p, tris) = (&mesh.positions, &mesh.indices);
+    let bvh = MeshBvh::build(p, tris);
+    let rest = bvh.flat_blas(p, tris).unwrap();
+    let mut same = rest.clone();
+    assert!(same.refit(p, tris, bvh.leaf_order()));
+    assert_eq!((same.nodes, same.bounds), (rest.nodes.clone(), rest.bounds));
+    let top = p.iter().map(|v| v.y).fold(f32::MIN, f32::max);
+    let bent: Vec<Vec3> = p
+        .iter()
+        .map(|v| *v + Vec3::new(0.3 * (v.y / top).max(0.0).powi(2), 0.0, 0.0))
+        .collect();
+    let mut refitted = rest.clone();
+    assert!(refitted.refit(&bent, tris, bvh.leaf_order()));
+    assert!(!refitted.clone().refit(&bent, tris, &bvh.leaf_order()[1..]));
+    let scene = |blas: envis::visibility::FlatBlas| {
+        let placed = [FlatInstance {
+            blas: 0,
+            to_object: ObjectFromWorld::IDENTITY,
+            layers: Layers::ALL,
+        }];
+        let tlas = Tlas::build(&[blas.bounds.unwrap()]);
+        FlatBvh::build(&[blas], &placed, &tlas).unwrap()
+    };
+    let fresh = MeshBvh::build(&bent, tris).flatten(&bent, tris).unwrap();
+    let (refitted, old) = (scene(refitted), scene(rest));
+    let (mut moved, mut blocked) = (0, 0);
+    for &(o, d) in &rays {
+        let got = refitted.occluded(o, d, 1e-4, f32::MAX);
+        assert_eq!(got, fresh.occluded(o, d, 1e-4, f32::MAX), "ray {o} {d}");
+        moved += (got != old.occluded(o, d, 1e-4, f32::MAX)) as usize;
+        blocked += got as usize;
+    }
+    eprintln!("refit: {blocked} rays blocked, {moved} changed by the new pose");
+    assert!(moved > 100, "the bend changed only {moved} rays");
+}
+
 /// Layers (Bevy's `RenderLayers` as the Bevy pass maps them): a ray cast for a set of layers
 /// answers exactly as the scene built of only the instances on those layers, ray by ray. Each
 /// instance is on its own layer, the plane on layer 20 (the record's upper half), and the view

@@ -99,43 +99,24 @@ fn bevy_taa_averages_envis_noise() {
     let Some(_) = gpu() else { return };
     let size = 32u32;
     let frame = |taa: bool, accumulate: bool, frames: usize| {
-        let mut h = HeadlessApp::new();
-        let mesh = h.add::<Mesh>(Sphere::new(1.0).mesh().ico(5).expect("icosphere"));
-        let mat = h.add::<StandardMaterial>(StandardMaterial {
+        let material = StandardMaterial {
             base_color: Color::srgb(0.8, 0.8, 0.8),
             perceptual_roughness: 0.5,
             ..default()
-        });
-        h.app
-            .world_mut()
-            .spawn((Mesh3d(mesh), MeshMaterial3d(mat), Transform::IDENTITY));
-        let env = noisy_sky(&mut h);
-        let target = h.float_target(size, size);
-        let (projection, transform) = sphere_view();
+        };
         let sampling = EnvironmentSampling {
             light_samples: 2,
             brdf_samples: 2,
             accumulate,
             ..default()
         };
-        let camera = radiance_camera(
-            target.clone(),
-            projection,
-            transform,
-            sampling,
-            EnvisEnvironment::new(env),
-        );
-        let camera = h.app.world_mut().spawn(camera).id();
-        if taa {
-            h.app
-                .world_mut()
-                .entity_mut(camera)
-                .insert(TemporalAntiAliasing::default());
-        }
-        for _ in 0..frames {
-            h.update();
-        }
-        h.capture_next(&target).unwrap()
+        let scene = SphereScene { size, frames };
+        scene.render(material, noisy_sky, sampling, |h, camera| {
+            if taa {
+                let taa = TemporalAntiAliasing::default();
+                h.app.world_mut().entity_mut(camera).insert(taa);
+            }
+        })
     };
     let inside = on_sphere(size);
     let px: Vec<usize> = (0..(size * size) as usize).filter(|&i| inside(i)).collect();
@@ -196,34 +177,46 @@ fn constant_cube(h: &mut HeadlessApp, half: [u16; 4]) -> Handle<Image> {
     h.add::<Image>(img)
 }
 
-/// The unit sphere in `material` under `env`, seen by the sphere view into a `size^2` target;
-/// `extra` adds components to the camera (given the app and the camera).
-fn sphere_scene(
-    material: StandardMaterial,
-    env: impl FnOnce(&mut HeadlessApp) -> Handle<Image>,
-    sampling: EnvironmentSampling,
+/// The unit sphere under an environment, seen by the sphere view into a `size^2` target and
+/// captured after `frames` frames.
+struct SphereScene {
     size: u32,
-    extra: impl FnOnce(&mut HeadlessApp, Entity),
-) -> Vec<Vec3> {
-    let mut h = HeadlessApp::new();
-    let mesh = h.add::<Mesh>(Sphere::new(1.0).mesh().ico(5).expect("icosphere"));
-    let mat = h.add::<StandardMaterial>(material);
-    h.app
-        .world_mut()
-        .spawn((Mesh3d(mesh), MeshMaterial3d(mat), Transform::IDENTITY));
-    let env = env(&mut h);
-    let target = h.float_target(size, size);
-    let (projection, transform) = sphere_view();
-    let camera = radiance_camera(
-        target.clone(),
-        projection,
-        transform,
-        sampling,
-        EnvisEnvironment::new(env),
-    );
-    let camera = h.app.world_mut().spawn(camera).id();
-    extra(&mut h, camera);
-    h.capture(&target).unwrap()
+    frames: usize,
+}
+
+impl SphereScene {
+    /// The sphere in `material` under `env`; `extra` adds components to the camera (given the
+    /// app and the camera).
+    fn render(
+        &self,
+        material: StandardMaterial,
+        env: impl FnOnce(&mut HeadlessApp) -> Handle<Image>,
+        sampling: EnvironmentSampling,
+        extra: impl FnOnce(&mut HeadlessApp, Entity),
+    ) -> Vec<Vec3> {
+        let mut h = HeadlessApp::new();
+        let mesh = h.add::<Mesh>(Sphere::new(1.0).mesh().ico(5).expect("icosphere"));
+        let mat = h.add::<StandardMaterial>(material);
+        h.app
+            .world_mut()
+            .spawn((Mesh3d(mesh), MeshMaterial3d(mat), Transform::IDENTITY));
+        let env = env(&mut h);
+        let target = h.float_target(self.size, self.size);
+        let (projection, transform) = sphere_view();
+        let camera = radiance_camera(
+            target.clone(),
+            projection,
+            transform,
+            sampling,
+            EnvisEnvironment::new(env),
+        );
+        let camera = h.app.world_mut().spawn(camera).id();
+        extra(&mut h, camera);
+        for _ in 0..self.frames {
+            h.update();
+        }
+        h.capture_next(&target).unwrap()
+    }
 }
 
 /// With Bevy's `Skybox` on the camera the background is the skybox's (its colour times its
@@ -249,8 +242,9 @@ fn bevy_skybox_owns_the_background() {
         reflectance: 0.0,
         ..default()
     };
-    let plain = sphere_scene(mat.clone(), white, sampling(), size, |_, _| {});
-    let sky = sphere_scene(mat, white, sampling(), size, |h, camera| {
+    let scene = SphereScene { size, frames: 3 };
+    let plain = scene.render(mat.clone(), white, sampling(), |_, _| {});
+    let sky = scene.render(mat, white, sampling(), |h, camera| {
         let image = constant_cube(h, [0x3800, 0x3400, 0x3c00, 0x3c00]);
         let skybox = bevy::light::Skybox {
             image: Some(image),
@@ -305,8 +299,9 @@ fn bevy_bloom_spreads_a_sun_reflection() {
         brdf_samples: 16,
         ..default()
     };
-    let plain = sphere_scene(mirror(), sun, sampling(), size, |_, _| {});
-    let bloom = sphere_scene(mirror(), sun, sampling(), size, |h, camera| {
+    let scene = SphereScene { size, frames: 3 };
+    let plain = scene.render(mirror(), sun, sampling(), |_, _| {});
+    let bloom = scene.render(mirror(), sun, sampling(), |h, camera| {
         let bloom = bevy::post_process::bloom::Bloom::NATURAL;
         h.app.world_mut().entity_mut(camera).insert(bloom);
     });
