@@ -33,7 +33,8 @@ struct LightingView {
     show_background: u32,
     // OVERLAY_*.
     overlay: u32,
-    // 1 to average frames, and the frames averaged before this one (0 restarts the mean).
+    // 1 to average frames, and the frames averaged before this one (0: a restart, the pass clears
+    // the running mean first; each pixel keeps its own count in it).
     accumulate: u32,
     frames: u32,
     // SOURCE_* (image_source.wgsl).
@@ -60,7 +61,8 @@ const OVERLAY_COUNTS_DIFFERENCE: u32 = 3u;
 // The probed pixel, for the sample-debug view: n, o, kd, ks (as GPixel), estimate, (x, y, index,
 // 1), (world position, 1 when shadow rays were cast).
 @group(0) @binding(7) var<storage, read_write> probe: array<vec4<f32>, 7>;
-// Running mean of the accumulated frames, one per viewport pixel (bound only when accumulating).
+// Running mean of the accumulated frames and how many each pixel averaged (w), one per viewport
+// pixel (bound only when accumulating; cleared at each restart).
 @group(0) @binding(8) var<storage, read_write> accum: array<vec4<f32>>;
 // The `global` distribution (global_layout.wgsl); a dummy unless the strategy is global.
 @group(0) @binding(9) var<storage, read> cdfs: array<f32>;
@@ -224,11 +226,12 @@ fn lighting(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
     }
     var color = r.color;
     if (lv.accumulate != 0u) {
-        let k = f32(lv.frames);
-        if (k > 0.0) {
-            color = accum[pixel_index].xyz + (color - accum[pixel_index].xyz) / (k + 1.0);
-        }
-        accum[pixel_index] = vec4(color, 1.0);
+        // The pixel's own count (w) of the frames it averaged since the restart (the buffer is
+        // cleared then): a pixel not shaded in some frame (no geometry yet) is not averaged
+        // with a zero for it.
+        let prev = accum[pixel_index];
+        color = prev.xyz + (color - prev.xyz) / (prev.w + 1.0);
+        accum[pixel_index] = vec4(color, prev.w + 1.0);
     }
     return vec4(color * scale, 0.0);
 }

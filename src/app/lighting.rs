@@ -151,7 +151,8 @@ impl LightingPipelines {
             device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("envis accumulation"),
                 size: bytes,
-                usage: wgpu::BufferUsages::STORAGE,
+                // COPY_DST: cleared at every restart of the mean.
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             })
         };
@@ -393,6 +394,11 @@ fn mis_lighting(
     let enc = ctx.command_encoder();
     if probing {
         enc.clear_buffer(&pipes.probe, 0, None);
+    }
+    if sampling.accumulate && vs.frame == 0 {
+        // A restart: every pixel's mean and count start again, also those this frame does not
+        // shade (no geometry yet: a mesh is drawn from the frame after it was spawned).
+        enc.clear_buffer(&accum, 0, None);
     }
     {
         let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {

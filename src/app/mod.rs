@@ -41,6 +41,7 @@ mod lighting_uniforms;
 pub mod material;
 pub mod sampling;
 pub mod scene_objects;
+mod scene_revision;
 pub mod setup;
 pub mod shadows;
 pub mod skinning;

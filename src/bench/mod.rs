@@ -23,6 +23,8 @@
 
 pub mod accuracy;
 mod accuracy_suite;
+#[cfg(feature = "app")]
+mod bevy_ibl;
 pub mod chart;
 pub mod flicker;
 pub mod flip;
@@ -65,6 +67,8 @@ pub enum Suite {
     /// Shadow rays on the CPU: frame cost with and without, rays per second, BVH builds.
     Visibility,
     Motion,
+    /// envis beside Bevy's `GeneratedEnvironmentMapLight`: error and frame cost (feature `app`).
+    BevyIbl,
 }
 crate::vocab::display_as_value_enum!(Suite);
 
@@ -133,6 +137,12 @@ pub fn run(a: BenchArgs) -> Result<()> {
         #[cfg(not(feature = "gpu"))]
         s @ (Suite::Gpu | Suite::Scene) => Err(Error::invalid(format!(
             "bench suite '{s}': this envis was built without the `gpu` feature"
+        ))),
+        #[cfg(feature = "app")]
+        Suite::BevyIbl => bevy_ibl::run(a, dir),
+        #[cfg(not(feature = "app"))]
+        s @ Suite::BevyIbl => Err(Error::invalid(format!(
+            "bench suite '{s}': this envis was built without the `app` feature"
         ))),
     }
 }

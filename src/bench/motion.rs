@@ -45,7 +45,7 @@ pub struct MotionRow {
 
 /// The relMSE of `img` against `rf` (luminance; `1e-2` keeps dark pixels from dominating, as
 /// in the accuracy sweep).
-fn relmse(img: &Image, rf: &Image) -> f64 {
+pub(super) fn relmse(img: &Image, rf: &Image) -> f64 {
     let n = img.data.len().max(1) as f64;
     img.data
         .iter()

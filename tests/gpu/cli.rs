@@ -152,3 +152,47 @@ fn cli_gpu_backends() {
     }
     assert!(rel(read_exr_mean(&a), read_exr_mean(&b)) < 1e-3);
 }
+
+/// `envis bench --suite bevy-ibl --quick`: envis and Bevy's `GeneratedEnvironmentMapLight` on
+/// both scenes, a row each with a finite error and frame time; envis at 32 + 32 is nearer the
+/// converged image than at 4 + 4 (no figure asserted beyond that: the numbers are the bench's).
+#[cfg(feature = "app")]
+#[test]
+fn bench_bevy_ibl_quick_smoke() {
+    let Some(_) = gpu() else { return };
+    let dir = std::env::temp_dir().join(format!("envis-bevy-ibl-{}", std::process::id()));
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_envis"))
+        .args(["bench", "--suite", "bevy-ibl", "--quick", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    let js = support::read_json(&dir.join("bench-bevy-ibl.json"));
+    let rows = js["rows"].as_array().expect("rows");
+    assert_eq!(rows.len(), 6, "{js}");
+    let get = |scene: &str, light: &str, key: &str| {
+        let row = rows
+            .iter()
+            .find(|r| r["scene"] == scene && r["light"].as_str().unwrap().starts_with(light))
+            .unwrap_or_else(|| panic!("no row {scene} / {light}: {js}"));
+        row[key].as_f64().unwrap_or(f64::NAN)
+    };
+    for scene in ["Spheres", "Contact"] {
+        for light in ["envis 4+4", "envis 32+32", "bevy"] {
+            let (e, f, t) = (
+                get(scene, light, "relmse"),
+                get(scene, light, "mean_flip"),
+                get(scene, light, "frame_ms"),
+            );
+            assert!(e.is_finite() && e >= 0.0, "{scene} / {light}: relMSE {e}");
+            assert!(f > 0.0 && f <= 1.0, "{scene} / {light}: FLIP {f}");
+            assert!(t > 0.0, "{scene} / {light}: {t} ms");
+        }
+        assert!(
+            get(scene, "envis 32+32", "relmse") < get(scene, "envis 4+4", "relmse"),
+            "{scene}: more samples, more error: {js}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -36,6 +36,11 @@ use bevy::render::renderer::{RenderDevice, RenderQueue};
 use bevy::render::{Render, RenderApp, RenderSystems};
 use std::sync::Arc;
 
+mod mesh;
+mod skinned;
+use mesh::{mesh_blas, mesh_triangles};
+use skinned::{SkinnedBlas, repose, skinned_blas};
+
 /// The shadow-casting geometry of the main world, flattened (extracted to the render world).
 #[derive(Resource, Clone, Default, ExtractResource)]
 pub struct ShadowGeometry {
@@ -77,14 +82,6 @@ pub struct ShadowScene {
     /// A visible caster's mesh was not loaded at the last build: a mesh that loads since may be
     /// it.
     waiting: bool,
-}
-
-/// A skinned caster's BVH over its posed vertices (world space), and what a refit needs.
-struct SkinnedBlas {
-    mesh: AssetId<Mesh>,
-    blas: Arc<FlatBlas>,
-    triangles: Vec<[u32; 3]>,
-    order: Vec<u32>,
 }
 
 /// The geometry on the GPU (render world).
@@ -370,111 +367,6 @@ fn place_instances(scene: &mut ShadowScene, casters: &Casters) -> bool {
         bounds.push(world_bounds(scene.object_bounds[i], &transform.affine()));
     }
     scene.tlas.refit(&bounds)
-}
-
-/// Skinned casters' joints moved: each moved one's BVH refitted to its new pose (the tree
-/// kept), every instance placed anew, and the whole geometry uploaded again (the meshes' part
-/// changed). `false` when that cannot be done: build anew instead.
-fn repose(
-    scene: &mut ShadowScene,
-    geometry: &mut ShadowGeometry,
-    (casters, meshes, poses): (&Casters, &Assets<Mesh>, &Poses),
-    counters: &EnvisCounters,
-) -> bool {
-    for (i, &entity) in scene.instances.iter().enumerate() {
-        let Ok((_, mesh, _, _, _, Some(skin))) = casters.get(entity) else {
-            continue;
-        };
-        let Some(s) = scene.skinned.get_mut(&entity) else {
-            return false;
-        };
-        if !poses.moved(skin) {
-            continue;
-        }
-        let posed = meshes.get(mesh.id()).zip(poses.joints(skin));
-        let Some(p) = posed.and_then(|(m, joints)| skinned_positions(m, &joints)) else {
-            return false;
-        };
-        let blas = Arc::make_mut(&mut s.blas);
-        if !blas.refit(&p, &s.triangles, &s.order) {
-            return false;
-        }
-        counters.bump(|c: &Counters| &c.shadow_skin_refits);
-        let Some(b) = s.blas.bounds else { return false };
-        scene.object_bounds[i] = b;
-        scene.blases[scene.placed[i].blas] = s.blas.clone();
-    }
-    if !place_instances(scene, casters) {
-        return false;
-    }
-    let Ok(bvh) = FlatBvh::build(&scene.blases, &scene.placed, &scene.tlas) else {
-        return false;
-    };
-    geometry.bvh = bvh;
-    (geometry.generation, geometry.placement) = (geometry.generation + 1, geometry.placement + 1);
-    true
-}
-
-/// A skinned caster's BVH over its pose now, in world space; `None` until its bind poses and
-/// joints are there (or when its mesh has no joint attributes: it then casts nothing).
-fn skinned_blas(
-    mesh: &Mesh,
-    id: AssetId<Mesh>,
-    skin: &SkinnedMesh,
-    poses: &Poses,
-    counters: &EnvisCounters,
-) -> Option<SkinnedBlas> {
-    let p = skinned_positions(mesh, &poses.joints(skin)?)?;
-    let (_, triangles) = mesh_triangles(mesh);
-    let bvh = MeshBvh::build(&p, &triangles);
-    let blas = bvh.flat_blas(&p, &triangles).unwrap_or_else(|e| {
-        error!("envis: a skinned mesh casts no shadow: {e}");
-        FlatBlas::default()
-    });
-    counters.bump(|c: &Counters| &c.shadow_bvh_builds);
-    Some(SkinnedBlas {
-        mesh: id,
-        blas: Arc::new(blas),
-        order: bvh.leaf_order().to_vec(),
-        triangles,
-    })
-}
-
-/// The BVH of `mesh` in object space, flattened (triangle lists with float positions; anything
-/// else, or a mesh whose data lives only in the render world, has no triangles).
-fn mesh_blas(mesh: &Mesh) -> FlatBlas {
-    let (positions, tris) = mesh_triangles(mesh);
-    MeshBvh::build(&positions, &tris)
-        .flat_blas(&positions, &tris)
-        .unwrap_or_else(|e| {
-            error!("envis: a mesh casts no shadow: {e}");
-            FlatBlas::default()
-        })
-}
-
-fn mesh_triangles(mesh: &Mesh) -> (Vec<Vec3>, Vec<[u32; 3]>) {
-    if mesh.primitive_topology() != PrimitiveTopology::TriangleList {
-        return Default::default();
-    }
-    let Ok(Some(p)) = mesh.try_attribute_option(Mesh::ATTRIBUTE_POSITION) else {
-        return Default::default();
-    };
-    let Some(p) = p.as_float3() else {
-        return Default::default();
-    };
-    let positions: Vec<Vec3> = p.iter().map(|v| Vec3::from(*v)).collect();
-    let n = p.len() as u32;
-    let index: Vec<u32> = match mesh.try_indices_option() {
-        Ok(Some(Indices::U16(v))) => v.iter().map(|&i| i as u32).collect(),
-        Ok(Some(Indices::U32(v))) => v.clone(),
-        _ => (0..n).collect(),
-    };
-    let tris = index
-        .chunks_exact(3)
-        .filter(|t| t.iter().all(|&i| i < n))
-        .map(|t| [t[0], t[1], t[2]])
-        .collect();
-    (positions, tris)
 }
 
 /// Upload the geometry when it changed: everything for a new generation, the top part when

@@ -1,0 +1,321 @@
+//! `envis bench --suite bevy-ibl` (feature `app`): envis beside Bevy's own dynamic environment
+//! light, `GeneratedEnvironmentMapLight` (the map refiltered on the GPU every frame, then the
+//! split-sum lookup per pixel), in the same headless Bevy app, on the same scenes, map and
+//! exposure. Each image against the converged one (envis accumulating many frames, with its
+//! shadow rays: the integral both approximate), relMSE and mean HDR-FLIP, and each one's frame
+//! cost (median wall time of a frame, same sitting). Results in `bench-bevy-ibl.json`, each
+//! image beside it as a PNG (`bevy-ibl-SCENE-LIGHT.png`).
+
+use super::BenchArgs;
+use super::motion::relmse;
+use crate::app::headless::{HeadlessApp, radiance_camera, radiance_view};
+use crate::app::{EnvironmentSampling, EnvisEnvironment};
+use crate::envmap::Image as EnvImage;
+use crate::envmap::load::{EnvSource, load_env};
+use crate::error::{Error, Result};
+use crate::visibility::ShadowRays;
+use bevy::core_pipeline::prepass::{DeferredPrepass, DepthPrepass};
+use bevy::light::GeneratedEnvironmentMapLight;
+use bevy::prelude::*;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Who lights the scene.
+#[derive(Clone, Copy, Debug)]
+enum Light {
+    /// envis with `light + brdf` samples per pixel, shadow rays on, averaging `frames` frames
+    /// (1: a single frame, as a game shows it).
+    Envis { light: u32, brdf: u32, frames: u32 },
+    /// Bevy's `GeneratedEnvironmentMapLight`.
+    Bevy,
+}
+
+impl Light {
+    fn name(self) -> String {
+        match self {
+            Light::Envis { light, brdf, .. } => format!("envis {light}+{brdf}"),
+            Light::Bevy => "bevy GeneratedEnvironmentMapLight".into(),
+        }
+    }
+}
+
+/// The two scenes: a row of spheres of roughness 0.05 to 1, and a sphere resting on a plane.
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+enum SceneKind {
+    Spheres,
+    Contact,
+}
+
+const ROUGHNESS: [f32; 5] = [0.05, 0.25, 0.5, 0.75, 1.0];
+
+#[derive(serde::Serialize)]
+struct Row {
+    scene: SceneKind,
+    light: String,
+    relmse: f64,
+    mean_flip: f64,
+    /// Mean luminance of the image, and of the converged one.
+    mean: f64,
+    reference_mean: f64,
+    /// Median wall time of one frame of the whole headless app, ms.
+    frame_ms: f64,
+}
+
+pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
+    let src: EnvSource = a.env.parse()?;
+    // A power-of-two cube (Bevy's generator needs one), read by both in Bevy's convention.
+    let face = if a.quick { 32 } else { 128 };
+    let map = load_env(&src, face)?.cube;
+    let (scale, reference_frames, timed) = if a.quick { (1, 4, 2) } else { (4, 64, 8) };
+    let mut rows = Vec::new();
+    for scene in [SceneKind::Spheres, SceneKind::Contact] {
+        let (w, h) = match scene {
+            SceneKind::Spheres => (80 * scale, 16 * scale),
+            SceneKind::Contact => (40 * scale, 30 * scale),
+        };
+        let shot = Shot {
+            scene,
+            w,
+            h,
+            map: &map,
+        };
+        let reference = shot.render(
+            Light::Envis {
+                light: 32,
+                brdf: 32,
+                frames: reference_frames,
+            },
+            0,
+        )?;
+        let png = |name: &str, img: &EnvImage| {
+            let path = dir.join(format!("bevy-ibl-{scene:?}-{name}.png").to_lowercase());
+            crate::render::output::write_png(&path, img, 1.0)
+        };
+        png("reference", &reference)?;
+        for light in [
+            Light::Envis {
+                light: 4,
+                brdf: 4,
+                frames: 1,
+            },
+            Light::Envis {
+                light: 32,
+                brdf: 32,
+                frames: 1,
+            },
+            Light::Bevy,
+        ] {
+            let (img, frame_ms) = shot.render_timed(light, timed)?;
+            png(&light.name().replace([' ', '+'], "-"), &img)?;
+            let (_, mean_flip) =
+                super::flip::hdr_flip(&reference.data, &img.data, w as usize, h as usize);
+            let row = Row {
+                scene,
+                light: light.name(),
+                relmse: relmse(&img, &reference),
+                mean_flip: mean_flip as f64,
+                mean: mean_luminance(&img),
+                reference_mean: mean_luminance(&reference),
+                frame_ms,
+            };
+            eprintln!(
+                "  {:?} / {}: relMSE {:.3e}, HDR-FLIP {:.4}, mean {:.4} (converged {:.4}), {:.1} ms a frame",
+                scene,
+                row.light,
+                row.relmse,
+                row.mean_flip,
+                row.mean,
+                row.reference_mean,
+                row.frame_ms
+            );
+            rows.push(row);
+        }
+    }
+    let out = serde_json::json!({
+        "env": a.env, "face_size": face, "reference_frames": reference_frames,
+        "reference": "envis 32+32 with shadow rays, accumulated",
+        "rows": rows,
+    });
+    let path = dir.join("bench-bevy-ibl.json");
+    crate::render::output::write_json(&path, &out)?;
+    eprintln!("wrote {}", path.display());
+    Ok(())
+}
+
+fn mean_luminance(img: &EnvImage) -> f64 {
+    let sum: f64 = img
+        .data
+        .iter()
+        .map(|&c| crate::envmap::luminance(c) as f64)
+        .sum();
+    sum / img.data.len().max(1) as f64
+}
+
+/// One scene at one size under one map.
+struct Shot<'a> {
+    scene: SceneKind,
+    w: u32,
+    h: u32,
+    map: &'a crate::envmap::CubeMap,
+}
+
+impl Shot<'_> {
+    /// The image under `light` (after `frames` accumulated frames for envis), and the median
+    /// frame time of `timed` more frames (0: not timed).
+    fn render_timed(&self, light: Light, timed: usize) -> Result<(EnvImage, f64)> {
+        let (mut h, target) = self.app(light);
+        let img = self.capture(&mut h, &target, light)?;
+        let mut times = Vec::with_capacity(timed);
+        for _ in 0..timed {
+            let t0 = Instant::now();
+            h.update();
+            times.push(t0.elapsed().as_secs_f64() * 1e3);
+        }
+        let ms = if times.is_empty() {
+            f64::NAN
+        } else {
+            super::median(times)
+        };
+        Ok((img, ms))
+    }
+
+    fn render(&self, light: Light, timed: usize) -> Result<EnvImage> {
+        Ok(self.render_timed(light, timed)?.0)
+    }
+
+    fn capture(
+        &self,
+        h: &mut HeadlessApp,
+        target: &Handle<Image>,
+        light: Light,
+    ) -> Result<EnvImage> {
+        // Bevy's generator and envis's distribution are ready after a few frames; an
+        // accumulating envis camera then averages its frames.
+        let frames = match light {
+            Light::Envis { frames, .. } => frames as usize + 3,
+            Light::Bevy => 4,
+        };
+        for _ in 0..frames {
+            h.update();
+        }
+        let data = h.capture_next(target)?;
+        if data.len() != (self.w * self.h) as usize {
+            return Err(Error::invalid("bevy-ibl: a capture of the wrong size"));
+        }
+        Ok(EnvImage {
+            width: self.w as usize,
+            height: self.h as usize,
+            data,
+        })
+    }
+
+    /// The headless app: the scene, the map as a Bevy cube image, the camera lit by `light`.
+    fn app(&self, light: Light) -> (HeadlessApp, Handle<Image>) {
+        let mut h = HeadlessApp::new();
+        // Plugins finish on the first frame; Bevy's generator registers its component's hooks
+        // then, which must come before any entity holds one.
+        h.update();
+        let env = h.add::<Image>(crate::app::stream::cube_image(self.map));
+        self.spawn_scene(&mut h);
+        let target = h.float_target(self.w, self.h);
+        let (projection, transform) = self.view();
+        let world = h.app.world_mut();
+        match light {
+            Light::Envis {
+                light,
+                brdf,
+                frames,
+            } => {
+                let sampling = EnvironmentSampling {
+                    light_samples: light,
+                    brdf_samples: brdf,
+                    shadows: ShadowRays::On,
+                    accumulate: frames > 1,
+                    ..default()
+                };
+                let env = EnvisEnvironment {
+                    show_background: false,
+                    ..EnvisEnvironment::new(env)
+                };
+                world.spawn(radiance_camera(
+                    target.clone(),
+                    projection,
+                    transform,
+                    sampling,
+                    env,
+                ));
+            }
+            Light::Bevy => {
+                // The same deferred path as envis's cameras, Bevy's light instead of envis's.
+                let prepasses = (DepthPrepass, DeferredPrepass, bevy::camera::Hdr, Msaa::Off);
+                let generated = GeneratedEnvironmentMapLight {
+                    environment_map: env,
+                    intensity: 1.0,
+                    ..default()
+                };
+                world.spawn((
+                    radiance_view(target.clone(), projection, transform),
+                    prepasses,
+                    generated,
+                ));
+            }
+        }
+        (h, target)
+    }
+
+    fn spawn_scene(&self, h: &mut HeadlessApp) {
+        let sphere = h.add::<Mesh>(Sphere::new(1.0).mesh().ico(5).expect("icosphere"));
+        match self.scene {
+            SceneKind::Spheres => {
+                for (k, r) in ROUGHNESS.into_iter().enumerate() {
+                    let mat = h.add::<StandardMaterial>(StandardMaterial {
+                        base_color: Color::srgb(0.9, 0.9, 0.9),
+                        metallic: 1.0,
+                        perceptual_roughness: r,
+                        ..default()
+                    });
+                    let x = 2.1 * (k as f32 - 2.0);
+                    h.app.world_mut().spawn((
+                        Mesh3d(sphere.clone()),
+                        MeshMaterial3d(mat),
+                        Transform::from_xyz(x, 0.0, 0.0),
+                    ));
+                }
+            }
+            SceneKind::Contact => {
+                let mat = h.add::<StandardMaterial>(StandardMaterial {
+                    base_color: Color::srgb(0.8, 0.8, 0.8),
+                    perceptual_roughness: 0.6,
+                    ..default()
+                });
+                let plane = h.add::<Mesh>(Plane3d::default().mesh().size(8.0, 8.0));
+                let world = h.app.world_mut();
+                world.spawn((
+                    Mesh3d(sphere),
+                    MeshMaterial3d(mat.clone()),
+                    Transform::from_xyz(0.0, 1.0, 0.0),
+                ));
+                world.spawn((Mesh3d(plane), MeshMaterial3d(mat)));
+            }
+        }
+    }
+
+    fn view(&self) -> (Projection, Transform) {
+        match self.scene {
+            SceneKind::Spheres => (
+                Projection::Orthographic(OrthographicProjection {
+                    scaling_mode: bevy::camera::ScalingMode::Fixed {
+                        width: 10.5,
+                        height: 2.1,
+                    },
+                    ..OrthographicProjection::default_3d()
+                }),
+                Transform::from_xyz(0.0, 0.0, 5.0).looking_at(Vec3::ZERO, Vec3::Y),
+            ),
+            SceneKind::Contact => (
+                Projection::Perspective(PerspectiveProjection::default()),
+                Transform::from_xyz(0.0, 2.5, 5.0).looking_at(Vec3::new(0.0, 0.7, 0.0), Vec3::Y),
+            ),
+        }
+    }
+}
