@@ -120,6 +120,7 @@ impl Plugin for EnvisSamplingPlugin {
                     track_image_versions.after(bevy::asset::AssetEventSystems),
                     track_scene_changes
                         .after(bevy::asset::AssetEventSystems)
+                        .after(bevy::mesh::mark_3d_meshes_as_changed_if_their_assets_changed)
                         .after(bevy::transform::TransformSystems::Propagate)
                         .after(bevy::camera::visibility::VisibilitySystems::VisibilityPropagate),
                 ),

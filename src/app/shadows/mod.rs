@@ -105,8 +105,11 @@ impl Plugin for EnvisShadowsPlugin {
             .add_systems(
                 PostUpdate,
                 // After this frame's transforms and visibility are known: a mesh spawned this
-                // frame is then built once, visible, not once hidden and again next frame.
+                // frame is then built once, visible, not once hidden and again next frame. And
+                // after Bevy marks the `Mesh3d`s of modified mesh assets changed (its order to
+                // this system was free), so that the mark is seen in the frame it is made.
                 gather_shadow_geometry
+                    .after(bevy::mesh::mark_3d_meshes_as_changed_if_their_assets_changed)
                     .after(bevy::transform::TransformSystems::Propagate)
                     .after(bevy::camera::visibility::VisibilitySystems::VisibilityPropagate)
                     .after(bevy::asset::AssetEventSystems),
