@@ -33,14 +33,14 @@ struct LightingView {
     show_background: u32,
     // OVERLAY_*.
     overlay: u32,
-    // 1 to average frames, and the frames averaged before this one (0: a restart, the pass clears
-    // the running mean first; each pixel keeps its own count in it).
+    // 1 to average frames (the pass clears the running mean at each restart; each pixel keeps
+    // its own count in it).
     accumulate: u32,
-    frames: u32,
     // SOURCE_* (image_source.wgsl).
     source_layout: u32,
     // The camera's RenderLayers as visibility::Layers: the shadow casters it sees.
     render_layers: u32,
+    _pad: u32,
 }
 // The shadow BVH's node count is sp.bvh_nodes (shade.wgsl's ShadeParams; 0: no shadow rays).
 

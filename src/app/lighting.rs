@@ -331,7 +331,7 @@ fn mis_lighting(
         render_layers,
         skybox: skybox.is_some_and(|s| s.image.is_some()),
     };
-    let lv = lighting_view(parts, sampling, env, vs, slot.layout);
+    let lv = lighting_view(parts, sampling, env, slot.layout);
     // Shadow rays when the camera asks for them and the uploaded geometry is this frame's.
     let geometry = match shadows {
         (Some(g), Some(gpu)) if g.enabled(sampling.shadows) && gpu.generation == g.generation => {

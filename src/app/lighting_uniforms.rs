@@ -4,7 +4,6 @@
 //! [`Overlay::gpu_code`].
 
 use super::components::{EnvironmentSampling, EnvisEnvironment};
-use super::sampling::ViewSampling;
 use super::{Overlay, ProbeResult};
 use crate::envmap::resample::SourceLayout;
 use crate::render::GPixel;
@@ -34,12 +33,11 @@ pub(super) struct LightingView {
     /// [`Overlay::gpu_code`].
     overlay: u32,
     accumulate: u32,
-    /// Frames averaged before this one (0 restarts the mean).
-    frames: u32,
     /// [`SourceLayout::gpu_code`].
     source_layout: u32,
     /// The camera's `RenderLayers` ([`super::shadows::layers_of`]): the casters its rays meet.
     render_layers: u32,
+    _pad: u32,
 }
 
 impl Overlay {
@@ -85,7 +83,6 @@ pub(super) fn lighting_view(
     view: ViewParts,
     sampling: &EnvironmentSampling,
     env: &EnvisEnvironment,
-    vs: &ViewSampling,
     layout: SourceLayout,
 ) -> LightingView {
     let ViewParts {
@@ -112,9 +109,9 @@ pub(super) fn lighting_view(
         show_background: (env.show_background && !skybox) as u32,
         overlay: sampling.overlay.gpu_code(),
         accumulate: sampling.accumulate as u32,
-        frames: vs.frame,
         source_layout: layout.gpu_code(),
         render_layers: super::shadows::layers_of(render_layers).0,
+        _pad: 0,
     }
 }
 
@@ -231,9 +228,9 @@ mod tests {
             show_background,
             overlay,
             accumulate,
-            frames,
             source_layout,
-            render_layers
+            render_layers,
+            _pad
         );
         assert_eq!(wgsl, rust);
         assert_eq!(size, std::mem::size_of::<LightingView>());

@@ -24,7 +24,7 @@ pub struct Poses<'w, 's> {
 impl Poses<'_, '_> {
     /// Whether a shadow-casting skinned mesh has a joint that moved since the last look.
     pub fn any_moved(&self) -> bool {
-        (self.skins.iter()).any(|s| s.joints.iter().any(|&j| self.moved.contains(j)))
+        self.skins.iter().any(|s| self.moved(s))
     }
 
     /// Whether bind poses were added or changed since the last look (a skinned caster waiting

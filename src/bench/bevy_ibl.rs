@@ -79,14 +79,11 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
             h,
             map: &map,
         };
-        let reference = shot.render(
-            Light::Envis {
-                light: 32,
-                brdf: 32,
-                frames: reference_frames,
-            },
-            0,
-        )?;
+        let reference = shot.render(Light::Envis {
+            light: 32,
+            brdf: 32,
+            frames: reference_frames,
+        })?;
         let png = |name: &str, img: &EnvImage| {
             let path = dir.join(format!("bevy-ibl-{scene:?}-{name}.png").to_lowercase());
             crate::render::output::write_png(&path, img, 1.0)
@@ -179,8 +176,8 @@ impl Shot<'_> {
         Ok((img, ms))
     }
 
-    fn render(&self, light: Light, timed: usize) -> Result<EnvImage> {
-        Ok(self.render_timed(light, timed)?.0)
+    fn render(&self, light: Light) -> Result<EnvImage> {
+        Ok(self.render_timed(light, 0)?.0)
     }
 
     fn capture(

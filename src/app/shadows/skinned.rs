@@ -11,6 +11,27 @@ pub(super) struct SkinnedBlas {
     order: Vec<u32>,
 }
 
+impl SkinnedBlas {
+    /// Refit the BVH to `skin`'s pose now; `false` when the pose cannot be had (then build
+    /// anew).
+    pub(super) fn refit(
+        &mut self,
+        mesh: &Mesh,
+        skin: &SkinnedMesh,
+        poses: &Poses,
+        counters: &EnvisCounters,
+    ) -> bool {
+        let Some(p) = poses.joints(skin).and_then(|j| skinned_positions(mesh, &j)) else {
+            return false;
+        };
+        if !Arc::make_mut(&mut self.blas).refit(&p, &self.triangles, &self.order) {
+            return false;
+        }
+        counters.bump(|c: &Counters| &c.shadow_skin_refits);
+        true
+    }
+}
+
 /// Skinned casters' joints moved: each moved one's BVH refitted to its new pose (the tree
 /// kept), every instance placed anew, and the whole geometry uploaded again (the meshes' part
 /// changed). `false` when that cannot be done: build anew instead.
@@ -30,15 +51,12 @@ pub(super) fn repose(
         if !poses.moved(skin) {
             continue;
         }
-        let posed = meshes.get(mesh.id()).zip(poses.joints(skin));
-        let Some(p) = posed.and_then(|(m, joints)| skinned_positions(m, &joints)) else {
+        let Some(m) = meshes.get(mesh.id()) else {
             return false;
         };
-        let blas = Arc::make_mut(&mut s.blas);
-        if !blas.refit(&p, &s.triangles, &s.order) {
+        if !s.refit(m, skin, poses, counters) {
             return false;
         }
-        counters.bump(|c: &Counters| &c.shadow_skin_refits);
         let Some(b) = s.blas.bounds else { return false };
         scene.object_bounds[i] = b;
         scene.blases[scene.placed[i].blas] = s.blas.clone();
