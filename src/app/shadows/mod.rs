@@ -278,7 +278,12 @@ fn rebuild(
         };
         // A skinned caster: its own BVH, in world space (kept if its mesh is the same).
         let (blas, to_object, world) = if let Some(skin) = skin {
+            // A kept one is refitted when its joints moved this frame too (a pose change in
+            // the frame of a structure change is not seen by `repose`).
             let old = scene.skinned.remove(&entity).filter(|s| s.mesh == id);
+            let old = old.and_then(|mut s| {
+                (!poses.moved(skin) || s.refit(m, skin, poses, counters)).then_some(s)
+            });
             let Some(s) = old.or_else(|| skinned_blas(m, id, skin, poses, counters)) else {
                 scene.waiting = true; // its bind poses or joints are not there yet
                 continue;
