@@ -909,7 +909,9 @@ fn skinned_plate(h: &mut HeadlessApp) -> (Mesh3d, bevy::mesh::skinning::SkinnedM
 /// A skinned mesh casts the pose Bevy draws: a plate skinned to one joint, on a plane, seen from
 /// above. Its shadow is where the joint puts it (not where the bind pose and the entity's own
 /// transform would: at the origin), and follows the joint when it moves; the plate's BVH is
-/// built once and then refitted, not rebuilt; the new pose restarts accumulation.
+/// built once and then refitted, not rebuilt; the new pose restarts accumulation. The joint
+/// moves in the frame another caster is spawned (a structure change), which must not hide the
+/// new pose.
 #[test]
 fn bevy_skinned_mesh_casts_its_pose() {
     use envis::app::sampling::SceneRevision;
@@ -924,7 +926,7 @@ fn bevy_skinned_mesh_casts_its_pose() {
         .entity_mut(joint)
         .insert(Transform::from_xyz(-1.8, 0.0, 0.0));
     world.spawn((mesh, skin, MeshMaterial3d(mat.clone()), Transform::IDENTITY));
-    world.spawn((Mesh3d(plane), MeshMaterial3d(mat)));
+    world.spawn((Mesh3d(plane.clone()), MeshMaterial3d(mat.clone())));
     let target = top_down_camera(&mut h, envis::visibility::ShadowRays::On, size, 3.0);
     // Mean luminance of the ground ring [r0, r1) around (x, 0) (the image's x runs along -X).
     let disc = |img: &[Vec3], x0: f32, (r0, r1): (f32, f32)| {
@@ -947,10 +949,16 @@ fn bevy_skinned_mesh_casts_its_pose() {
     let still = revision(&h);
     h.update();
     assert_eq!(revision(&h), still, "a still pose restarts accumulation");
-    h.app
-        .world_mut()
+    let world = h.app.world_mut();
+    world
         .entity_mut(joint)
         .insert(Transform::from_xyz(1.8, 0.0, 0.0));
+    // A small placement of the plane's mesh in a far corner (no new mesh BVH).
+    world.spawn((
+        Mesh3d(plane),
+        MeshMaterial3d(mat),
+        Transform::from_xyz(2.8, 0.01, -2.8).with_scale(Vec3::splat(0.02)),
+    ));
     h.update();
     assert!(
         revision(&h) > still,
