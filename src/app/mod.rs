@@ -39,12 +39,12 @@ pub mod headless;
 pub mod lighting;
 mod lighting_uniforms;
 pub mod material;
+pub mod pose;
 pub mod sampling;
 pub mod scene_objects;
 mod scene_revision;
 pub mod setup;
 pub mod shadows;
-pub mod skinning;
 pub mod stream;
 pub mod timing;
 
@@ -263,7 +263,8 @@ pub struct Counters {
     /// static scene) and refitted (meshes only moved).
     pub shadow_tlas_builds: AtomicU64,
     pub shadow_tlas_refits: AtomicU64,
-    /// Skinned casters' BVHs refitted to a new pose (one per skinned mesh whose joints moved).
+    /// Deformed casters' BVHs refitted to a new pose (one per skinned or morphed mesh whose
+    /// joints moved or morph weights changed; the name is from before morph targets).
     pub shadow_skin_refits: AtomicU64,
     /// Lighting passes recorded (one per camera per frame).
     pub lighting_passes: AtomicU64,

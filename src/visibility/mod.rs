@@ -10,6 +10,7 @@
 mod flat_bvh;
 mod instances;
 mod mesh_bvh;
+pub mod morph;
 mod point;
 pub mod skin;
 #[cfg(target_arch = "x86_64")]

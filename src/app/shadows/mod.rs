@@ -8,9 +8,10 @@
 //! `EnvironmentSampling::shadows` is on. The geometry traced is the geometry rasterised (a
 //! tessellated sphere is traced as its triangles).
 //!
-//! Skinned meshes (`SkinnedMesh`) cast the pose Bevy draws: their vertices skinned on the CPU
-//! as Bevy's shader skins them (`super::skinning`), their BVH built once per entity in world
-//! space and refitted, not rebuilt, whenever a joint moves.
+//! Skinned meshes (`SkinnedMesh`) and meshes with morph targets (`MeshMorphWeights`) cast the
+//! pose Bevy draws: their vertices morphed and skinned on the CPU as Bevy's vertex shader does
+//! (`super::pose`), their BVH built once per entity in world space and refitted, not rebuilt,
+//! whenever a joint moves or a weight changes.
 //!
 //! `RenderLayers`: a mesh casts shadows only for the cameras that see one of its layers, as Bevy
 //! draws it only for them. Each instance record keeps its layers and each camera's rays are cast
@@ -18,7 +19,7 @@
 //! and a mesh on layer 33 casts for a camera on layer 1).
 
 use super::components::EnvironmentSampling;
-use super::skinning::{Poses, skinned_positions};
+use super::pose::{Deform, DeformQuery, Poses};
 use super::{Counters, EnvisCounters};
 use crate::visibility::{
     Bounds, FlatBlas, FlatBvh, FlatInstance, Layers, MeshBvh, ObjectFromWorld, ShadowRays, Tlas,
@@ -27,7 +28,6 @@ use crate::visibility::{
 use bevy::camera::visibility::RenderLayers;
 use bevy::light::NotShadowCaster;
 use bevy::math::Affine3A;
-use bevy::mesh::skinning::SkinnedMesh;
 use bevy::mesh::{Indices, PrimitiveTopology};
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
@@ -37,9 +37,9 @@ use bevy::render::{Render, RenderApp, RenderSystems};
 use std::sync::Arc;
 
 mod mesh;
-mod skinned;
+mod posed;
 use mesh::{mesh_blas, mesh_triangles};
-use skinned::{SkinnedBlas, repose, skinned_blas};
+use posed::{PosedBlas, posed_blas, repose};
 
 /// The shadow-casting geometry of the main world, flattened (extracted to the render world).
 #[derive(Resource, Clone, Default, ExtractResource)]
@@ -70,13 +70,13 @@ impl ShadowGeometry {
 #[derive(Resource, Default)]
 pub struct ShadowScene {
     meshes: HashMap<AssetId<Mesh>, Arc<FlatBlas>>,
-    /// Skinned casters' BVHs, in world space, one per entity.
-    skinned: HashMap<Entity, SkinnedBlas>,
+    /// Deformed (skinned or morphed) casters' BVHs, in world space, one per entity.
+    posed: HashMap<Entity, PosedBlas>,
     instances: Vec<Entity>,
     placed: Vec<FlatInstance>,
     /// The BVHs the instances place (`placed[i].blas` indexes them).
     blases: Vec<Arc<FlatBlas>>,
-    /// Each instance's mesh bounds (object space; world space for a skinned one).
+    /// Each instance's mesh bounds (object space; world space for a deformed one).
     object_bounds: Vec<Bounds>,
     tlas: Tlas,
     /// A visible caster's mesh was not loaded at the last build: a mesh that loads since may be
@@ -132,7 +132,7 @@ type Casters<'w, 's> = Query<
         &'static GlobalTransform,
         &'static InheritedVisibility,
         Option<&'static RenderLayers>,
-        Option<&'static SkinnedMesh>,
+        DeformQuery,
     ),
     Without<NotShadowCaster>,
 >;
@@ -159,7 +159,7 @@ enum Change {
     None,
     /// Instances moved: refit the top level.
     Moved,
-    /// A skinned caster's joints moved: refit its BVH (and the top level).
+    /// A deformed caster's pose changed: refit its BVH (and the top level).
     Posed,
     /// Meshes or instances came, went or changed: build the top level anew.
     Structure,
@@ -195,9 +195,9 @@ pub fn gather_shadow_geometry(
     for e in events.read() {
         match e {
             AssetEvent::Modified { id } | AssetEvent::Removed { id } => {
-                let skinned = scene.skinned.values().any(|s| s.mesh == *id);
-                scene.skinned.retain(|_, s| s.mesh != *id);
-                assets_changed |= scene.meshes.remove(id).is_some() | skinned;
+                let posed = scene.posed.values().any(|s| s.mesh == *id);
+                scene.posed.retain(|_, s| s.mesh != *id);
+                assets_changed |= scene.meshes.remove(id).is_some() | posed;
             }
             AssetEvent::Added { .. } | AssetEvent::LoadedWithDependencies { .. } => {
                 assets_changed |= scene.waiting;
@@ -264,10 +264,11 @@ fn rebuild(
     let mut blases: Vec<Arc<FlatBlas>> = Vec::new();
     let (mut instances, mut placed) = (Vec::new(), Vec::new());
     let (mut object_bounds, mut bounds) = (Vec::new(), Vec::new());
-    let mut skinned = HashMap::default();
+    let mut posed = HashMap::default();
     let mut triangles = 0;
     scene.waiting = false;
-    for (entity, mesh, transform, visible, render_layers, skin) in casters {
+    for (entity, mesh, transform, visible, render_layers, deform) in casters {
+        let deform = Deform::new(deform);
         let id = mesh.id();
         if !visible.get() {
             continue;
@@ -276,20 +277,21 @@ fn rebuild(
             scene.waiting = true;
             continue;
         };
-        // A skinned caster: its own BVH, in world space (kept if its mesh is the same).
-        let (blas, to_object, world) = if let Some(skin) = skin {
-            // A kept one is refitted when its joints moved this frame too (a pose change in
+        // A deformed caster: its own BVH, in world space (kept if its mesh is the same).
+        let (blas, to_object, world) = if deform.is_posed() {
+            // A kept one is refitted when its pose changed this frame too (a pose change in
             // the frame of a structure change is not seen by `repose`).
-            let old = scene.skinned.remove(&entity).filter(|s| s.mesh == id);
+            let pose = (entity, deform);
+            let old = scene.posed.remove(&entity).filter(|s| s.mesh == id);
             let old = old.and_then(|mut s| {
-                (!poses.moved(skin) || s.refit(m, skin, poses, counters)).then_some(s)
+                (!poses.moved(entity, deform) || s.refit(m, pose, poses, counters)).then_some(s)
             });
-            let Some(s) = old.or_else(|| skinned_blas(m, id, skin, poses, counters)) else {
+            let Some(s) = old.or_else(|| posed_blas(m, id, pose, poses, counters)) else {
                 scene.waiting = true; // its bind poses or joints are not there yet
                 continue;
             };
             let blas = s.blas.clone();
-            skinned.insert(entity, s);
+            posed.insert(entity, s);
             (blas, Some(ObjectFromWorld::IDENTITY), Affine3A::IDENTITY)
         } else {
             let blas = scene
@@ -306,7 +308,7 @@ fn rebuild(
         let Some((b, to_object)) = blas.bounds.zip(to_object) else {
             continue; // no triangles, or a zero scale
         };
-        let k = if skin.is_some() {
+        let k = if deform.is_posed() {
             blases.push(blas.clone());
             blases.len() - 1
         } else {
@@ -326,7 +328,7 @@ fn rebuild(
         bounds.push(world_bounds(b, &world));
     }
     scene.meshes.retain(|id, _| used.contains_key(id));
-    scene.skinned = skinned;
+    scene.posed = posed;
     let tlas = Tlas::build(&bounds);
     let bvh = FlatBvh::build(&blases, &placed, &tlas).unwrap_or_else(|e| {
         error!("envis: no shadows: {e}");
@@ -356,15 +358,15 @@ fn refit(scene: &mut ShadowScene, geometry: &mut ShadowGeometry, casters: &Caste
     true
 }
 
-/// Every instance's record and world bounds from its transform now (a skinned one stays in
+/// Every instance's record and world bounds from its transform now (a deformed one stays in
 /// world space, with its BVH's bounds), and the top level refitted to them.
 fn place_instances(scene: &mut ShadowScene, casters: &Casters) -> bool {
     let mut bounds: Vec<Bounds> = Vec::with_capacity(scene.instances.len());
     for (i, &entity) in scene.instances.iter().enumerate() {
-        let Ok((_, _, transform, _, _, skin)) = casters.get(entity) else {
+        let Ok((_, _, transform, _, _, deform)) = casters.get(entity) else {
             return false;
         };
-        if skin.is_some() {
+        if Deform::new(deform).is_posed() {
             bounds.push(scene.object_bounds[i]);
             continue;
         }

@@ -1,27 +1,28 @@
-//! Skinned casters in the shadow geometry: each one's BVH over its pose, in world space, built
-//! once per entity and refitted to every new pose (`super::super::skinning` skins the vertices).
+//! Deformed casters in the shadow geometry (skinned, morphed or both): each one's BVH over its
+//! pose, in world space, built once per entity and refitted to every new pose
+//! (`super::super::pose` places the vertices as Bevy's vertex shader does).
 
 use super::*;
 
-/// A skinned caster's BVH over its posed vertices (world space), and what a refit needs.
-pub(super) struct SkinnedBlas {
+/// A deformed caster's BVH over its posed vertices (world space), and what a refit needs.
+pub(super) struct PosedBlas {
     pub(super) mesh: AssetId<Mesh>,
     pub(super) blas: Arc<FlatBlas>,
     triangles: Vec<[u32; 3]>,
     order: Vec<u32>,
 }
 
-impl SkinnedBlas {
-    /// Refit the BVH to `skin`'s pose now; `false` when the pose cannot be had (then build
+impl PosedBlas {
+    /// Refit the BVH to `entity`'s pose now; `false` when the pose cannot be had (then build
     /// anew).
     pub(super) fn refit(
         &mut self,
         mesh: &Mesh,
-        skin: &SkinnedMesh,
+        (entity, deform): (Entity, Deform),
         poses: &Poses,
         counters: &EnvisCounters,
     ) -> bool {
-        let Some(p) = poses.joints(skin).and_then(|j| skinned_positions(mesh, &j)) else {
+        let Some(p) = poses.positions(mesh, entity, deform) else {
             return false;
         };
         if !Arc::make_mut(&mut self.blas).refit(&p, &self.triangles, &self.order) {
@@ -32,7 +33,7 @@ impl SkinnedBlas {
     }
 }
 
-/// Skinned casters' joints moved: each moved one's BVH refitted to its new pose (the tree
+/// Deformed casters changed their pose: each such one's BVH refitted to its new pose (the tree
 /// kept), every instance placed anew, and the whole geometry uploaded again (the meshes' part
 /// changed). `false` when that cannot be done: build anew instead.
 pub(super) fn repose(
@@ -42,19 +43,23 @@ pub(super) fn repose(
     counters: &EnvisCounters,
 ) -> bool {
     for (i, &entity) in scene.instances.iter().enumerate() {
-        let Ok((_, mesh, _, _, _, Some(skin))) = casters.get(entity) else {
+        let Ok((_, mesh, _, _, _, deform)) = casters.get(entity) else {
             continue;
         };
-        let Some(s) = scene.skinned.get_mut(&entity) else {
+        let deform = Deform::new(deform);
+        if !deform.is_posed() {
+            continue;
+        }
+        let Some(s) = scene.posed.get_mut(&entity) else {
             return false;
         };
-        if !poses.moved(skin) {
+        if !poses.moved(entity, deform) {
             continue;
         }
         let Some(m) = meshes.get(mesh.id()) else {
             return false;
         };
-        if !s.refit(m, skin, poses, counters) {
+        if !s.refit(m, (entity, deform), poses, counters) {
             return false;
         }
         let Some(b) = s.blas.bounds else { return false };
@@ -72,24 +77,24 @@ pub(super) fn repose(
     true
 }
 
-/// A skinned caster's BVH over its pose now, in world space; `None` until its bind poses and
-/// joints are there (or when its mesh has no joint attributes: it then casts nothing).
-pub(super) fn skinned_blas(
+/// A deformed caster's BVH over its pose now, in world space; `None` until a skin's bind poses
+/// and joints are there (or when its mesh has no joint attributes: it then casts nothing).
+pub(super) fn posed_blas(
     mesh: &Mesh,
     id: AssetId<Mesh>,
-    skin: &SkinnedMesh,
+    (entity, deform): (Entity, Deform),
     poses: &Poses,
     counters: &EnvisCounters,
-) -> Option<SkinnedBlas> {
-    let p = skinned_positions(mesh, &poses.joints(skin)?)?;
+) -> Option<PosedBlas> {
+    let p = poses.positions(mesh, entity, deform)?;
     let (_, triangles) = mesh_triangles(mesh);
     let bvh = MeshBvh::build(&p, &triangles);
     let blas = bvh.flat_blas(&p, &triangles).unwrap_or_else(|e| {
-        error!("envis: a skinned mesh casts no shadow: {e}");
+        error!("envis: a deformed mesh casts no shadow: {e}");
         FlatBlas::default()
     });
     counters.bump(|c: &Counters| &c.shadow_bvh_builds);
-    Some(SkinnedBlas {
+    Some(PosedBlas {
         mesh: id,
         blas: Arc::new(blas),
         order: bvh.leaf_order().to_vec(),
