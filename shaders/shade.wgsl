@@ -196,7 +196,36 @@ fn shade(px: GPixel, pixel_index: u32) -> Shaded {
     return shade_counts(px, pixel_index, sp.counts);
 }
 
-// `shade` with the counts mode given (the debug overlay compares fractional and integer).
+// What the sample loops of one visible pixel share (render::estimator's `Pixel`).
+struct Pixel {
+    px: GPixel,
+    index: u32,
+    mat: Material,
+    n: vec3<f32>,
+    fr: Frame,
+    // The view direction in the shading frame.
+    ol: vec3<f32>,
+    // N_L and N_B for this pixel.
+    nl: u32,
+    nb: u32,
+    // COUNTS_*.
+    counts: u32,
+    // The paper's strategy weights regions by their corner cosines too.
+    use_cosine: bool,
+}
+
+// What the light samples leave for the BRDF samples' MIS weights: each face's density (whole
+// faces; with tiles a BRDF sample recomputes its tile's, as a table of 6 K^2 per pixel would not
+// fit in registers), the regions' total mass and the pool window's length.
+struct LightDensities {
+    face: array<f32, 6>,
+    total: f32,
+    window_len: u32,
+}
+
+// `shade` with the counts mode given (the debug overlay compares fractional and integer); twin
+// of render::estimator's shade_with: the light samples (from the pool, or from the global
+// distribution), then the BRDF samples, in the same order with the same random draws.
 fn shade_counts(px: GPixel, pixel_index: u32, counts: u32) -> Shaded {
     var res = Shaded(vec3(0.0), vec4(0u));
     let mat = Material(px.kd.xyz, px.ks.xyz, u32(px.kd.w), px.ks.w);
@@ -206,158 +235,186 @@ fn shade_counts(px: GPixel, pixel_index: u32, counts: u32) -> Shaded {
         return res;
     }
     let fr = frame_new(n);
-    let ol = to_local(fr, o);
-    var rng = rng_new(sp.seed, pixel_index);
-    var sum = vec3(0.0);
-    var nl = sp.nl;
-    var nb = sp.nb;
+    var budget = vec2(sp.nl, sp.nb);
     if (sp.material_budget != 0u && sp.strategy == STRATEGY_PAPER) {
-        let b = budget_for(mat, nl, nb);
-        nl = b.x;
-        nb = b.y;
+        budget = budget_for(mat, sp.nl, sp.nb);
     }
-    let nb_f = f32(nb);
-    let size = sp.n;
-    let m = sp.m;
-    // The light samples' per-region densities are recomputed where a BRDF sample needs one
-    // (a table of 6 K^2 per pixel would not fit in registers).
-    let use_cosine = sp.strategy == STRATEGY_PAPER;
-    var total = 0.0;
-    var window_len = 0u;
-    // With whole faces (K = 1) the light loop keeps each face's density, as the paper's shader
-    // did; with tiles a BRDF sample recomputes its tile's (region_density).
-    var face_density: array<f32, 6>;
-
-    // Section `global_samples` of render/estimator.rs.
+    let p = Pixel(px, pixel_index, mat, n, fr, to_local(fr, o), budget.x, budget.y, counts, sp.strategy == STRATEGY_PAPER);
+    var rng = rng_new(sp.seed, pixel_index);
+    var dens = LightDensities(array<f32, 6>(), 0.0, 0u);
     if (sp.strategy == STRATEGY_GLOBAL) {
-        res.stats.x = nl;
-        for (var j = 0u; j < nl; j++) {
-            let u1 = rng_next_f32(&rng);
-            let u2 = rng_next_f32(&rng);
-            let gs = global_sample(size, vec2(u1, u2));
-            if (gs.w <= 0.0) {
-                continue;
-            }
-            let cosv = dot(n, gs.xyz);
-            if (cosv <= 0.0) {
-                res.stats.z += 1u;
-                continue;
-            }
-            if (sample_blocked(px, pixel_index, gs.xyz)) {
-                light_blocked += 1u;
-                continue;
-            }
-            res.stats.y += 1u;
-            let il = to_local(fr, gs.xyz);
-            var n_b = 0.0;
-            if (nb > 0u) {
-                n_b = nb_f * brdf_pdf(mat, ol, il);
-            }
-            let hit = dir_to_texel(gs.xyz, size);
-            let radiance = env_radiance(gs.xyz, texels[(hit.face * size + hit.row) * size + hit.col].xyz);
-            sum += brdf_eval(mat, ol, il) * radiance * (cosv * mis_weight_over_density(sp.mis, f32(nl) * gs.w, n_b));
-        }
+        global_samples(p, &rng, &res);
     } else if (sp.strategy != STRATEGY_BRDF) {
-        // Section `light_pool_samples` of render/estimator.rs.
-        let w = pool_window(&rng, m);
-        let region_count_all = 6u * sp.tiles * sp.tiles;
-        res.stats.x = region_count_all * w.len;
-        window_len = w.len;
-        // With whole faces the six masses are kept (each is four corner loads); with tiles they
-        // are recomputed where needed (6 K^2 would not fit in registers).
-        var mass6: array<f32, 6>;
-        if (sp.tiles == 1u) {
-            for (var f = 0u; f < 6u; f++) {
-                mass6[f] = region_mass(n, f, use_cosine);
-                total += mass6[f];
-            }
-        } else {
-            total = total_mass(n, use_cosine);
+        dens = light_pool_samples(p, &rng, &res);
+    }
+    brdf_samples(p, &rng, dens, &res);
+    return res;
+}
+
+// A light sample in direction dir that passed the horizon and the shadow ray: its BRDF value and
+// the scale of f x radiance (weight x cos x MIS weight over density).
+struct LightHit {
+    used: bool,
+    f: vec3<f32>,
+    scale: f32,
+}
+
+// render::estimator's Pixel::light_sample: a light sample in direction dir of weight `weight`
+// and light density n_l, counted green or yellow (or blocked); the caller reads its radiance only
+// when it is used.
+fn light_sample(p: Pixel, dir: vec3<f32>, weight: f32, n_l: f32, res: ptr<function, Shaded>) -> LightHit {
+    var hit = LightHit(false, vec3(0.0), 0.0);
+    let cosv = dot(p.n, dir);
+    if (cosv <= 0.0) {
+        (*res).stats.z += 1u;
+        return hit;
+    }
+    if (sample_blocked(p.px, p.index, dir)) {
+        light_blocked += 1u;
+        return hit;
+    }
+    (*res).stats.y += 1u;
+    let il = to_local(p.fr, dir);
+    var n_b = 0.0;
+    if (p.nb > 0u) {
+        n_b = f32(p.nb) * brdf_pdf(p.mat, p.ol, il);
+    }
+    hit.used = true;
+    hit.f = brdf_eval(p.mat, p.ol, il);
+    hit.scale = weight * cosv * mis_weight_over_density(sp.mis, n_l, n_b);
+    return hit;
+}
+
+// render::estimator's pool_sample: pool slot `slot` of region r as a light sample of weight
+// `weight` from a region sampled with density `density` (N_t); an empty slot adds nothing.
+fn pool_sample(p: Pixel, r: u32, slot: u32, weight: f32, density: f32, res: ptr<function, Shaded>) {
+    let s = r * sp.m + slot;
+    let dp = pool[2u * s];
+    if (dp.w <= 0.0) {
+        return;
+    }
+    let hit = light_sample(p, dp.xyz, weight, density * dp.w, res);
+    if (hit.used) {
+        (*res).color += hit.f * env_radiance(dp.xyz, pool[2u * s + 1u].xyz) * hit.scale;
+    }
+}
+
+// The slot after `idx` in the pool window, wrapping (render::estimator's PoolWindow::slots).
+fn next_in_window(w: PoolWindow, idx: u32) -> u32 {
+    return select(idx + 1u, 0u, idx + 1u == w.len);
+}
+
+// render::estimator's light_pool_samples: each region (face, or tile) weighted by mu_t,
+// N_t = mu_t N_L, fractional or integer counts, taken from its part of the pool (from the pixel's
+// window, wrapping): per region, or per face with each sample drawing its tile
+// (face_tile_samples).
+fn light_pool_samples(p: Pixel, rng: ptr<function, Rng>, res: ptr<function, Shaded>) -> LightDensities {
+    let w = pool_window(rng, sp.m);
+    let regions = 6u * sp.tiles * sp.tiles;
+    (*res).stats.x = regions * w.len;
+    var dens = LightDensities(array<f32, 6>(), 0.0, w.len);
+    // With whole faces the six masses are kept (each is four corner loads); with tiles they are
+    // recomputed where needed (6 K^2 would not fit in registers).
+    var mass6: array<f32, 6>;
+    if (sp.tiles == 1u) {
+        for (var f = 0u; f < 6u; f++) {
+            mass6[f] = region_mass(p.n, f, p.use_cosine);
+            dens.total += mass6[f];
         }
-        // Per region (render::estimator's light_pool_samples), or per face with each sample
-        // drawing its tile (face_tile_samples).
-        let face_mode = face_tile_counts();
-        let k2 = sp.tiles * sp.tiles;
-        for (var f = 0u; f < select(region_count_all, 6u, face_mode); f++) {
-            var fm = 0.0;
-            var c: FaceCount;
-            if (face_mode) {
-                fm = face_mass(n, f, use_cosine);
-                var mu = 0.0;
-                if (total > 0.0) {
-                    mu = fm / total;
-                }
-                c = face_count(mu * f32(nl), w.len, counts);
-            } else {
-                var mu = 0.0;
-                if (total > 0.0) {
-                    if (sp.tiles == 1u) {
-                        mu = mass6[f] / total;
-                    } else {
-                        mu = region_mass(n, f, use_cosine) / total;
-                    }
-                }
-                c = face_count(mu * f32(nl), w.len, counts);
-            }
+    } else {
+        dens.total = total_mass(p.n, p.use_cosine);
+    }
+    if (face_tile_counts()) {
+        for (var f = 0u; f < 6u; f++) {
+            face_tile_samples(p, rng, w, f, dens.total, res);
+        }
+        return dens;
+    }
+    for (var r = 0u; r < regions; r++) {
+        var mu = 0.0;
+        if (dens.total > 0.0) {
             if (sp.tiles == 1u) {
-                face_density[f] = c.density;
+                mu = mass6[r] / dens.total;
+            } else {
+                mu = region_mass(p.n, r, p.use_cosine) / dens.total;
             }
-            var idx = w.start;
-            for (var k = 0u; k < c.taken; k++) {
-                var region = f;
-                var density = c.density;
-                if (face_mode) {
-                    let t = draw_tile(n, f, fm, rng_next_f32(&rng), use_cosine);
-                    if (t == k2) {
-                        break;
-                    }
-                    region = f * k2 + t;
-                    density = c.density * (region_mass(n, region, use_cosine) / fm);
-                }
-                let s = region * m + w.base + idx;
-                idx += 1u;
-                if (idx == w.len) {
-                    idx = 0u;
-                }
-                let dp = pool[2u * s];
-                if (dp.w <= 0.0) {
-                    continue;
-                }
-                let cosv = dot(n, dp.xyz);
-                if (cosv <= 0.0) {
-                    res.stats.z += 1u;
-                    continue;
-                }
-                if (sample_blocked(px, pixel_index, dp.xyz)) {
-                    light_blocked += 1u;
-                    continue;
-                }
-                res.stats.y += 1u;
-                let weight = select(1.0, c.last_weight, k + 1u == c.taken);
-                let il = to_local(fr, dp.xyz);
-                let n_l = density * dp.w;
-                var n_b = 0.0;
-                if (nb > 0u) {
-                    n_b = nb_f * brdf_pdf(mat, ol, il);
-                }
-                sum += brdf_eval(mat, ol, il) * env_radiance(dp.xyz, pool[2u * s + 1u].xyz) * (weight * cosv * mis_weight_over_density(sp.mis, n_l, n_b));
-            }
+        }
+        let c = face_count(mu * f32(p.nl), w.len, p.counts);
+        if (sp.tiles == 1u) {
+            dens.face[r] = c.density;
+        }
+        var idx = w.start;
+        for (var k = 0u; k < c.taken; k++) {
+            let weight = select(1.0, c.last_weight, k + 1u == c.taken);
+            pool_sample(p, r, w.base + idx, weight, c.density, res);
+            idx = next_in_window(w, idx);
         }
     }
+    return dens;
+}
 
-    // Section `brdf_samples` of render/estimator.rs (one sample at a time: the GPU's lanes are
-    // its pixels).
-    for (var j = 0u; j < nb; j++) {
-        res.stats.w += 1u;
-        let u1 = rng_next_f32(&rng);
-        let u2 = rng_next_f32(&rng);
-        let bs = brdf_sample(mat, ol, vec2(u1, u2));
+// render::estimator's face_tile_samples (TileCounts::Face) for face f: the face's count N_f,
+// each sample's tile drawn with one random number (draw_tile), the tile's next slot in the
+// window, its density N_f C_t I_t / (the face's mass).
+fn face_tile_samples(p: Pixel, rng: ptr<function, Rng>, w: PoolWindow, f: u32, total: f32, res: ptr<function, Shaded>) {
+    let k2 = sp.tiles * sp.tiles;
+    let fm = face_mass(p.n, f, p.use_cosine);
+    var mu = 0.0;
+    if (total > 0.0) {
+        mu = fm / total;
+    }
+    let c = face_count(mu * f32(p.nl), w.len, p.counts);
+    var idx = w.start;
+    for (var k = 0u; k < c.taken; k++) {
+        let t = draw_tile(p.n, f, fm, rng_next_f32(rng), p.use_cosine);
+        if (t == k2) {
+            return;
+        }
+        let region = f * k2 + t;
+        let density = c.density * (region_mass(p.n, region, p.use_cosine) / fm);
+        let weight = select(1.0, c.last_weight, k + 1u == c.taken);
+        pool_sample(p, region, w.base + idx, weight, density, res);
+        idx = next_in_window(w, idx);
+    }
+}
+
+// render::estimator's global_samples: the pbrt-style baseline's N_L draws from one lat-long
+// distribution (global_layout.wgsl).
+fn global_samples(p: Pixel, rng: ptr<function, Rng>, res: ptr<function, Shaded>) {
+    (*res).stats.x = p.nl;
+    for (var j = 0u; j < p.nl; j++) {
+        let u1 = rng_next_f32(rng);
+        let u2 = rng_next_f32(rng);
+        let gs = global_sample(sp.n, vec2(u1, u2));
+        if (gs.w <= 0.0) {
+            continue;
+        }
+        // Weight 1: 1 x cos is cos exactly, so this is the plain one-sample estimate.
+        let hit = light_sample(p, gs.xyz, 1.0, f32(p.nl) * gs.w, res);
+        if (hit.used) {
+            let t = dir_to_texel(gs.xyz, sp.n);
+            let coarse = texels[(t.face * sp.n + t.row) * sp.n + t.col].xyz;
+            (*res).color += hit.f * env_radiance(gs.xyz, coarse) * hit.scale;
+        }
+    }
+}
+
+// render::estimator's brdf_samples, one sample at a time (the GPU's lanes are its pixels): N_B
+// draws from the BRDF, each weighted by MIS against the light density in its direction.
+fn brdf_samples(p: Pixel, rng: ptr<function, Rng>, dens: LightDensities, res: ptr<function, Shaded>) {
+    let size = sp.n;
+    let nb_f = f32(p.nb);
+    for (var j = 0u; j < p.nb; j++) {
+        (*res).stats.w += 1u;
+        let u1 = rng_next_f32(rng);
+        let u2 = rng_next_f32(rng);
+        let bs = brdf_sample(p.mat, p.ol, vec2(u1, u2));
         if (bs.w <= 0.0) {
             continue;
         }
         let il = bs.xyz;
-        let d = to_world(fr, il);
-        if (sample_blocked(px, pixel_index, d)) {
+        let d = to_world(p.fr, il);
+        if (sample_blocked(p.px, p.index, d)) {
             continue;
         }
         let hit = dir_to_texel(d, size);
@@ -365,17 +422,15 @@ fn shade_counts(px: GPixel, pixel_index: u32, counts: u32) -> Shaded {
         let q = 1.0 + hit.a * hit.a + hit.b * hit.b;
         var n_l = 0.0;
         if (sp.strategy == STRATEGY_PAPER) {
-            var density = face_density[hit.face];
+            var density = dens.face[hit.face];
             if (sp.tiles > 1u) {
                 let r = tile_region(hit.face, hit.col, hit.row, size, sp.tiles);
-                density = region_density(n, r, total, nl, window_len, counts, use_cosine);
+                density = region_density(p.n, r, dens.total, p.nl, dens.window_len, p.counts, p.use_cosine);
             }
             n_l = density * t.w * (q * sqrt(q));
         } else if (sp.strategy == STRATEGY_GLOBAL) {
-            n_l = f32(nl) * global_pdf(size, d);
+            n_l = f32(p.nl) * global_pdf(size, d);
         }
-        sum += brdf_eval(mat, ol, il) * env_radiance(d, t.xyz) * (il.z * mis_weight_over_density(sp.mis, nb_f * bs.w, n_l));
+        (*res).color += brdf_eval(p.mat, p.ol, il) * env_radiance(d, t.xyz) * (il.z * mis_weight_over_density(sp.mis, nb_f * bs.w, n_l));
     }
-    res.color = sum;
-    return res;
 }

@@ -126,6 +126,9 @@ mod twins;
 #[path = "gpu/shading.rs"]
 mod shading;
 
+#[path = "gpu/functions.rs"]
+mod functions;
+
 #[path = "gpu/cli.rs"]
 mod cli;
 
@@ -139,6 +142,10 @@ mod bevy_app;
 #[cfg(feature = "app")]
 #[path = "gpu/bevy_plugin.rs"]
 mod bevy_plugin;
+
+#[cfg(feature = "app")]
+#[path = "gpu/bevy_pose.rs"]
+mod bevy_pose;
 
 #[cfg(feature = "app")]
 #[path = "gpu/bevy_post.rs"]

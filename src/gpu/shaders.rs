@@ -16,6 +16,7 @@ pub const IMAGE_SOURCE: &str = include_str!("../../shaders/image_source.wgsl");
 pub const RESAMPLE: &str = include_str!("../../shaders/resample.wgsl");
 pub const VISIBILITY: &str = include_str!("../../shaders/visibility.wgsl");
 pub const TRACE_RAYS: &str = include_str!("../../shaders/trace_rays.wgsl");
+pub const SHADE_FUNCTIONS_TEST: &str = include_str!("../../shaders/shade_functions_test.wgsl");
 
 /// Distribution build + pool module.
 pub fn distribution_source() -> String {
@@ -44,6 +45,13 @@ pub fn shade_source() -> String {
         SHADE_COMPUTE,
     ]
     .concat()
+}
+
+/// The shading module with its test-only entry points (`test_brdf`, `test_mis`,
+/// `test_face_count`, `test_draw_tile`, `test_pool_window`): one function at a time against its
+/// CPU twin (`tests/gpu/functions.rs`).
+pub fn shade_functions_test_source() -> String {
+    shade_source() + SHADE_FUNCTIONS_TEST
 }
 
 /// Compile a module, turning a WGSL error into a readable panic (a shader that does not compile

@@ -18,7 +18,7 @@ mod light_samples;
 mod pool_window;
 use brdf_samples::brdf_samples;
 use light_samples::{global_samples, light_pool_samples};
-pub(crate) use pool_window::{PoolWindow, pool_window};
+pub use pool_window::{PoolWindow, pool_window};
 
 /// Radiance of the environment at full resolution, by direction (see [`FrameData::fine`]).
 pub type FineRadiance<'a> = &'a (dyn Fn(Vec3) -> Vec3 + Sync);
@@ -323,8 +323,8 @@ impl<B> Pixel<'_, B> {
 
 /// [`shade_pixel`] for a visible pixel (unit `n`, `o`, `<n, o> > 0`) with BRDF `bsdf` (the
 /// pixel's `material`, or a specialised view of it). The light samples (from the pool, or from
-/// the global distribution), then the BRDF samples, combined by MIS: the sections of
-/// `shade_counts` in `shaders/shade.wgsl`, in the same order, with the same random draws.
+/// the global distribution), then the BRDF samples, combined by MIS: `shade_counts` in
+/// `shaders/shade.wgsl` calls the same functions in the same order, with the same random draws.
 #[inline(always)]
 fn shade_with<B: LocalBsdf>(
     fd: &FrameData,

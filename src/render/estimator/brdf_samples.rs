@@ -1,5 +1,5 @@
-//! The pixel's N_B BRDF samples, drawn and shaded on lanes: section `brdf_samples` of
-//! `shade_counts` in `shaders/shade.wgsl`.
+//! The pixel's N_B BRDF samples, drawn and shaded on lanes: the twin of `brdf_samples` in
+//! `shaders/shade.wgsl` (which draws one sample at a time: the GPU's lanes are its pixels).
 
 use super::*;
 

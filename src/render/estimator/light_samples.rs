@@ -1,6 +1,7 @@
 //! The pixel's light samples: the paper's, from the frame's pool (per region, or per face with
 //! each sample drawing its tile), or the pbrt-style baseline's from one lat-long distribution.
-//! Sections `light_pool_samples` / `global_samples` of `shade_counts` in `shaders/shade.wgsl`.
+//! Their WGSL twins: `light_pool_samples`, `face_tile_samples`, `pool_sample` and `global_samples`
+//! in `shaders/shade.wgsl`.
 
 use super::*;
 

@@ -6,7 +6,7 @@ use super::*;
 /// The part of each face's pool one pixel reads: slots `base .. base + len`, in order from
 /// `base + start`, wrapping.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) struct PoolWindow {
+pub struct PoolWindow {
     pub base: usize,
     pub len: usize,
     pub start: usize,
@@ -43,7 +43,7 @@ impl PoolWindow {
 /// seeds on the furnace, costs 8% relMSE, as the `offset` layout's random start does
 /// (`docs/benchmarks.md`, "Pool layouts").
 #[inline(always)]
-pub(crate) fn pool_window(rng: &mut Rng, s: &Settings, pool: &LightPool) -> PoolWindow {
+pub fn pool_window(rng: &mut Rng, s: &Settings, pool: &LightPool) -> PoolWindow {
     let (m, block) = (pool.per_region, pool.block);
     let whole = PoolWindow {
         base: 0,
