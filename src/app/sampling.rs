@@ -32,6 +32,11 @@ use std::collections::{HashMap, HashSet};
 
 pub use super::scene_revision::{SceneRevision, track_scene_changes};
 
+mod accumulation;
+mod slots;
+use accumulation::{accumulation_key, frame_seed, next_frame};
+use slots::{check_source, slot_for};
+
 /// How often each environment image changed in the main world (its `AssetEvent`s), extracted to
 /// the render world: a new version means "rebuild from this image".
 #[derive(Resource, Clone, Default, ExtractResource)]
@@ -206,15 +211,7 @@ pub fn prepare_samplers(
     timings: Res<EnvisTimings>,
 ) {
     let samplers = &mut *samplers;
-    for (t, f) in [
-        (&samplers.resample_timer, resample_ms as fn(&mut _, f64)),
-        (&samplers.timer, build_ms),
-        (&samplers.pool_timer, pool_ms),
-    ] {
-        if let Some(ms) = t.as_ref().and_then(|t| t.poll()) {
-            timings.set(|p| f(p, ms));
-        }
-    }
+    poll_build_timers(samplers, &timings);
     let mut used = HashSet::new();
     let mut live_views = HashSet::new();
     let mut frames = accumulated.0.lock().ok();
@@ -225,7 +222,6 @@ pub fn prepare_samplers(
         let Some(gpu) = images.get(env.image.id()) else {
             continue; // not loaded yet: Bevy's lighting alone until it is
         };
-        let size = gpu.texture_descriptor.size;
         let layout = match check_source(gpu) {
             Ok(l) => l,
             Err(e) => {
@@ -245,25 +241,10 @@ pub fn prepare_samplers(
         let scene = scene.as_ref().map_or(0, |s| s.0);
         let layers = super::shadows::layers_of(layers);
         let acc_key = accumulation_key(sampling, env, (view, layers), (version, scene));
-        let frame = {
-            let e = samplers.accumulation.entry(entity).or_insert((acc_key, 0));
-            if !sampling.accumulate || e.0 != acc_key || env.dynamic {
-                *e = (acc_key, 0);
-            } else {
-                e.1 += 1;
-            }
-            e.1
-        };
+        let (frame, tick) = next_frame(samplers, entity, (sampling, env), acc_key, jittered);
         if let Some(f) = frames.as_mut() {
             f.insert(main.id(), frame);
         }
-        // A jittered view is averaged over frames by its temporal antialiasing (TAA): each of
-        // its frames draws new samples too, or TAA would average the same noise.
-        let tick = (jittered && !sampling.accumulate).then(|| {
-            let t = samplers.ticks.entry(entity).or_insert(0);
-            *t = t.wrapping_add(1);
-            *t
-        });
         let seed = frame_seed(sampling.seed, frame, tick);
         let key = SamplerKey {
             image: env.image.id(),
@@ -280,28 +261,13 @@ pub fn prepare_samplers(
         let Some(slot) = slot_for(samplers, key, gpu, layout, &device, &queue, &counters) else {
             continue;
         };
-        let source_id = gpu.texture.id();
-        if slot.built != Some((version, source_id)) || env.dynamic {
-            if slot.built.is_some_and(|b| b.1 != source_id) || slot.width != size.width {
-                slot.source = source_view(&gpu.texture);
-                slot.width = size.width;
-                slot.layout = layout;
-            }
-            slot.built = Some((version, source_id));
-            slot.dirty = true;
-        }
-        let pool = pool_seed(seed);
-        if slot.seed != Some(pool) {
-            slot.sampler.set_seed(&queue, pool);
-            slot.seed = Some(pool);
-            slot.dirty = true;
-        }
-        if settings.strategy == Strategy::Global && !slot.sampler.has_global() {
-            match slot.sampler.enable_global(device.wgpu_device(), &queue) {
-                Ok(()) => slot.dirty = true,
-                Err(e) => error!("envis: {e}"),
-            }
-        }
+        let source = (gpu, layout, (version, env.dynamic));
+        slot.refresh(
+            source,
+            pool_seed(seed),
+            settings.strategy,
+            (&device, &queue),
+        );
         used.insert(key);
         live_views.insert(entity);
         commands
@@ -317,6 +283,19 @@ pub fn prepare_samplers(
     samplers.ticks.retain(|e, _| live_views.contains(e));
 }
 
+/// Hand the build passes' GPU times that came back to [`EnvisTimings`].
+fn poll_build_timers(samplers: &EnvSamplers, timings: &EnvisTimings) {
+    for (t, f) in [
+        (&samplers.resample_timer, resample_ms as fn(&mut _, f64)),
+        (&samplers.timer, build_ms),
+        (&samplers.pool_timer, pool_ms),
+    ] {
+        if let Some(ms) = t.as_ref().and_then(|t| t.poll()) {
+            timings.set(|p| f(p, ms));
+        }
+    }
+}
+
 /// The timer, when it can take a measurement and none was taken yet this frame.
 fn ready(t: &Option<AsyncTimer>, taken: bool) -> Option<&AsyncTimer> {
     t.as_ref().filter(|t| t.ready() && !taken)
@@ -330,114 +309,6 @@ fn build_ms(p: &mut super::PassTimes, ms: f64) {
 }
 fn pool_ms(p: &mut super::PassTimes, ms: f64) {
     p.pool_gpu_ms = Some(ms);
-}
-
-/// The layout of an environment texture, or why it cannot be one.
-fn check_source(gpu: &GpuImage) -> Result<SourceLayout, String> {
-    let d = &gpu.texture_descriptor;
-    if !matches!(
-        d.format.sample_type(None, None),
-        Some(wgpu::TextureSampleType::Float { .. })
-    ) {
-        return Err(format!("its format {:?} is not a float format", d.format));
-    }
-    if !d.usage.contains(wgpu::TextureUsages::TEXTURE_BINDING) {
-        return Err("its texture cannot be bound (no TEXTURE_BINDING usage)".into());
-    }
-    SourceLayout::detect(d.size.width, d.size.height, d.size.depth_or_array_layers)
-}
-
-/// The seed of a view's frame: the camera's own for a still, unjittered view; one per frame
-/// averaged while accumulating; one per frame drawn (`tick`) for a jittered view that does not
-/// accumulate.
-fn frame_seed(seed: u32, frame: u32, tick: Option<u32>) -> u32 {
-    use crate::sampling::rng::hash_combine;
-    match tick {
-        _ if frame > 0 => hash_combine(&[seed, frame]),
-        Some(t) => hash_combine(&[seed, t, 0x7aa]),
-        None => seed,
-    }
-}
-
-/// A hash of everything a view's image depends on besides the frame's seed (its layers decide
-/// which meshes shadow it).
-fn accumulation_key(
-    s: &EnvironmentSampling,
-    env: &EnvisEnvironment,
-    (view, layers): (&ExtractedView, crate::visibility::Layers),
-    version: (u64, u64),
-) -> u64 {
-    use std::hash::{Hash, Hasher};
-    let mut h = std::collections::hash_map::DefaultHasher::new();
-    format!("{s:?}").hash(&mut h);
-    let floats = [
-        env.intensity,
-        env.rotation.x,
-        env.rotation.y,
-        env.rotation.z,
-        env.rotation.w,
-    ];
-    for x in floats
-        .iter()
-        .chain(view.world_from_view.to_matrix().to_cols_array().iter())
-        .chain(view.clip_from_view.to_cols_array().iter())
-    {
-        x.to_bits().hash(&mut h);
-    }
-    (
-        env.image.id(),
-        env.show_background,
-        view.viewport,
-        version,
-        layers.0,
-    )
-        .hash(&mut h);
-    h.finish()
-}
-
-/// The slot for `key`, allocated on first use; `None` (reported once) when the device refuses.
-#[allow(clippy::too_many_arguments)]
-fn slot_for<'a>(
-    samplers: &'a mut EnvSamplers,
-    key: SamplerKey,
-    gpu: &GpuImage,
-    layout: SourceLayout,
-    device: &RenderDevice,
-    queue: &RenderQueue,
-    counters: &EnvisCounters,
-) -> Option<&'a mut SamplerSlot> {
-    use std::collections::hash_map::Entry;
-    let vacant = match samplers.slots.entry(key) {
-        Entry::Occupied(e) => return Some(e.into_mut()),
-        Entry::Vacant(v) => v,
-    };
-    let grid = crate::sampling::TileGrid::new(key.face_size, key.tiles);
-    let built = EnvSampler::with_device(device.wgpu_device(), queue, grid, key.pool_slots, false)
-        .and_then(|mut s| {
-            s.set_blocks(key.pool_blocks)?;
-            Ok(s)
-        });
-    match built {
-        Ok(sampler) => {
-            counters.bump(|c: &Counters| &c.allocations);
-            Some(vacant.insert(SamplerSlot {
-                sampler,
-                source: source_view(&gpu.texture),
-                layout,
-                width: gpu.texture_descriptor.size.width,
-                built: None,
-                seed: None,
-                dirty: true,
-                generation: 0,
-            }))
-        }
-        Err(e) => {
-            if samplers.refused.insert(key.image) {
-                error!("envis: {e}");
-            }
-            None
-        }
-    }
 }
 
 /// Record every pending build (resample, distribution, pool) into this frame's command stream,
