@@ -19,22 +19,35 @@ struct Bound<'a> {
     regions: Option<&'a [[f32; 4]]>,
 }
 
+/// The device and the shading module with its test entry points, compiled once for all of them.
+struct Functions<'a> {
+    ctx: &'a GpuContext,
+    module: wgpu::ShaderModule,
+}
+
+impl<'a> Functions<'a> {
+    fn new(ctx: &'a GpuContext) -> Self {
+        let source = envis::gpu::shaders::shade_functions_test_source();
+        let module = envis::gpu::shaders::module(&ctx.device, "shade functions test", &source);
+        Functions { ctx, module }
+    }
+}
+
 /// Run the test entry `entry` over `cases` invocations with `input`; `out_per_case` vec4s back
 /// per case.
 fn run_entry(
-    ctx: &GpuContext,
+    functions: &Functions,
     entry: &str,
     input: &[[f32; 4]],
     (cases, out_per_case): (usize, usize),
     bound: Bound,
 ) -> Vec<[f32; 4]> {
+    let ctx = functions.ctx;
     let device = &ctx.device;
-    let source = envis::gpu::shaders::shade_functions_test_source();
-    let module = envis::gpu::shaders::module(device, "shade functions test", &source);
     let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
         label: Some(entry),
         layout: None,
-        module: &module,
+        module: &functions.module,
         entry_point: Some(entry),
         compilation_options: Default::default(),
         cache: None,
@@ -117,7 +130,7 @@ fn upper(u: f32, v: f32, zmin: f32) -> Vec3 {
 /// and directions below the surface among them): the same sample taken or refused, the same
 /// direction, value and density. A GPU that took the lobe by the wrong `u` re-stretch, or an
 /// `eval` without the diffuse part, fails here at once.
-fn brdf_functions_match(ctx: &GpuContext) {
+fn brdf_functions_match(functions: &Functions) {
     let materials = [
         Material {
             kd: Vec3::splat(0.8),
@@ -175,7 +188,13 @@ fn brdf_functions_match(ctx: &GpuContext) {
             .map(|v| v.to_array())
         })
         .collect();
-    let out = run_entry(ctx, "test_brdf", &input, (cases.len(), 2), Bound::default());
+    let out = run_entry(
+        functions,
+        "test_brdf",
+        &input,
+        (cases.len(), 2),
+        Bound::default(),
+    );
     for (i, (m, ol, il, u)) in cases.iter().enumerate() {
         let [gs, ge] = [Vec4::from(out[2 * i]), Vec4::from(out[2 * i + 1])];
         let what = format!("case {i}: {m:?} ol {ol} il {il} u {u}");
@@ -209,7 +228,7 @@ fn brdf_functions_match(ctx: &GpuContext) {
 
 /// `mis_weight_over_density` against `mis::weight_over_density`: both heuristics, equal and far
 /// apart densities, one side 0.
-fn mis_matches(ctx: &GpuContext) {
+fn mis_matches(functions: &Functions) {
     use envis::sampling::mis::{Heuristic, weight_over_density};
     let pairs = [
         (1.0, 0.0),
@@ -226,7 +245,13 @@ fn mis_matches(ctx: &GpuContext) {
     let input: Vec<[f32; 4]> = (cases.iter())
         .map(|&(h, a, b)| [f32::from_bits(h.gpu_code()), a, b, 0.0])
         .collect();
-    let out = run_entry(ctx, "test_mis", &input, (cases.len(), 1), Bound::default());
+    let out = run_entry(
+        functions,
+        "test_mis",
+        &input,
+        (cases.len(), 1),
+        Bound::default(),
+    );
     for (&(h, a, b), o) in cases.iter().zip(&out) {
         let cpu = weight_over_density(h, a, b);
         assert!(
@@ -239,7 +264,7 @@ fn mis_matches(ctx: &GpuContext) {
 
 /// `face_count` against `counts::face_count` exactly: both count modes, pool sizes 1, 8 and 32,
 /// counts at and between integers, at and past the pool's size, negative and non-finite.
-fn face_count_matches(ctx: &GpuContext) {
+fn face_count_matches(functions: &Functions) {
     use envis::sampling::{Counts, face_count};
     let n_f = [
         0.0,
@@ -265,7 +290,7 @@ fn face_count_matches(ctx: &GpuContext) {
         .map(|&(n, m, c)| [n, f32::from_bits(m), f32::from_bits(c.gpu_code()), 0.0])
         .collect();
     let out = run_entry(
-        ctx,
+        functions,
         "test_face_count",
         &input,
         (cases.len(), 1),
@@ -284,7 +309,7 @@ fn face_count_matches(ctx: &GpuContext) {
 
 /// `draw_tile` (with `face_mass`) against `tiles::draw_tile` over `TileWeights::masses`, K = 2,
 /// with and without the corner cosines, on energies with zeros (a face with none left: no tile).
-fn draw_tile_matches(ctx: &GpuContext) {
+fn draw_tile_matches(functions: &Functions) {
     let grid = TileGrid::new(8, 2);
     let energy: Vec<f64> = (0..grid.regions())
         .map(|r| {
@@ -331,7 +356,7 @@ fn draw_tile_matches(ctx: &GpuContext) {
         sp: Some(sp),
         regions: Some(&regions),
     };
-    let out = run_entry(ctx, "test_draw_tile", &input, (cases.len(), 1), bound);
+    let out = run_entry(functions, "test_draw_tile", &input, (cases.len(), 1), bound);
     let mut mass = vec![0.0f32; grid.regions()];
     for (&(n, f, u, use_cosine), o) in cases.iter().zip(&out) {
         weights.masses(n, use_cosine, &mut mass);
@@ -346,7 +371,7 @@ fn draw_tile_matches(ctx: &GpuContext) {
 
 /// `pool_window` against the estimator's `pool_window` for every layout (blocks: 4 of 8 slots),
 /// and the pixel's random stream after it: the same window from the same draws.
-fn pool_window_matches(ctx: &GpuContext) {
+fn pool_window_matches(functions: &Functions) {
     use envis::render::estimator::pool_window;
     for layout in [PoolLayout::Shared, PoolLayout::Offset, PoolLayout::Blocks] {
         let s = Settings {
@@ -366,7 +391,13 @@ fn pool_window_matches(ctx: &GpuContext) {
             sp: Some(sp),
             ..Bound::default()
         };
-        let out = run_entry(ctx, "test_pool_window", &input, (cases.len(), 1), bound);
+        let out = run_entry(
+            functions,
+            "test_pool_window",
+            &input,
+            (cases.len(), 1),
+            bound,
+        );
         for (c, o) in cases.iter().zip(&out) {
             let mut rng = envis::sampling::rng::Rng::new(c[0], c[1]);
             let w = pool_window(&mut rng, &s, &pool);
@@ -386,9 +417,10 @@ fn pool_window_matches(ctx: &GpuContext) {
 #[test]
 fn gpu_shading_functions_match_cpu_twins() {
     let Some(ctx) = gpu() else { return };
-    brdf_functions_match(ctx);
-    mis_matches(ctx);
-    face_count_matches(ctx);
-    draw_tile_matches(ctx);
-    pool_window_matches(ctx);
+    let functions = Functions::new(ctx);
+    brdf_functions_match(&functions);
+    mis_matches(&functions);
+    face_count_matches(&functions);
+    draw_tile_matches(&functions);
+    pool_window_matches(&functions);
 }
