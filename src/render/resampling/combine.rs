@@ -1,26 +1,30 @@
 //! Resampling several pixels' reservoirs into one (the temporal and the spatial pass), with the
 //! MIS weights that keep the result unbiased.
 //!
-//! Domains `k` (the canonical pixel's own reservoir, a previous frame's, neighbours') hold
-//! samples `X_k` with weights `W_k` and confidences `M_k`. One is selected with probability
-//! proportional to `w_k = M_k p̂(X_k) W_k`, `p̂` the target at the pixel being shaded,
-//! re-evaluated under this frame's map and geometry. The selected `Y` from domain `s` gets
+//! Domains (the canonical pixel's own reservoir `c`, then `k` others: a previous frame's, or
+//! neighbours') hold samples `X_j` with weights `W_j` and confidences `M_j`. Each is streamed
+//! into the result with the resampling weight `w_j = m_j(X_j) p_c(X_j) W_j`, where `p_c = p̂ V`
+//! is the canonical pixel's target now (this frame's map and geometry) with its visibility, and
+//! the selected `Y` gets `W = Σ w_j / p_c(Y)`: generalised resampled importance sampling (Lin et
+//! al. 2022), unbiased whenever the MIS weights `m_j(x)` sum to 1 over the domains that can
+//! produce `x`.
 //!
-//! `W = (Σ w_k) m_s(Y) / p̂(Y)`, `m_s(Y) = p̂_s(Y) V_s(Y) / Σ_k M_k p̂_k(Y) V_k(Y)`,
+//! The weights are **pairwise** (Bitterli 2022, ch. 9): the canonical domain is paired with each
+//! other domain `i`, the pair holding `(M_i + M_c / k) / C` of the total confidence `C`, split
+//! in proportion to `M_i p_i(x)` and `(M_c / k) p_c(x)`, where `p_i` is domain `i`'s own target
+//! with its own visibility (its pixel, **its frame**: the previous frame's map, G-buffer and
+//! shadow geometry are kept for this). The pairs' shares sum to 1 at every `x`. A domain's
+//! support is exactly `p_i > 0`: every reservoir is culled (`W = 0`) where its sample is blocked
+//! from its own pixel, and the canonical domain covers the whole shadowed integrand. Compared
+//! with the generalised balance heuristic evaluated for the selected sample only (the first
+//! version), every sample is weighted by its own MIS weight, so a neighbour's sample whose own
+//! target was small, but whose target here is large, no longer inflates the others' weights.
 //!
-//! `p̂_k` and `V_k` being domain `k`'s own target and visibility (its pixel, its frame). Then
-//! `E[f(Y) W] = Σ_s ∫ M_s m_s f = ∫ f` wherever some domain can produce `Y`, and the
-//! canonical domain covers the whole integrand: unbiased (Bitterli et al. 2020, sec. 4.3, with
-//! the generalised balance heuristic evaluated for the selected sample only). Visibility in the
-//! weights is what a domain's support really is: every reservoir is culled (`W = 0`) where its
-//! sample is blocked from its own pixel, so a neighbour cannot offer a direction it does not see.
-//! The target at the canonical pixel includes its visibility: a reused sample it does not see
-//! gets no weight (one ray per reused sample), so the selected `Y` is always seen. Cost: that,
-//! plus one ray per other domain whose target is positive at `Y`: at most `2 (k - 1)` for `k`
-//! domains.
+//! Shadow rays: `V_c(X_i)` for each other domain's sample and `V_i(X_c)` for the canonical
+//! sample at each other domain (each only where the target is positive): at most `2 k`.
 //!
-//! The biased option replaces `m_s` by `1 / Σ M_k`: no rays, darker where domains' visibility
-//! differs (docs/temporal.md measures it).
+//! The biased option selects by `M_j p̂(X_j) W_j` and weights by `1 / Σ M_j`: no rays, darker
+//! where domains' visibility differs (docs/temporal.md measures it).
 
 use super::{Mutation, Reservoir, target_rgb};
 use crate::envmap::{CubeMap, luminance};
@@ -89,11 +93,6 @@ impl<'a> Domain<'a> {
     }
 }
 
-/// Whether the canonical pixel (`domains[0]`) sees reused sample `d` (a shadow ray).
-fn canonical_sees(domains: &[Domain], d: &Domain, rays: &mut u32) -> bool {
-    domains[0].at.visible(d.res.dir, rays)
-}
-
 /// Combine `domains` (the canonical pixel's own first) into the canonical pixel's reservoir.
 /// Rays cast go to `rays`.
 pub fn combine(
@@ -103,23 +102,133 @@ pub fn combine(
     rng: &mut Rng,
     rays: &mut u32,
 ) -> Reservoir {
+    if unbiased {
+        pairwise(domains, mutation, rng, rays)
+    } else {
+        biased(domains, mutation, rng)
+    }
+}
+
+/// `p̂_c(X_k) V_c(X_k)`: domain `k`'s sample's target at the canonical pixel now, with the
+/// canonical pixel's visibility (a shadow ray for a reused sample with a positive target).
+fn canonical_target(
+    domains: &[Domain],
+    k: usize,
+    mutation: Option<Mutation>,
+    rays: &mut u32,
+) -> f32 {
+    let d = &domains[k];
+    if k == 0 {
+        // Live only where its shadow ray found it unblocked.
+        return if d.res.is_live() { d.res.target } else { 0.0 };
+    }
+    let t = match mutation {
+        // The reused sample keeps the target it had where it was made.
+        Some(Mutation::StaleTarget) => d.res.target,
+        _ => luminance(d.here),
+    };
+    if !(t > 0.0 && d.res.is_live()) || !domains[0].at.visible(d.res.dir, rays) {
+        return 0.0;
+    }
+    t
+}
+
+/// Pairwise MIS weights of the canonical domain against neighbour `i`: the pair's share of the
+/// total confidence `C`, split between the neighbour (its `M_i p_i(x)`) and the canonical
+/// domain (`M_c / k` of its confidence, times `p_c(x)`). `p_i`, `p_c` are each domain's own
+/// target with its own visibility at `x`; the pair's two weights sum to its share.
+fn pair_share(m_i: f32, p_i: f32, m_c_share: f32, p_c: f32, c_total: f32) -> (f32, f32) {
+    let share = (m_i + m_c_share) / c_total;
+    let (a, b) = (m_i * p_i, m_c_share * p_c);
+    if a + b <= 0.0 {
+        return (0.0, 0.0);
+    }
+    (share * a / (a + b), share * b / (a + b))
+}
+
+/// Unbiased: generalised resampled importance sampling with pairwise MIS (Bitterli 2022, Lin et
+/// al. 2022), every domain's sample weighted by its own MIS weight.
+fn pairwise(
+    domains: &[Domain],
+    mutation: Option<Mutation>,
+    rng: &mut Rng,
+    rays: &mut u32,
+) -> Reservoir {
+    let c_total: f32 = domains.iter().map(|d| d.res.m).sum();
+    let canonical = &domains[0];
+    let k = (domains.len() - 1).max(1) as f32;
+    let m_c_share = canonical.res.m / k;
+    let dropped = mutation == Some(Mutation::DroppedMisTerm);
+    let (mut w_sum, mut selected) = (0.0f32, None);
+    for (j, d) in domains.iter().enumerate() {
+        let p_here = canonical_target(domains, j, mutation, rays);
+        if !(p_here > 0.0 && d.res.ucw > 0.0) {
+            continue;
+        }
+        let m = if domains.len() == 1 {
+            1.0
+        } else if j == 0 {
+            // The canonical sample against every neighbour: each neighbour's own target and
+            // visibility at it (one ray each where its target is positive).
+            domains[1..]
+                .iter()
+                .map(|nb| {
+                    let p_i = if dropped {
+                        0.0
+                    } else {
+                        nb.at.target_visible(d.res.dir, rays)
+                    };
+                    pair_share(nb.res.m, p_i, m_c_share, p_here, c_total).1
+                })
+                .sum::<f32>()
+        } else {
+            // Its own target (it is culled where blocked from its pixel) against the canonical.
+            let p_c = if dropped { 0.0 } else { p_here };
+            pair_share(d.res.m, d.res.target, m_c_share, p_c, c_total).0
+        };
+        let w = m * p_here * d.res.ucw;
+        if !(w > 0.0 && w.is_finite()) {
+            continue;
+        }
+        w_sum += w;
+        if rng.next_f32() * w_sum < w {
+            selected = Some(j);
+        }
+    }
+    let Some(s) = selected else {
+        return Reservoir {
+            m: c_total,
+            ucw: 0.0,
+            ..canonical.res
+        };
+    };
+    let chosen = &domains[s];
+    let rgb = chosen.here;
+    let target = luminance(rgb);
+    let ucw = w_sum / target;
+    Reservoir {
+        dir: chosen.res.dir,
+        ucw: if ucw.is_finite() { ucw } else { 0.0 },
+        m: c_total,
+        target,
+        rgb,
+        // Every selectable sample was seen from here.
+        visible: true,
+    }
+}
+
+/// Biased: selection by `M_k p̂(X_k) W_k` and weights `1 / Σ M_k`, no rays; the final sample's
+/// visibility is tested by the caller where it came from another pixel.
+fn biased(domains: &[Domain], mutation: Option<Mutation>, rng: &mut Rng) -> Reservoir {
     let m_total: f32 = domains.iter().map(|d| d.res.m).sum();
-    let mut w_sum = 0.0f32;
-    let mut selected = None;
+    let (mut w_sum, mut selected) = (0.0f32, None);
     for (k, d) in domains.iter().enumerate() {
         let here = match mutation {
-            // The reused sample keeps the target it had where it was made.
             Some(Mutation::StaleTarget) if k > 0 => d.res.target,
             _ => luminance(d.here),
         };
         let w = d.res.m * here * d.res.ucw;
         if !(w > 0.0 && w.is_finite()) {
-            continue;
-        }
-        // Unbiased: a reused sample the canonical pixel does not see cannot be selected (the
-        // target is p̂ V here). Without this a lit neighbour's sun sample wins in a shadow, is
-        // blocked, and the pixel loses the sky sample its history had found.
-        if unbiased && k > 0 && !canonical_sees(domains, d, rays) {
             continue;
         }
         w_sum += w;
@@ -136,41 +245,14 @@ pub fn combine(
         };
     };
     let chosen = &domains[s];
-    let (y, rgb) = (chosen.res.dir, chosen.here);
-    let target = luminance(rgb);
-    let mut out = Reservoir {
-        dir: y,
-        ucw: 0.0,
+    let target = luminance(chosen.here);
+    let ucw = w_sum / (target * m_total);
+    Reservoir {
+        dir: chosen.res.dir,
+        ucw: if ucw.is_finite() { ucw } else { 0.0 },
         m: m_total,
         target,
-        rgb,
-        // Unbiased: every selectable sample was seen from here.
-        visible: unbiased || (chosen.res.visible && s == 0),
-    };
-    if unbiased {
-        let mut denom = 0.0f32;
-        for (k, d) in domains.iter().enumerate() {
-            let p = if k == s {
-                // Its own sample: the target it was selected under, visible (it is culled
-                // otherwise).
-                d.res.target
-            } else if k == 0 {
-                target
-            } else if mutation == Some(Mutation::DroppedMisTerm) {
-                0.0
-            } else {
-                d.at.target_visible(y, rays)
-            };
-            denom += d.res.m * p;
-        }
-        if denom > 0.0 {
-            out.ucw = w_sum * (chosen.res.target / denom) / target;
-        }
-    } else {
-        out.ucw = w_sum / (target * m_total);
+        rgb: chosen.here,
+        visible: chosen.res.visible && s == 0,
     }
-    if !out.ucw.is_finite() {
-        out.ucw = 0.0;
-    }
-    out
 }

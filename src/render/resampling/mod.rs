@@ -14,10 +14,11 @@
 //!    [`SPATIAL_RADIUS`] pixels, passing the same geometric tests, combined the same way.
 //! 4. The estimate `f(Y) V(Y) W`; the final reservoirs are the next frame's history.
 //!
-//! Unbiased by default: shadow rays are the candidate's, one per reused sample (the canonical
-//! pixel must see what it selects), and one per other domain for the MIS weights: at most
-//! `1 + 2 (1 + spatial)` per pixel (9 at the defaults; about 6 on average, docs/temporal.md). The
-//! biased option spends at most 2. Deterministic: every pass draws from its own per-pixel stream.
+//! Unbiased by default (pairwise MIS, [`combine`](combine::combine)): shadow rays are the
+//! candidate's, one per reused sample (the canonical pixel must see what it selects), and one per
+//! other domain for the canonical sample's MIS weight: at most `1 + 2 (1 + spatial)` per pixel
+//! (9 at the defaults; 4.6 on average on the motion scene, docs/temporal.md). The biased option
+//! spends at most 2. Deterministic: every pass draws from its own per-pixel stream.
 
 mod combine;
 mod reservoir;
