@@ -29,23 +29,26 @@
 
 mod animation;
 mod camera;
+mod convert;
 mod glb;
+mod objects;
 pub mod shadows;
 mod shapes;
 mod spec;
 
 use crate::error::{Error, Result};
 use crate::render::{GPixel, Settings};
-use crate::sampling::{Lobe, Material};
+use crate::sampling::Material;
 pub use animation::AnimationSpec;
 pub use camera::Camera;
-use glam::{Affine3A, EulerRot, Mat3, Quat, Vec3};
+pub use convert::material;
+use convert::sampling_settings;
+use glam::Vec3;
 pub use glb::{load_glb, parse_glb};
+use objects::{MeshCache, object_shape};
 pub use shapes::{MeshInstance, Shape, TriMesh, sphere_mesh, square_mesh, torus_mesh};
 pub use spec::*;
-use std::collections::HashMap;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 
 /// A built scene object: its material and geometry in world space.
 #[derive(Clone, Debug)]
@@ -263,171 +266,4 @@ fn check_animation(path: &Path, f: &SceneFile) -> Result<()> {
         ));
     }
     Ok(())
-}
-
-/// The meshes a scene file has loaded, one per asset (a glTF file, a torus's radii), however
-/// often it is placed.
-#[derive(Default)]
-struct MeshCache(HashMap<String, Arc<TriMesh>>);
-
-impl MeshCache {
-    fn get(&mut self, key: String, load: impl FnOnce() -> Result<TriMesh>) -> Result<Arc<TriMesh>> {
-        if let Some(m) = self.0.get(&key) {
-            return Ok(m.clone());
-        }
-        let m = Arc::new(load()?);
-        self.0.insert(key, m.clone());
-        Ok(m)
-    }
-}
-
-/// The shape of scene object `o` (`at(field)` names a field in an error), its meshes from
-/// `meshes`, its paths resolved by `resolve`.
-fn object_shape(
-    o: &ObjectSpec,
-    at: &dyn Fn(&str) -> String,
-    path: &Path,
-    resolve: &dyn Fn(&str) -> PathBuf,
-    meshes: &mut MeshCache,
-) -> Result<Shape> {
-    let rot = Quat::from_euler(
-        EulerRot::XYZ,
-        o.rotation[0].to_radians(),
-        o.rotation[1].to_radians(),
-        o.rotation[2].to_radians(),
-    );
-    let pos = Vec3::from(o.position);
-    if !(o.scale.is_finite() && o.scale > 0.0) {
-        return Err(err(path, format!("{}: must be > 0", at("scale"))));
-    }
-    let world = Affine3A::from_scale_rotation_translation(Vec3::splat(o.scale), rot, pos);
-    // A scale too small for f32 to invert (1e-39) is refused, not placed.
-    let place = |mesh| {
-        MeshInstance::new(mesh, world)
-            .map(Shape::Mesh)
-            .ok_or_else(|| {
-                err(
-                    path,
-                    format!("{}: {} cannot be inverted", at("scale"), o.scale),
-                )
-            })
-    };
-    Ok(match o.shape.as_str() {
-        "sphere" => Shape::Sphere {
-            center: pos,
-            radius: o.radius.unwrap_or(1.0) * o.scale,
-        },
-        "plane" => {
-            let m = Mat3::from_quat(rot);
-            Shape::Plane {
-                center: pos,
-                normal: m * Vec3::Y,
-                u: m * Vec3::X,
-                v: m * Vec3::Z,
-                half: 0.5 * o.size.unwrap_or(10.0) * o.scale,
-            }
-        }
-        "torus" => {
-            let (major, minor) = (
-                o.major_radius.unwrap_or(0.9),
-                o.minor_radius.unwrap_or(0.45),
-            );
-            place(meshes.get(format!("torus {major} {minor}"), || {
-                Ok(torus_mesh(major, minor, 64, 32))
-            })?)?
-        }
-        "gltf" => {
-            let p = o
-                .path
-                .as_deref()
-                .ok_or_else(|| err(path, format!("{}: a gltf object needs a path", at("path"))))?;
-            let file = resolve(p);
-            place(meshes.get(format!("gltf {}", file.display()), || load_glb(&file))?)?
-        }
-        other => {
-            return Err(err(
-                path,
-                format!(
-                    "{}: unknown shape '{other}' (sphere, plane, torus, gltf)",
-                    at("shape")
-                ),
-            ));
-        }
-    })
-}
-
-fn sampling_settings(path: &Path, s: &SamplingSpec) -> Result<Settings> {
-    let mut out = Settings::default();
-    if let Some(v) = s.light_samples {
-        out.light_samples = v;
-    }
-    if let Some(v) = s.brdf_samples {
-        out.brdf_samples = v;
-    }
-    out.strategy = s.strategy.unwrap_or(out.strategy);
-    out.counts = s.counts.unwrap_or(out.counts);
-    out.mis = s.mis.unwrap_or(out.mis);
-    out.seed = s.seed.unwrap_or(0);
-    out.pool_size = s.pool.unwrap_or(0);
-    out.pool_layout = match (s.pool_layout, s.pixel_offset) {
-        (Some(l), _) => l,
-        (None, Some(true)) => crate::render::PoolLayout::Offset,
-        (None, _) => out.pool_layout,
-    };
-    out.pool_blocks = s.pool_blocks.unwrap_or(out.pool_blocks);
-    out.material_budget = s.material_budget.unwrap_or(false);
-    out.tiles = s.tiles.unwrap_or(out.tiles);
-    out.tile_counts = s.tile_counts.unwrap_or(out.tile_counts);
-    out.validate()
-        .map_err(|e| err(path, format!("[sampling]: {e}")))?;
-    Ok(out)
-}
-
-/// The core material of a spec (clamped into the supported ranges).
-pub fn material(m: &MaterialSpec) -> std::result::Result<Material, String> {
-    let a = m.albedo.rgb();
-    if !a.is_finite() || a.min_element() < 0.0 {
-        return Err(format!("albedo {a} must be finite and >= 0"));
-    }
-    Ok(match m.kind.as_str() {
-        "diffuse" => Material {
-            kd: a,
-            ks: Vec3::ZERO,
-            lobe: Lobe::None,
-        },
-        "phong" => Material {
-            kd: Vec3::ZERO,
-            ks: a,
-            lobe: Lobe::Phong {
-                exponent: m
-                    .exponent
-                    .unwrap_or(150.0)
-                    .clamp(0.0, crate::sampling::brdf::MAX_EXPONENT),
-            },
-        },
-        "ggx" => Material {
-            kd: Vec3::ZERO,
-            ks: a,
-            lobe: Lobe::Ggx {
-                alpha: m
-                    .alpha
-                    .unwrap_or(0.2)
-                    .clamp(crate::sampling::brdf::MIN_ALPHA, 1.0),
-            },
-        },
-        "mix" => {
-            let s = m.specular.unwrap_or(0.5).clamp(0.0, 1.0);
-            Material {
-                kd: a * (1.0 - s),
-                ks: a * s,
-                lobe: Lobe::Ggx {
-                    alpha: m
-                        .alpha
-                        .unwrap_or(0.2)
-                        .clamp(crate::sampling::brdf::MIN_ALPHA, 1.0),
-                },
-            }
-        }
-        other => return Err(format!("unknown type '{other}' (diffuse, phong, ggx, mix)")),
-    })
 }

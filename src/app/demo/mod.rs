@@ -4,6 +4,7 @@
 //! screenshots, writes `report.json` and exits.
 
 mod camera;
+mod debug_panel;
 mod debug_view;
 mod script;
 mod ui;

@@ -1,0 +1,146 @@
+//! The top level of the shadow BVH: built anew over every visible caster when casters come, go
+//! or change (each new mesh's BVH built once), refitted when they only move.
+
+use super::mesh::mesh_blas;
+use super::posed::posed_blas;
+use super::{Casters, ShadowGeometry, ShadowScene, layers_of};
+use crate::app::pose::{Deform, Poses};
+use crate::app::{Counters, EnvisCounters};
+use crate::visibility::{
+    Bounds, FlatBlas, FlatBvh, FlatInstance, ObjectFromWorld, Tlas, world_bounds,
+};
+use bevy::math::Affine3A;
+use bevy::platform::collections::HashMap;
+use bevy::prelude::*;
+use std::sync::Arc;
+
+/// Build the top level over every visible caster whose mesh is loaded (and each new mesh's BVH).
+pub(super) fn rebuild(
+    scene: &mut ShadowScene,
+    geometry: &mut ShadowGeometry,
+    casters: &Casters,
+    (meshes, poses): (&Assets<Mesh>, &Poses),
+    counters: &EnvisCounters,
+) {
+    let mut used: HashMap<AssetId<Mesh>, usize> = HashMap::default();
+    let mut blases: Vec<Arc<FlatBlas>> = Vec::new();
+    let (mut instances, mut placed) = (Vec::new(), Vec::new());
+    let (mut object_bounds, mut bounds) = (Vec::new(), Vec::new());
+    let mut posed = HashMap::default();
+    let mut triangles = 0;
+    scene.waiting = false;
+    for (entity, mesh, transform, visible, render_layers, deform) in casters {
+        let deform = Deform::new(deform);
+        let id = mesh.id();
+        if !visible.get() {
+            continue;
+        }
+        let Some(m) = meshes.get(id) else {
+            scene.waiting = true;
+            continue;
+        };
+        // A deformed caster: its own BVH, in world space (kept if its mesh is the same).
+        let (blas, to_object, world) = if deform.is_posed() {
+            // A kept one is refitted when its pose changed this frame too (a pose change in
+            // the frame of a structure change is not seen by `repose`).
+            let pose = (entity, deform);
+            let old = scene.posed.remove(&entity).filter(|s| s.mesh == id);
+            let old = old.and_then(|mut s| {
+                (!poses.moved(entity, deform) || s.refit(m, pose, poses, counters)).then_some(s)
+            });
+            let Some(s) = old.or_else(|| posed_blas(m, id, pose, poses, counters)) else {
+                scene.waiting = true; // its bind poses or joints are not there yet
+                continue;
+            };
+            let blas = s.blas.clone();
+            posed.insert(entity, s);
+            (blas, Some(ObjectFromWorld::IDENTITY), Affine3A::IDENTITY)
+        } else {
+            let blas = scene
+                .meshes
+                .entry(id)
+                .or_insert_with(|| {
+                    counters.bump(|c: &Counters| &c.shadow_bvh_builds);
+                    Arc::new(mesh_blas(m))
+                })
+                .clone();
+            let to_object = ObjectFromWorld::new(transform.affine());
+            (blas, to_object, transform.affine())
+        };
+        let Some((b, to_object)) = blas.bounds.zip(to_object) else {
+            continue; // no triangles, or a zero scale
+        };
+        let k = if deform.is_posed() {
+            blases.push(blas.clone());
+            blases.len() - 1
+        } else {
+            *used.entry(id).or_insert_with(|| {
+                blases.push(blas.clone());
+                blases.len() - 1
+            })
+        };
+        triangles += blas.triangles.len();
+        instances.push(entity);
+        placed.push(FlatInstance {
+            blas: k,
+            to_object,
+            layers: layers_of(render_layers),
+        });
+        object_bounds.push(b);
+        bounds.push(world_bounds(b, &world));
+    }
+    scene.meshes.retain(|id, _| used.contains_key(id));
+    scene.posed = posed;
+    let tlas = Tlas::build(&bounds);
+    let bvh = FlatBvh::build(&blases, &placed, &tlas).unwrap_or_else(|e| {
+        error!("envis: no shadows: {e}");
+        FlatBvh::default()
+    });
+    (scene.instances, scene.placed, scene.blases) = (instances, placed, blases);
+    (scene.object_bounds, scene.tlas) = (object_bounds, tlas);
+    *geometry = ShadowGeometry {
+        generation: geometry.generation + 1,
+        placement: geometry.placement + 1,
+        bvh,
+        triangles,
+    };
+    counters.bump(|c: &Counters| &c.shadow_tlas_builds);
+}
+
+/// Instances moved: their new transforms into the records, the top level refitted. `false`
+/// when that cannot be done (an instance is gone or lost its inverse): build anew instead.
+pub(super) fn refit(
+    scene: &mut ShadowScene,
+    geometry: &mut ShadowGeometry,
+    casters: &Casters,
+) -> bool {
+    if !place_instances(scene, casters) {
+        return false;
+    }
+    if geometry.bvh.place(&scene.placed, &scene.tlas).is_err() {
+        return false;
+    }
+    geometry.placement += 1;
+    true
+}
+
+/// Every instance's record and world bounds from its transform now (a deformed one stays in
+/// world space, with its BVH's bounds), and the top level refitted to them.
+pub(super) fn place_instances(scene: &mut ShadowScene, casters: &Casters) -> bool {
+    let mut bounds: Vec<Bounds> = Vec::with_capacity(scene.instances.len());
+    for (i, &entity) in scene.instances.iter().enumerate() {
+        let Ok((_, _, transform, _, _, deform)) = casters.get(entity) else {
+            return false;
+        };
+        if Deform::new(deform).is_posed() {
+            bounds.push(scene.object_bounds[i]);
+            continue;
+        }
+        let Some(to_object) = ObjectFromWorld::new(transform.affine()) else {
+            return false;
+        };
+        scene.placed[i].to_object = to_object;
+        bounds.push(world_bounds(scene.object_bounds[i], &transform.affine()));
+    }
+    scene.tlas.refit(&bounds)
+}

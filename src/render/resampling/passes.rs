@@ -1,0 +1,116 @@
+//! The per-pixel passes of a resampled frame: the candidates and their shadow ray, temporal
+//! reuse against the reprojected history, spatial reuse among neighbours.
+
+use super::{
+    Domain, History, Reproject, Resampling, Reservoir, SPATIAL_RADIUS, Screen, Surface, combine,
+    similar,
+};
+use crate::render::estimator::{FrameData, shade_pixel_into};
+use crate::render::resampling::CandidateSink;
+use crate::render::{PixelStats, Settings};
+use crate::sampling::rng::Rng;
+
+/// Pixel `i`'s candidate reservoir, its sample statistics and the shadow rays it cast.
+pub(super) fn candidates(
+    cur: &Screen,
+    fd: &FrameData,
+    s: &Settings,
+    r: &Resampling,
+    i: usize,
+    rng: Rng,
+) -> (Reservoir, Option<PixelStats>, u32) {
+    let Some(at) = cur.surface(i) else {
+        return (Reservoir::default(), None, 0);
+    };
+    let mut sink = CandidateSink::new(rng);
+    // Without a surface point the candidates cast no shadow rays; with one (and `fd.occluder`)
+    // a blocked candidate never reaches the sink.
+    let point = r.candidate_visibility.then_some(at.point);
+    let st = shade_pixel_into(crate::cpu::isa(), fd, s, at.px, point, i as u32, &mut sink);
+    let mut q = sink.finish();
+    let mut rays = 0;
+    if point.is_some() {
+        q.visible = true;
+    } else if q.is_live() {
+        q.visible = at.visible(q.dir, &mut rays);
+        if !q.visible {
+            q.ucw = 0.0;
+        }
+    }
+    (q, Some(st), rays)
+}
+
+/// Pixel `i` after temporal reuse: its reservoir, the rays cast, whether history was accepted.
+pub(super) fn temporal(
+    cur: &Screen,
+    h: &History,
+    reproject: Reproject,
+    r: &Resampling,
+    res: &[Reservoir],
+    i: usize,
+    mut rng: Rng,
+) -> (Reservoir, u32, bool) {
+    let own = res[i];
+    let Some(at) = cur.surface(i) else {
+        return (own, 0, false);
+    };
+    let prev = reproject(i).and_then(|(q, depth)| {
+        let p = h.screen.surface(q)?;
+        let expect = Surface {
+            depth,
+            id: cur.surfaces[i].id,
+        };
+        similar(at.px.n, expect, p.px.n, h.screen.surfaces[q]).then_some((q, p))
+    });
+    let Some((q, p)) = prev else {
+        return (own, 0, false);
+    };
+    let mut old = h.reservoirs[q];
+    old.m = old.m.min(r.max_history as f32);
+    let domains = [Domain::own(own, at), Domain::reused(old, p, cur.map, at.px)];
+    let mut rays = 0;
+    let out = combine(&domains, r.unbiased, r.mutation, &mut rng, &mut rays);
+    (out, rays, true)
+}
+
+/// Pixel `i` after spatial reuse: its reservoir, the rays cast, the neighbours accepted.
+pub(super) fn spatial(
+    cur: &Screen,
+    r: &Resampling,
+    res: &[Reservoir],
+    i: usize,
+    mut rng: Rng,
+) -> (Reservoir, u32, u32) {
+    let own = res[i];
+    let Some(at) = cur.surface(i) else {
+        return (own, 0, 0);
+    };
+    let (w, h) = (cur.width as i64, cur.height as i64);
+    let (x, y) = ((i % cur.width) as i64, (i / cur.width) as i64);
+    let mut domains = vec![Domain::own(own, at)];
+    for _ in 0..r.spatial {
+        let (u1, u2) = (rng.next_f32(), rng.next_f32());
+        let rad = SPATIAL_RADIUS * u1.sqrt();
+        let (sin, cos) = (std::f32::consts::TAU * u2).sin_cos();
+        let (nx, ny) = (
+            x + (rad * cos).round() as i64,
+            y + (rad * sin).round() as i64,
+        );
+        if (nx, ny) == (x, y) || nx < 0 || ny < 0 || nx >= w || ny >= h {
+            continue;
+        }
+        let j = (ny * w + nx) as usize;
+        let Some(nb) = cur.surface(j) else { continue };
+        if !similar(at.px.n, cur.surfaces[i], nb.px.n, cur.surfaces[j]) {
+            continue;
+        }
+        domains.push(Domain::reused(res[j], nb, cur.map, at.px));
+    }
+    let accepted = domains.len() as u32 - 1;
+    if accepted == 0 {
+        return (own, 0, 0);
+    }
+    let mut rays = 0;
+    let out = combine(&domains, r.unbiased, r.mutation, &mut rng, &mut rays);
+    (out, rays, accepted)
+}
