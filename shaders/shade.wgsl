@@ -35,7 +35,9 @@ struct ShadeParams {
     tiles: u32,
     // TILE_COUNTS_*: sampling::TileCounts (per face, each sample drawing its tile; or per tile).
     tile_counts: u32,
-    _pad2: u32,
+    // Face size of the radiance table at full resolution (shade_compute.wgsl's `fine`); 0: none,
+    // radiance comes from the texel table (render::FrameData::fine is the CPU twin).
+    fine_n: u32,
 }
 
 // sampling::TileWeights::masses for one region: C_t I_t (C_t = 1 without the cosine).

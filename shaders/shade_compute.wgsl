@@ -20,6 +20,9 @@
 @group(0) @binding(10) var<storage, read> points: array<vec4<f32>>;
 // Per pixel: (shadow rays cast, light samples blocked) (render::PixelStats).
 @group(0) @binding(11) var<storage, read_write> out_rays: array<vec2<u32>>;
+// The map at its own resolution, one rgb(a) per texel of sp.fine_n^2 faces; a placeholder when
+// sp.fine_n is 0.
+@group(0) @binding(12) var<storage, read> fine: array<vec4<f32>>;
 
 var<private> shadow_rays: u32;
 
@@ -53,7 +56,13 @@ fn sample_blocked(px: GPixel, pixel_index: u32, d: vec3<f32>) -> bool {
     return bvh_occluded(o, d, 1e-4, 3.4028235e38, sp.bvh_nodes, ALL_LAYERS);
 }
 
-// The headless backend reads radiance from the texel table itself.
+// Radiance from the map at its own resolution (the texel d falls in), or from the texel table
+// itself when there is none (CPU twin: render::FrameData::radiance).
 fn env_radiance(d: vec3<f32>, coarse: vec3<f32>) -> vec3<f32> {
-    return coarse;
+    if (sp.fine_n == 0u) {
+        return coarse;
+    }
+    let n = sp.fine_n;
+    let hit = dir_to_texel(d, n);
+    return fine[(hit.face * n + hit.row) * n + hit.col].xyz;
 }

@@ -123,9 +123,16 @@ struct SceneArgs {
     /// Environment: an .exr/.hdr file (2:1 lat-long or 4:3/3:4 cube cross), or builtin:sky[:HOURS].
     #[arg(long, default_value = "builtin:sky")]
     env: String,
-    /// Cube face size in texels.
+    /// Face size of the sampling distribution, in texels (with `--radiance full`, a sampling
+    /// choice only: radiance comes from the map at its own resolution).
     #[arg(long, default_value_t = 64)]
     face_size: usize,
+    /// Where light and BRDF samples read radiance: `full`, the map at its own resolution (a
+    /// lat-long's width / 4 per cube face, a cross's face, 128 for the built-in sky), as the Bevy
+    /// pass reads the image; `distribution`, the `--face-size` map that gives the densities (what
+    /// `render` and `reference` did before 2026-12-05).
+    #[arg(long, value_enum, default_value_t = RadianceArg::Full)]
+    radiance: RadianceArg,
     /// Scene: `sphere` (the unit sphere, orthographic), or a TOML scene file (which then supplies
     /// the environment, camera, objects, materials and sampling settings; see assets/scenes/).
     #[arg(long, default_value = "sphere")]
@@ -152,6 +159,12 @@ struct SceneArgs {
     /// camera orbited, objects moved, the sky's clock advanced).
     #[arg(long, default_value_t = 0.0)]
     time: f32,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum RadianceArg {
+    Full,
+    Distribution,
 }
 
 #[derive(Clone, Copy, ValueEnum)]

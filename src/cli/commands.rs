@@ -36,11 +36,12 @@ pub fn render(r: RenderArgs) -> Result<()> {
     let size = r.scene.size;
     let (shadows, why) = su.shadows(r.scene.visibility);
     let occluders = su.occluders();
-    let (mut out, extra) = match r.backend {
+    let (mut out, mut extra) = match r.backend {
         BackendArg::Cpu => {
+            let lookup = |d: glam::Vec3| env.radiance_map().lookup(d);
             let extras = render::Extras {
                 shadows: shadows.then_some((&occluders as _, su.points.as_slice())),
-                ..Default::default()
+                fine: env.fine.is_some().then_some(&lookup as _),
             };
             (
                 render::render_with(&env.cube, extras, gbuf, size, size, &settings)?,
@@ -55,11 +56,12 @@ pub fn render(r: RenderArgs) -> Result<()> {
                 false => None,
             };
             let shadows = bvh.as_ref().map(|b| (b, su.points.as_slice()));
-            render_wgpu(&env.cube, gbuf, size, &settings, shadows)?
+            render_wgpu(&env.cube, env.fine.as_ref(), gbuf, size, &settings, shadows)?
         }
         BackendArg::Gpu => render_bevy(&r.scene, &settings, su.scene.as_ref(), shadows)?,
     };
     out.stats.visibility = why;
+    extra["radiance"] = radiance_note(env, Some(r.backend)).into();
     // What the loader clamped, plus anything the GPU's own sanitise pass found.
     out.stats.clamped_texels.add(env.report);
     output::write_exr(&r.out, &out.image)?;
@@ -90,17 +92,19 @@ pub fn reference(r: ReferenceArgs) -> Result<()> {
     let shadows = shadows.then_some((&occluders as _, su.points.as_slice()));
     let t = std::time::Instant::now();
     let size = r.scene.size;
-    let (img, _) = reference::reference_image_with(&env.cube, gbuf, shadows, size, size, r.refine);
+    // The map the renders read radiance from (`--radiance`): the reference integrates it.
+    let map = env.radiance_map();
+    let (img, _) = reference::reference_image_with(map, gbuf, shadows, size, size, r.refine);
     let ms = t.elapsed().as_secs_f64() * 1e3;
     output::write_exr(&r.out, &img)?;
     if let Some(p) = &r.png {
         output::write_png(p, &img, 1.0)?;
     }
     if let Some(p) = &r.stats {
-        let k = reference::subdivision(r.scene.size, &mat, r.refine);
+        let k = reference::subdivision(map.size, &mat, r.refine);
         output::write_json(
             p,
-            &serde_json::json!({ "reference_ms": ms, "subtexel_points_per_axis": k, "clamped_texels": env.report, "visibility": why }),
+            &serde_json::json!({ "reference_ms": ms, "subtexel_points_per_axis": k, "clamped_texels": env.report, "visibility": why, "radiance": radiance_note(env, None) }),
         )?;
     }
     Ok(())
@@ -133,14 +137,16 @@ pub fn cross(c: CrossArgs) -> Result<()> {
 #[cfg(feature = "gpu")]
 fn render_wgpu(
     map: &envis::envmap::CubeMap,
+    fine: Option<&envis::envmap::CubeMap>,
     gbuf: &[Option<render::GPixel>],
     size: usize,
     s: &Settings,
     shadows: Option<(&envis::visibility::FlatBvh, &[glam::Vec3])>,
 ) -> Result<(render::Rendered, serde_json::Value)> {
+    let extras = envis::gpu::GpuExtras { fine, shadows };
     let ctx = envis::gpu::GpuContext::new()?;
-    let (out, t) = envis::gpu::GpuRenderer::new(&ctx)
-        .render_with_shadows(map, gbuf, size, size, s, shadows)?;
+    let (out, t) =
+        envis::gpu::GpuRenderer::new(&ctx).render_with(map, extras, gbuf, size, size, s)?;
     let extra = serde_json::json!({ "backend": "wgpu", "device": ctx.info.name, "device_backend": format!("{:?}", ctx.info.backend), "gpu_timings": t });
     Ok((out, extra))
 }
@@ -148,6 +154,7 @@ fn render_wgpu(
 #[cfg(not(feature = "gpu"))]
 fn render_wgpu(
     _: &envis::envmap::CubeMap,
+    _: Option<&envis::envmap::CubeMap>,
     _: &[Option<render::GPixel>],
     _: usize,
     _: &Settings,
@@ -244,4 +251,14 @@ fn render_bevy(
     Err(Error::invalid(
         "--backend gpu: this envis was built without the `app` feature (cargo build --features app)",
     ))
+}
+
+/// Where the samples' radiance came from, for `--stats`.
+fn radiance_note(env: &envis::envmap::load::LoadedEnv, backend: Option<BackendArg>) -> String {
+    let n = env.radiance_map().size;
+    match (backend, &env.fine) {
+        (Some(BackendArg::Gpu), _) => "the image itself (the Bevy pass)".into(),
+        (_, Some(_)) => format!("the map at its own resolution ({n}^2 faces)"),
+        (_, None) => format!("the distribution's map ({n}^2 faces)"),
+    }
 }

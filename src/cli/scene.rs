@@ -1,8 +1,8 @@
 //! What `render` and `reference` share: the material of the command line, and the environment,
 //! G-buffer and material of `--scene` (the unit sphere, or a scene file).
 
-use crate::{BrdfArg, SceneArgs};
-use envis::envmap::load::{EnvSource, LoadedEnv, load_env};
+use crate::{BrdfArg, RadianceArg, SceneArgs};
+use envis::envmap::load::{EnvSource, LoadedEnv, load_env, load_env_full};
 use envis::error::{Error, Result};
 use envis::render;
 use envis::sampling::Material;
@@ -100,7 +100,7 @@ pub fn setup(a: &SceneArgs) -> Result<Setup> {
         }
         let sc = envis::scene::Scene::load(std::path::Path::new(&a.scene))?.at_time(a.time)?;
         let src: EnvSource = sc.environment.parse()?;
-        let env = load_env(&src, sc.file.environment.face_size)?;
+        let env = load(a, &src, sc.file.environment.face_size)?;
         if env.report.total() > 0 {
             eprintln!("envis: {}: {}", sc.environment, env.report);
         }
@@ -120,7 +120,7 @@ pub fn setup(a: &SceneArgs) -> Result<Setup> {
     }
     let mat = material(a)?;
     let src: EnvSource = a.env.parse()?;
-    let env = load_env(&src, a.face_size)?;
+    let env = load(a, &src, a.face_size)?;
     if env.report.total() > 0 {
         eprintln!("envis: {}: {}", a.env, env.report);
     }
@@ -146,5 +146,13 @@ pub fn check_exr_path(p: &std::path::Path) -> Result<()> {
             "--out {}: output must be an .exr file",
             p.display()
         ))),
+    }
+}
+
+/// The environment at `face_size`, with the map at its own resolution for `--radiance full`.
+fn load(a: &SceneArgs, src: &EnvSource, face_size: usize) -> Result<LoadedEnv> {
+    match a.radiance {
+        RadianceArg::Full => load_env_full(src, face_size),
+        RadianceArg::Distribution => load_env(src, face_size),
     }
 }

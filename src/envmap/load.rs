@@ -222,26 +222,68 @@ impl std::str::FromStr for EnvSource {
 /// A loaded environment: the sanitized cube map, what was clamped, and where it came from.
 #[derive(Clone, Debug)]
 pub struct LoadedEnv {
+    /// The map at the requested face size: the sampling distribution's texels.
     pub cube: CubeMap,
     pub report: SanitizeReport,
     pub layout: Option<Layout>,
+    /// The map at its own resolution ([`native_face_size`]) where that is finer than `cube`
+    /// and the caller asked for it ([`load_env_full`]): the radiance light and BRDF samples
+    /// read, `cube` giving only their densities (`render::Extras::fine`), as the Bevy pass
+    /// reads the image itself. `None`: radiance is `cube`'s.
+    pub fine: Option<CubeMap>,
+}
+
+impl LoadedEnv {
+    /// The map radiance is read from: [`Self::fine`] if there is one, else [`Self::cube`].
+    pub fn radiance_map(&self) -> &CubeMap {
+        self.fine.as_ref().unwrap_or(&self.cube)
+    }
+}
+
+/// Face size of the built-in sky "at its own resolution": it is analytic, so this is a choice
+/// (0.7 degrees a texel at the face centre, about four across the 1.5-degree sun), the same as
+/// the 512 x 256 maps of `../shared/data` give.
+pub const SKY_FACE: usize = 128;
+
+/// Face size of a cube with as many texels across as the source has: a lat-long's width / 4, a
+/// cross's face, [`SKY_FACE`] for the built-in sky.
+pub fn native_face_size(layout: Option<Layout>, width: usize) -> usize {
+    match layout {
+        None => SKY_FACE,
+        Some(Layout::LatLong) => (width / 4).max(1),
+        Some(Layout::HorizontalCross) => width / 4,
+        Some(Layout::VerticalCross) => width / 3,
+    }
 }
 
 /// Load an environment source as a sanitized cube map with faces of `face_size` texels.
 pub fn load_env(src: &EnvSource, face_size: usize) -> Result<LoadedEnv> {
+    load(src, face_size, false)
+}
+
+/// [`load_env`], and the map at its own resolution as [`LoadedEnv::fine`] where that is finer
+/// than `face_size`.
+pub fn load_env_full(src: &EnvSource, face_size: usize) -> Result<LoadedEnv> {
+    load(src, face_size, true)
+}
+
+fn load(src: &EnvSource, face_size: usize, full: bool) -> Result<LoadedEnv> {
     if face_size == 0 || face_size > 4096 {
         return Err(Error::invalid(format!(
             "face size {face_size} out of range 1..=4096"
         )));
     }
+    let finer = |native: usize| full && native > face_size;
     match src {
         EnvSource::Sky { hours } => {
             let mut cube = super::sky::sky_cube(face_size, *hours);
             let report = cube.sanitize();
+            let fine = finer(SKY_FACE).then(|| super::sky::sky_cube(SKY_FACE, *hours));
             Ok(LoadedEnv {
                 cube,
                 report,
                 layout: None,
+                fine,
             })
         }
         EnvSource::File(path) => {
@@ -249,17 +291,32 @@ pub fn load_env(src: &EnvSource, face_size: usize) -> Result<LoadedEnv> {
             let layout = detect_layout(img.width, img.height).map_err(|p| Error::file(path, p))?;
             // Clamp before any filtering so no bad value is spread into neighbours.
             let mut report = img.sanitize();
-            let mut cube = match layout {
-                Layout::LatLong => super::resample::latlong_to_cube(&img, face_size),
-                _ => super::resample::resize_cube(&cross_to_cube(&img, layout), face_size),
+            let native = native_face_size(Some(layout), img.width);
+            let (mut cube, mut fine) = match layout {
+                // Both area-filtered (every source texel splatted into the texels it overlaps),
+                // so a coarse texel is positive wherever a fine texel inside it is: the fine
+                // radiance never falls where the coarse density is 0.
+                Layout::LatLong => (
+                    super::resample::latlong_to_cube(&img, face_size),
+                    finer(native).then(|| super::resample::latlong_splat(&img, native, 4)),
+                ),
+                _ => {
+                    let whole = cross_to_cube(&img, layout);
+                    let cube = super::resample::resize_cube(&whole, face_size);
+                    (cube, finer(native).then_some(whole))
+                }
             };
             // Backstop: filtering of clamped data cannot create bad texels, but the distribution
             // must never see one, so check again (counted with the rest).
             report.add(cube.sanitize());
+            if let Some(f) = fine.as_mut() {
+                f.sanitize();
+            }
             Ok(LoadedEnv {
                 cube,
                 report,
                 layout: Some(layout),
+                fine,
             })
         }
     }

@@ -159,6 +159,17 @@ pub fn render_gpu(
     GpuRenderer::new(ctx).render(map, gbuf, width, height, s)
 }
 
+/// What a headless frame can add to the map and the G-buffer (the twin of
+/// [`crate::render::Extras`]).
+#[derive(Clone, Copy, Default)]
+pub struct GpuExtras<'a> {
+    /// The map at its own resolution: light and BRDF samples read their radiance here, `map`
+    /// giving the densities (`envmap::load::LoadedEnv::fine`).
+    pub fine: Option<&'a CubeMap>,
+    /// Shadow rays: the scene's flattened BVH, and each pixel's surface point.
+    pub shadows: Option<(&'a crate::visibility::FlatBvh, &'a [Vec3])>,
+}
+
 /// A headless GPU renderer that keeps its pipelines between frames: one shader, and one sampler
 /// per (face size, pool size, global table) it has been asked for.
 pub struct GpuRenderer<'c> {
@@ -200,6 +211,24 @@ impl<'c> GpuRenderer<'c> {
         s: &Settings,
         shadows: Option<(&crate::visibility::FlatBvh, &[Vec3])>,
     ) -> Result<(Rendered, GpuTimings)> {
+        let extras = GpuExtras {
+            shadows,
+            fine: None,
+        };
+        self.render_with(map, extras, gbuf, width, height, s)
+    }
+
+    /// [`Self::render`] with [`GpuExtras`]: shadow rays, radiance at full resolution (the twin
+    /// of [`crate::render::render_with`] with the same extras).
+    pub fn render_with(
+        &mut self,
+        map: &CubeMap,
+        extras: GpuExtras,
+        gbuf: &[Option<GPixel>],
+        width: usize,
+        height: usize,
+        s: &Settings,
+    ) -> Result<(Rendered, GpuTimings)> {
         s.validate()?;
         assert_eq!(gbuf.len(), width * height);
         let ctx = self.ctx;
@@ -230,15 +259,19 @@ impl<'c> GpuRenderer<'c> {
         let (build_gpu_ms, clamped) = sampler.read_report(ctx)?;
         timings.build_gpu_ms = build_gpu_ms;
 
-        let bvh = shadows.map(|(flat, points)| (visibility::GpuBvh::new(ctx, flat), points));
+        let bvh = extras
+            .shadows
+            .map(|(flat, points)| (visibility::GpuBvh::new(ctx, flat), points));
+        let fine = extras
+            .fine
+            .map(|f| shading::FineRadiance::new(ctx, f))
+            .transpose()?;
         let t1 = std::time::Instant::now();
-        let job = self.shader.shade_with_shadows(
-            ctx,
-            sampler,
-            &pixels,
-            s,
-            bvh.as_ref().map(|(b, p)| (b, *p)),
-        )?;
+        let shade = shading::ShadeExtras {
+            shadows: bvh.as_ref().map(|(b, p)| (b, *p)),
+            fine: fine.as_ref(),
+        };
+        let job = self.shader.shade_with(ctx, sampler, &pixels, s, shade)?;
         timings.shade_wall_ms = t1.elapsed().as_secs_f64() * 1e3;
         timings.shade_gpu_ms = job.gpu_ms;
 

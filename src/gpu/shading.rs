@@ -60,7 +60,9 @@ pub struct ShadeParams {
     pub tiles: u32,
     /// [`crate::sampling::TileCounts::gpu_code`].
     pub tile_counts: u32,
-    pub _pad: u32,
+    /// Face size of the full-resolution radiance table ([`FineRadiance`]); 0: radiance from the
+    /// texel table.
+    pub fine_n: u32,
 }
 
 impl ShadeParams {
@@ -84,7 +86,7 @@ impl ShadeParams {
             pool_blocks: s.pool_block_count() as u32,
             tiles: crate::sampling::TileGrid::new(n, s.tiles).k as u32,
             tile_counts: s.tile_counts.gpu_code(),
-            _pad: 0,
+            fine_n: 0,
         }
     }
 }
@@ -147,6 +149,44 @@ pub struct Shader {
     timer: Option<PassTimer>,
 }
 
+/// What a shading job can add to the sampler's frame.
+#[derive(Clone, Copy, Default)]
+pub struct ShadeExtras<'a> {
+    /// Shadow rays through the BVH, from each pixel's surface point.
+    pub shadows: Option<(&'a super::visibility::GpuBvh, &'a [glam::Vec3])>,
+    /// Radiance from the map at its own resolution, the sampler's table giving only densities
+    /// (the twin of [`crate::render::Extras::fine`] reading [`crate::envmap::CubeMap::lookup`]).
+    pub fine: Option<&'a FineRadiance>,
+}
+
+/// A cube map at its own resolution on the GPU: one rgb(a) per texel, read by direction.
+pub struct FineRadiance {
+    pub texels: wgpu::Buffer,
+    /// Face size.
+    pub size: u32,
+}
+
+impl FineRadiance {
+    /// Upload `map` (refused, with the reason, if it exceeds the device's storage binding).
+    pub fn new(ctx: &GpuContext, map: &crate::envmap::CubeMap) -> Result<Self> {
+        let bytes = map.data.len() as u64 * 16;
+        check_binding(&ctx.device.limits(), "the full-resolution map", bytes)?;
+        let data: Vec<[f32; 4]> = map.data.iter().map(|c| c.extend(0.0).to_array()).collect();
+        use wgpu::util::DeviceExt;
+        let texels = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("envis full-resolution radiance"),
+                contents: bytemuck::cast_slice(&data),
+                usage: wgpu::BufferUsages::STORAGE,
+            });
+        Ok(FineRadiance {
+            texels,
+            size: map.size as u32,
+        })
+    }
+}
+
 /// What one shading job returns.
 pub struct ShadeJob {
     pub color: Vec<[f32; 4]>,
@@ -166,8 +206,8 @@ impl Shader {
         let ro = wgpu::BufferBindingType::Storage { read_only: true };
         let rw = wgpu::BufferBindingType::Storage { read_only: false };
         let uniform = wgpu::BufferBindingType::Uniform;
-        // Bindings 0..=11 as in `shaders/shade.wgsl`.
-        let kinds = [ro, ro, ro, ro, rw, rw, uniform, ro, ro, ro, ro, rw];
+        // Bindings 0..=12 as in `shaders/shade_compute.wgsl`.
+        let kinds = [ro, ro, ro, ro, rw, rw, uniform, ro, ro, ro, ro, rw, ro];
         let layout = super::buffer_layout(device, "envis shade layout", &kinds);
         let pl = super::one_group_layout(device, "envis shade", &layout);
         let module = shaders::module(device, "envis shade.wgsl", &shaders::shade_source());
@@ -216,6 +256,22 @@ impl Shader {
         s: &Settings,
         shadows: Option<(&super::visibility::GpuBvh, &[glam::Vec3])>,
     ) -> Result<ShadeJob> {
+        let extras = ShadeExtras {
+            shadows,
+            fine: None,
+        };
+        self.shade_with(ctx, sampler, pixels, s, extras)
+    }
+
+    /// [`Self::shade`] with [`ShadeExtras`]: shadow rays, radiance at full resolution.
+    pub fn shade_with(
+        &self,
+        ctx: &GpuContext,
+        sampler: &EnvSampler,
+        pixels: &[GpuGPixel],
+        s: &Settings,
+        extras: ShadeExtras,
+    ) -> Result<ShadeJob> {
         let count = pixels.len();
         let limits = ctx.device.limits();
         check_binding(&limits, "the G-buffer", count as u64 * 64)?;
@@ -237,7 +293,7 @@ impl Shader {
         ctx.queue
             .write_buffer(&gbuf, 0, bytemuck::cast_slice(pixels));
         let mut params = ShadeParams::new(s, sampler.n, sampler.m, count);
-        let points = shadows.map(|(bvh, p)| {
+        let points = extras.shadows.map(|(bvh, p)| {
             assert_eq!(p.len(), count, "one surface point per pixel");
             params.bvh_nodes = bvh.node_count;
             let v: Vec<[f32; 4]> = p.iter().map(|p| p.extend(0.0).to_array()).collect();
@@ -245,65 +301,42 @@ impl Shader {
             ctx.queue.write_buffer(&b, 0, bytemuck::cast_slice(&v));
             b
         });
-        let (nodes, triangles, points) = match (shadows, &points) {
+        let (nodes, triangles, points) = match (extras.shadows, &points) {
             (Some((bvh, _)), Some(p)) => (&bvh.nodes, &bvh.triangles, p),
             _ => (&self.placeholder, &self.placeholder, &self.placeholder),
         };
+        params.fine_n = extras.fine.map_or(0, |f| f.size);
+        let fine = extras.fine.map_or(&self.placeholder, |f| &f.texels);
         ctx.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        // In binding order (`shaders/shade_compute.wgsl`).
+        let resources = [
+            sampler.texels.as_entire_binding(),
+            sampler.pool.as_entire_binding(),
+            wgpu::BindingResource::Buffer(sampler.regions_binding()),
+            gbuf.as_entire_binding(),
+            color.as_entire_binding(),
+            stats.as_entire_binding(),
+            self.params.as_entire_binding(),
+            sampler.gdist.as_entire_binding(),
+            nodes.as_entire_binding(),
+            triangles.as_entire_binding(),
+            points.as_entire_binding(),
+            rays.as_entire_binding(),
+            fine.as_entire_binding(),
+        ];
+        let entries: Vec<wgpu::BindGroupEntry> = resources
+            .into_iter()
+            .enumerate()
+            .map(|(i, resource)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource,
+            })
+            .collect();
         let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("envis shade bind group"),
             layout: &self.layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: sampler.texels.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: sampler.pool.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: wgpu::BindingResource::Buffer(sampler.regions_binding()),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: gbuf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 4,
-                    resource: color.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 5,
-                    resource: stats.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 6,
-                    resource: self.params.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 7,
-                    resource: sampler.gdist.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 8,
-                    resource: nodes.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 9,
-                    resource: triangles.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 10,
-                    resource: points.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 11,
-                    resource: rays.as_entire_binding(),
-                },
-            ],
+            entries: &entries,
         });
         let mut enc = ctx.device.create_command_encoder(&Default::default());
         {

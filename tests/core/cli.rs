@@ -208,3 +208,76 @@ fn cli_contract() {
         assert!(!err.contains("panicked"), "{args:?}: {err}");
     }
 }
+
+/// `envis render` reads radiance from the map at its own resolution by default (`--radiance
+/// full`; the built-in sky at 128^2 faces), `--face-size` giving the densities: the same image as
+/// the library's `render_with` with that map as `Extras::fine`; `--radiance distribution` is
+/// the library's `render` of the `--face-size` map. `envis reference` integrates the map the
+/// renders read.
+#[test]
+fn render_reads_the_map_at_its_own_resolution() {
+    let dir = tempdir();
+    let run = |cmd: &str, radiance: &str, name: &str| {
+        let out = dir.join(format!("{name}.exr"));
+        let stats = dir.join(format!("{name}.json"));
+        let mut args = vec![
+            cmd,
+            "--env",
+            "builtin:sky:15",
+            "--face-size",
+            "8",
+            "--size",
+            "12",
+        ];
+        args.extend(["--brdf", "ggx", "--alpha", "0.05", "--radiance", radiance]);
+        if cmd == "render" {
+            args.extend(["--light-samples", "4", "--brdf-samples", "4", "--seed", "3"]);
+        }
+        args.extend([
+            "--out",
+            out.to_str().unwrap(),
+            "--stats",
+            stats.to_str().unwrap(),
+        ]);
+        let r = envis_cmd(&args);
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        let js = support::read_json(&stats);
+        (
+            envis::envmap::load::read_exr(&out).unwrap().data,
+            js["radiance"].clone(),
+        )
+    };
+    let src = EnvSource::Sky { hours: 15.0 };
+    let env = envis::envmap::load::load_env_full(&src, 8).unwrap();
+    let fine = env.fine.as_ref().unwrap();
+    let gbuf = sphere_gbuffer(12, 12, Material::ggx(0.8, 0.05));
+    let s = Settings {
+        light_samples: 4,
+        brdf_samples: 4,
+        seed: 3,
+        ..Default::default()
+    };
+    let lookup = |d: Vec3| fine.lookup(d);
+    let extras = envis::render::Extras {
+        fine: Some(&lookup),
+        ..Default::default()
+    };
+    let want_full = envis::render::render_with(&env.cube, extras, &gbuf, 12, 12, &s).unwrap();
+    let want_coarse = render(&env.cube, &gbuf, 12, 12, &s).unwrap();
+    let (full, note) = run("render", "full", "full");
+    assert_eq!(full, want_full.image.data);
+    assert!(
+        note.as_str().unwrap().contains("own resolution (128^2"),
+        "{note}"
+    );
+    let (coarse, note) = run("render", "distribution", "coarse");
+    assert_eq!(coarse, want_coarse.image.data);
+    assert!(note.as_str().unwrap().contains("distribution"), "{note}");
+    assert_ne!(full, coarse);
+
+    let (rf, _) = run("reference", "full", "ref-full");
+    let (want, _) = reference_image(fine, &gbuf, 12, 12, 1.0);
+    assert_eq!(rf, want.data);
+    let (rc, _) = run("reference", "distribution", "ref-coarse");
+    assert_eq!(rc, reference_image(&env.cube, &gbuf, 12, 12, 1.0).0.data);
+}

@@ -31,6 +31,56 @@ fn real_maps_load_and_report_clamped_texels() {
     );
 }
 
+/// `load_env_full` keeps the map at its own resolution beside the distribution's: a 512 x 256
+/// lat-long at 128^2 faces (none when the distribution is that fine already), sanitised, and
+/// never bright where the distribution's texel is 0 (the densities cover the radiance).
+#[test]
+fn full_resolution_map_beside_the_distribution() {
+    let Some(maps) = support::real_maps() else {
+        return;
+    };
+    for p in maps.iter().take(4) {
+        let src = EnvSource::File(p.clone());
+        let env = envis::envmap::load::load_env_full(&src, 32).unwrap();
+        let fine = env.fine.as_ref().unwrap();
+        assert_eq!((env.cube.size, fine.size), (32, 128), "{}", p.display());
+        assert!(
+            fine.data
+                .iter()
+                .all(|c| c.is_finite() && c.min_element() >= 0.0)
+        );
+        for face in 0..6 {
+            for (row, col) in (0..128).flat_map(|r| (0..128).map(move |c| (r, c))) {
+                let t = fine.data[fine.index(face, col, row)];
+                let coarse = env.cube.data[env.cube.index(face, col / 4, row / 4)];
+                assert!(
+                    t.max_element() == 0.0 || coarse.max_element() > 0.0,
+                    "{}: fine texel {face} ({col}, {row}) is bright, its coarse texel 0",
+                    p.display()
+                );
+            }
+        }
+        // Energy is kept: the two are the same map at two resolutions.
+        let energy = |m: &CubeMap| {
+            (0..m.data.len())
+                .map(|i| {
+                    let (r, c) = ((i / m.size) % m.size, i % m.size);
+                    luminance(m.data[i]) as f64 * texel_solid_angle(c, r, m.size)
+                })
+                .sum::<f64>()
+        };
+        let (a, b) = (energy(&env.cube), energy(fine));
+        assert!((a - b).abs() < 1e-3 * b, "{}: {a} vs {b}", p.display());
+        assert!(
+            envis::envmap::load::load_env_full(&src, 128)
+                .unwrap()
+                .fine
+                .is_none()
+        );
+        assert!(load_env(&src, 32).unwrap().fine.is_none());
+    }
+}
+
 #[test]
 fn bad_files_give_clear_errors() {
     let dir = tempdir();

@@ -322,3 +322,59 @@ fn gpu_material_budget_matches_cpu_and_skips_work() {
         }
     }
 }
+
+/// Radiance from the map at its own resolution (`--radiance full`, the default of `envis
+/// render`): the GPU reads the fine table by direction as the CPU does, the densities from the
+/// coarse one, and the image differs from reading the coarse table (a near-mirror sphere shows
+/// the coarse texels as blocks).
+#[test]
+fn gpu_full_resolution_radiance_matches_cpu() {
+    let Some(ctx) = gpu() else { return };
+    let size = 40;
+    let env = envis::envmap::load::load_env_full(&EnvSource::Sky { hours: 15.0 }, 16).unwrap();
+    let fine = env
+        .fine
+        .as_ref()
+        .expect("the built-in sky is finer than 16^2 faces");
+    assert_eq!(fine.size, envis::envmap::load::SKY_FACE);
+    let lookup = |d: Vec3| fine.lookup(d);
+    let mut renderer = envis::gpu::GpuRenderer::new(ctx);
+    for mat in [Material::diffuse(0.8), Material::ggx(0.8, 0.02)] {
+        let gbuf = sphere_gbuffer(size, size, mat);
+        let s = Settings {
+            light_samples: 8,
+            brdf_samples: 8,
+            seed: 5,
+            ..Default::default()
+        };
+        let extras = envis::render::Extras {
+            fine: Some(&lookup),
+            ..Default::default()
+        };
+        let cpu = envis::render::render_with(&env.cube, extras, &gbuf, size, size, &s).unwrap();
+        let coarse = render(&env.cube, &gbuf, size, size, &s).unwrap();
+        let gpu_extras = envis::gpu::GpuExtras {
+            fine: Some(fine),
+            shadows: None,
+        };
+        let (gpu, _) = renderer
+            .render_with(&env.cube, gpu_extras, &gbuf, size, size, &s)
+            .unwrap();
+        let differs = |a: &[Vec3], b: &[Vec3]| {
+            a.iter()
+                .zip(b)
+                .filter(|(a, b)| (**a - **b).abs().max_element() > 1e-3 * b.max_element().max(1e-3))
+                .count()
+        };
+        let off = differs(&gpu.image.data, &cpu.image.data);
+        assert!(
+            off * 200 <= size * size,
+            "{mat:?}: {off} pixels differ from the CPU twin"
+        );
+        let changed = differs(&cpu.image.data, &coarse.image.data);
+        assert!(
+            changed * 4 > size * size / 2,
+            "{mat:?}: the fine radiance changed only {changed} pixels"
+        );
+    }
+}

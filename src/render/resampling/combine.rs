@@ -127,7 +127,7 @@ fn canonical_target(
         Some(Mutation::StaleTarget) => d.res.target,
         _ => luminance(d.here),
     };
-    if !(t > 0.0 && d.res.is_live()) || !domains[0].at.visible(d.res.dir, rays) {
+    if !(t > 0.0 && d.res.is_live() && domains[0].at.visible(d.res.dir, rays)) {
         return 0.0;
     }
     t
