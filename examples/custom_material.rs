@@ -12,6 +12,8 @@ use envis::stream::StreamSource;
 fn main() {
     App::new()
         .add_plugins((DefaultPlugins, EnvisPlugin))
+        // Edit shaders/*.wgsl while it runs: the lighting pass recompiles.
+        .add_plugins(EnvisShaderReloadPlugin::default())
         .add_plugins(example)
         .run();
 }

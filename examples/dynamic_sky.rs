@@ -26,6 +26,8 @@ const SIZE: UVec2 = UVec2::new(256, 128);
 fn main() {
     App::new()
         .add_plugins((DefaultPlugins, EnvisPlugin))
+        // Edit shaders/*.wgsl while it runs: the lighting pass recompiles.
+        .add_plugins(EnvisShaderReloadPlugin::default())
         .add_plugins(example)
         .run();
 }

@@ -9,6 +9,8 @@ use envis::prelude::*;
 fn main() {
     App::new()
         .add_plugins((DefaultPlugins, EnvisPlugin))
+        // Edit shaders/*.wgsl while it runs: the lighting pass recompiles.
+        .add_plugins(EnvisShaderReloadPlugin::default())
         .add_plugins(example)
         .run();
 }

@@ -1,6 +1,7 @@
 //! What a Bevy user imports: `use envis::prelude::*;` (feature `app`).
 //!
-//! - [`EnvisPlugin`]: add it next to `DefaultPlugins`.
+//! - [`EnvisPlugin`]: add it next to `DefaultPlugins`; [`EnvisShaderReloadPlugin`] recompiles
+//!   the lighting pass when its WGSL changes (the examples add it).
 //! - [`EnvironmentSampling`] and [`EnvisEnvironment`]: the two camera components.
 //! - [`EnvisMaterial`] / [`EnvisBrdf`]: envis's own deferred material (plain `StandardMaterial`
 //!   meshes are lit too).
@@ -8,8 +9,8 @@
 //!   [`ShadowRays`] (`EnvironmentSampling::shadows`).
 
 pub use crate::app::{
-    EnvironmentSampling, EnvisBrdf, EnvisEnvironment, EnvisMaterial, EnvisPlugin, Overlay,
-    exposure_multiplier,
+    EnvironmentSampling, EnvisBrdf, EnvisEnvironment, EnvisMaterial, EnvisPlugin,
+    EnvisShaderReloadPlugin, Overlay, exposure_multiplier,
 };
 pub use crate::render::Strategy;
 pub use crate::sampling::{Counts, Heuristic};

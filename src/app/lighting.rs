@@ -10,6 +10,7 @@ use super::lighting_uniforms::{ViewParts, decode_probe, lighting_view};
 use super::sampling::{EnvSamplers, ViewSampling};
 use super::timing::EnvisTimings;
 use super::{EnvisCounters, EnvisProbe, Overlay};
+use crate::gpu::shaders;
 use crate::gpu::shading::ShadeParams;
 use crate::render::Strategy;
 use bevy::camera::visibility::RenderLayers;
@@ -19,13 +20,17 @@ use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
 use bevy::light::Skybox;
 use bevy::prelude::*;
 use bevy::render::camera::{ExtractedCamera, TemporalJitter};
-use bevy::render::renderer::{RenderContext, RenderDevice, ViewQuery};
+use bevy::render::diagnostic::RecordDiagnostics;
+use bevy::render::render_resource::{
+    BindGroupEntries, CachedRenderPipelineId, PipelineCache, SpecializedRenderPipelines,
+};
+use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
 use bevy::render::view::{ExtractedView, ViewTarget};
 use bevy::render::{Render, RenderApp, RenderStartup, RenderSystems};
-use wgpu::util::DeviceExt;
+use bevy::shader::Shader;
 
 mod pipelines;
-pub use pipelines::LightingPipelines;
+pub use pipelines::{LightingPipeline, LightingResources, LightingShader, lighting_layout};
 
 /// Adds the envis lighting pass to every camera with [`EnvironmentSampling`] and an
 /// [`EnvisEnvironment`].
@@ -35,14 +40,31 @@ impl Plugin for EnvisLightingPlugin {
     fn build(&self, app: &mut App) {
         super::share_resources(app);
         app.add_systems(PostUpdate, super::coverage::warn_forward_meshes);
+        // The WGSL as a `Shader` asset: Bevy's pipeline cache compiles it (asynchronously, and
+        // again whenever the asset changes: `EnvisShaderReloadPlugin`).
+        let Some(mut shaders) = app.world_mut().get_resource_mut::<Assets<Shader>>() else {
+            return;
+        };
+        let shader = LightingShader(shaders.add(Shader::from_wgsl(
+            shaders::lighting_source(),
+            "envis/lighting.wgsl",
+        )));
+        app.insert_resource(shader.clone());
         let Some(render_app) = app.get_sub_app_mut(RenderApp) else {
             return;
         };
         render_app
+            .insert_resource(shader)
+            .init_resource::<SpecializedRenderPipelines<LightingPipeline>>()
             .add_systems(RenderStartup, init_lighting)
             .add_systems(
                 Render,
-                (poll_lighting_readbacks, drop_stale_view_buffers).in_set(RenderSystems::Prepare),
+                (
+                    poll_lighting_readbacks,
+                    drop_stale_view_buffers,
+                    prepare_lighting_pipelines,
+                )
+                    .in_set(RenderSystems::Prepare),
             )
             .add_systems(
                 Core3d,
@@ -54,38 +76,45 @@ impl Plugin for EnvisLightingPlugin {
     }
 }
 
-/// Accumulation buffers of views that are gone (or stopped sampling) are freed.
+/// Buffers of views that are gone (or stopped sampling) are freed.
 fn drop_stale_view_buffers(
-    pipes: Option<Res<LightingPipelines>>,
+    res: Option<Res<LightingResources>>,
     views: Query<Entity, With<ViewSampling>>,
 ) {
-    let Some(pipes) = pipes else { return };
-    let mut map = pipes.accum.lock().expect("accumulation buffers");
-    if map.keys().any(|e| !views.contains(*e)) {
-        map.retain(|e, _| views.contains(*e));
+    if let Some(res) = res {
+        res.retain_views(|e| views.contains(e));
     }
 }
 
-fn init_lighting(
+/// The view's lighting pipeline (queued in Bevy's pipeline cache for its target format).
+#[derive(Component)]
+pub struct ViewLightingPipeline(CachedRenderPipelineId);
+
+/// Each sampling view gets the pipeline of its target format.
+fn prepare_lighting_pipelines(
     mut commands: Commands,
-    device: Res<RenderDevice>,
-    queue: Res<bevy::render::renderer::RenderQueue>,
+    cache: Res<PipelineCache>,
+    mut pipelines: ResMut<SpecializedRenderPipelines<LightingPipeline>>,
+    pipeline: Option<Res<LightingPipeline>>,
+    views: Query<(Entity, &ExtractedView), With<ViewSampling>>,
 ) {
-    commands.insert_resource(LightingPipelines::new(device.wgpu_device(), &queue));
+    let Some(pipeline) = pipeline else { return };
+    for (entity, view) in &views {
+        let id = pipelines.specialize(&cache, &pipeline, view.target_format);
+        commands.entity(entity).insert(ViewLightingPipeline(id));
+    }
 }
 
-/// Collect the lighting pass's GPU time and the probed pixel of an earlier frame (never waits).
-fn poll_lighting_readbacks(
-    pipes: Option<Res<LightingPipelines>>,
-    timings: Res<EnvisTimings>,
-    probe: Res<EnvisProbe>,
-) {
-    let Some(pipes) = pipes else { return };
-    if let Some(ms) = pipes.timer.as_ref().and_then(|t| t.poll()) {
-        timings.set(|t| t.lighting_gpu_ms = Some(ms));
-    }
-    if let Some(bytes) = pipes.probe_read.poll() {
-        let seed = *pipes.probe_seed.lock().expect("probe seed");
+fn init_lighting(mut commands: Commands, device: Res<RenderDevice>, shader: Res<LightingShader>) {
+    commands.insert_resource(LightingPipeline::new(shader.0.clone()));
+    commands.insert_resource(LightingResources::new(device.wgpu_device()));
+}
+
+/// Collect the probed pixel of an earlier frame (never waits).
+fn poll_lighting_readbacks(res: Option<Res<LightingResources>>, probe: Res<EnvisProbe>) {
+    let Some(res) = res else { return };
+    if let Some(bytes) = res.probe_read.poll() {
+        let seed = *res.probe_seed.lock().expect("probe seed");
         if let Some(r) = decode_probe(&bytes, seed) {
             *probe.lock().expect("probe") = Some(r);
         }
@@ -108,6 +137,7 @@ type LightingViewData = (
     &'static EnvironmentSampling,
     &'static EnvisEnvironment,
     &'static ViewSampling,
+    &'static ViewLightingPipeline,
     ViewExtras,
 );
 
@@ -116,21 +146,29 @@ type LightingViewData = (
 #[allow(clippy::too_many_arguments)]
 fn mis_lighting(
     view: ViewQuery<LightingViewData>,
-    pipes: Option<Res<LightingPipelines>>,
+    (cache, pipeline, res): (
+        Res<PipelineCache>,
+        Option<Res<LightingPipeline>>,
+        Option<Res<LightingResources>>,
+    ),
     samplers: Res<EnvSamplers>,
     shadows: (
         Option<Res<super::shadows::ShadowGeometry>>,
         Option<Res<super::shadows::GpuShadowGeometry>>,
     ),
-    counters: Res<EnvisCounters>,
-    timings: Res<EnvisTimings>,
+    (counters, timings): (Res<EnvisCounters>, Res<EnvisTimings>),
+    queue: Res<RenderQueue>,
     mut ctx: RenderContext,
 ) {
     let t0 = std::time::Instant::now();
     let view_entity = view.entity();
-    let (target, prepass, ev, cam, sampling, env, vs, (render_layers, jitter, skybox)) =
+    let (target, prepass, ev, cam, sampling, env, vs, vp_id, (render_layers, jitter, skybox)) =
         view.into_inner();
-    let (Some(pipes), Some(slot)) = (pipes, samplers.slots.get(&vs.key)) else {
+    let (Some(layout), Some(res), Some(slot)) = (pipeline, res, samplers.slots.get(&vs.key)) else {
+        return;
+    };
+    // Compiled asynchronously: lit from the frame its pipeline is ready.
+    let Some(render_pipeline) = cache.get_render_pipeline(vp_id.0) else {
         return;
     };
     let sampler = &slot.sampler;
@@ -169,25 +207,19 @@ fn mis_lighting(
     };
     let (bvh_nodes, bvh_triangles) = geometry
         .as_ref()
-        .map_or((&pipes.no_shadows, &pipes.no_shadows), |g| {
+        .map_or((&res.no_shadows, &res.no_shadows), |g| {
             (&g.nodes, &g.triangles)
         });
-    let device = ctx.render_device().wgpu_device().clone();
-    let accum = pipes.accumulation_buffer(&device, view_entity, sampling.accumulate, vp);
-    let pipeline = pipes.pipeline(&device, target.main_texture_format());
-    let ubuf = |label: &str, bytes: &[u8]| {
-        device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents: bytes,
-            usage: wgpu::BufferUsages::UNIFORM,
-        })
-    };
-    let (pbuf, vbuf) = (
-        ubuf("envis shade params", bytemuck::bytes_of(&params)),
-        ubuf("envis lighting view", bytemuck::bytes_of(&lv)),
+    let device = ctx.render_device().clone();
+    let (pbuf, vbuf, accum) = res.view_buffers(
+        (device.wgpu_device(), &queue),
+        view_entity,
+        (sampling.accumulate, vp),
+        (bytemuck::bytes_of(&params), bytemuck::bytes_of(&lv)),
     );
     use wgpu::BindingResource as R;
-    let resources = [
+    // In binding order (`lighting_layout`).
+    let entries = BindGroupEntries::sequential((
         R::TextureView(deferred),
         R::TextureView(depth),
         sampler.texels.as_entire_binding(),
@@ -195,32 +227,25 @@ fn mis_lighting(
         R::Buffer(sampler.regions_binding()),
         pbuf.as_entire_binding(),
         vbuf.as_entire_binding(),
-        pipes.probe.as_entire_binding(),
+        res.probe.as_entire_binding(),
         accum.as_entire_binding(),
         sampler.gdist.as_entire_binding(),
         R::TextureView(&ids.texture.default_view),
         R::TextureView(&slot.source),
         bvh_nodes.as_entire_binding(),
         bvh_triangles.as_entire_binding(),
-    ];
-    let entries: Vec<wgpu::BindGroupEntry> = resources
-        .into_iter()
-        .enumerate()
-        .map(|(i, resource)| wgpu::BindGroupEntry {
-            binding: i as u32,
-            resource,
-        })
-        .collect();
-    let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("envis lighting"),
-        layout: &pipes.layout,
-        entries: &entries,
-    });
-    let probing = sampling.probe.is_some() && pipes.probe_read.ready();
-    let timer = pipes.timer.as_ref().filter(|t| t.ready());
+    ));
+    let bind = device.create_bind_group(
+        "envis lighting",
+        &cache.get_bind_group_layout(&layout.layout),
+        &entries,
+    );
+    let probing = sampling.probe.is_some() && res.probe_read.ready();
+    let diagnostics = ctx.diagnostic_recorder();
+    let diagnostics = diagnostics.as_deref();
     let enc = ctx.command_encoder();
     if probing {
-        enc.clear_buffer(&pipes.probe, 0, None);
+        enc.clear_buffer(&res.probe, 0, None);
     }
     if sampling.accumulate && vs.frame == 0 {
         // A restart: every pixel's mean and count start again, also those this frame does not
@@ -232,22 +257,22 @@ fn mis_lighting(
             label: Some("envis mis lighting"),
             color_attachments: &[Some(target.get_color_attachment())],
             depth_stencil_attachment: None,
-            timestamp_writes: timer.map(|t| t.render_writes()),
+            timestamp_writes: None,
             occlusion_query_set: None,
             multiview_mask: None,
         });
+        // GPU time in Bevy's render diagnostics (`render/envis_lighting/elapsed_gpu`).
+        let span = diagnostics.pass_span(&mut pass, "envis_lighting");
         // Only this camera's viewport: a split-screen neighbour keeps its pixels.
         pass.set_viewport(vp.x as f32, vp.y as f32, vp.z as f32, vp.w as f32, 0.0, 1.0);
-        pass.set_pipeline(&pipeline);
-        pass.set_bind_group(0, &bind, &[]);
+        pass.set_pipeline(render_pipeline);
+        pass.set_bind_group(0, &*bind, &[]);
         pass.draw(0..3, 0..1);
-    }
-    if let Some(t) = timer {
-        t.resolve(enc);
+        span.end(&mut pass);
     }
     if probing {
-        pipes.probe_read.copy_from(enc, &pipes.probe);
-        *pipes.probe_seed.lock().expect("probe seed") = vs.seed;
+        res.probe_read.copy_from(enc, &res.probe);
+        *res.probe_seed.lock().expect("probe seed") = vs.seed;
     }
     counters.bump(|c| &c.lighting_passes);
     if sampling.overlay != Overlay::None {

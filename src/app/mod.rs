@@ -44,6 +44,7 @@ pub mod sampling;
 pub mod scene_objects;
 mod scene_revision;
 pub mod setup;
+pub mod shader_reload;
 pub mod shadows;
 pub mod stream;
 pub mod timing;
@@ -55,6 +56,7 @@ pub use material::{
     standard_material_decoded,
 };
 pub use sampling::EnvisSamplingPlugin;
+pub use shader_reload::EnvisShaderReloadPlugin;
 pub use shadows::EnvisShadowsPlugin;
 pub use stream::{EnvFrame, EnvMapStream, EnvisStreamPlugin};
 pub use timing::{EnvisTimings, PassTimes};
@@ -86,6 +88,7 @@ mod renamed {
 pub use renamed::*;
 
 use bevy::prelude::*;
+use bevy::render::diagnostic::RenderDiagnosticsPlugin;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -100,6 +103,15 @@ pub struct EnvisPlugin;
 impl Plugin for EnvisPlugin {
     fn build(&self, app: &mut App) {
         setup::default_to_deferred(app);
+        // GPU times of envis's passes go through Bevy's render diagnostics (`EnvisTimings` and
+        // the demo read them): added here unless the app has it (add yours before this plugin).
+        if app.get_sub_app(bevy::render::RenderApp).is_some()
+            && !app.is_plugin_added::<RenderDiagnosticsPlugin>()
+        {
+            app.init_resource::<bevy::diagnostic::DiagnosticsStore>()
+                .add_plugins(RenderDiagnosticsPlugin);
+        }
+        app.add_systems(PreUpdate, timing::read_pass_diagnostics);
         app.register_type::<EnvironmentSampling>()
             .register_type::<EnvisEnvironment>()
             .add_systems(PostUpdate, setup::warn_camera_setup)

@@ -10,7 +10,7 @@
 //! dropped.
 
 use super::components::{EnvironmentSampling, EnvisEnvironment};
-use super::timing::{AsyncTimer, EnvisTimings};
+use super::timing::EnvisTimings;
 use super::{Counters, EnvisCounters};
 use crate::envmap::resample::SourceLayout;
 use crate::gpu::resample::source_view;
@@ -20,10 +20,13 @@ use bevy::camera::visibility::RenderLayers;
 use bevy::core_pipeline::schedule::camera_driver;
 use bevy::prelude::*;
 use bevy::render::camera::TemporalJitter;
+use bevy::render::diagnostic::RecordDiagnostics;
 use bevy::render::extract_component::ExtractComponentPlugin;
 use bevy::render::extract_resource::{ExtractResource, ExtractResourcePlugin};
 use bevy::render::render_asset::RenderAssets;
-use bevy::render::renderer::{RenderContext, RenderDevice, RenderGraph, RenderQueue};
+use bevy::render::renderer::{
+    RenderContext, RenderDevice, RenderGraph, RenderGraphSystems, RenderQueue,
+};
 use bevy::render::sync_world::MainEntity;
 use bevy::render::texture::GpuImage;
 use bevy::render::view::ExtractedView;
@@ -88,14 +91,11 @@ pub struct ViewSampling {
     pub seed: u32,
 }
 
-/// Every distribution of the render world, the resample pipeline and the build timers.
+/// Every distribution of the render world and the resample pipeline.
 #[derive(Resource, Default)]
 pub struct EnvSamplers {
     pub slots: HashMap<SamplerKey, SamplerSlot>,
     resampler: Option<ImageResampler>,
-    resample_timer: Option<AsyncTimer>,
-    timer: Option<AsyncTimer>,
-    pool_timer: Option<AsyncTimer>,
     /// Per view: what its accumulation key was and how many frames it has averaged.
     accumulation: HashMap<Entity, (u64, u32)>,
     /// Per jittered view that does not accumulate: frames drawn, so that each draws new samples.
@@ -137,20 +137,19 @@ impl Plugin for EnvisSamplingPlugin {
             .init_resource::<EnvSamplers>()
             .add_systems(RenderStartup, init_samplers)
             .add_systems(Render, prepare_samplers.in_set(RenderSystems::Prepare))
-            .add_systems(RenderGraph, build_distributions.before(camera_driver));
+            .add_systems(
+                RenderGraph,
+                // In the frame's render phase (after Bevy's diagnostics begin the frame), before
+                // any camera.
+                build_distributions
+                    .in_set(RenderGraphSystems::Render)
+                    .before(camera_driver),
+            );
     }
 }
 
-fn init_samplers(
-    device: Res<RenderDevice>,
-    queue: Res<RenderQueue>,
-    mut samplers: ResMut<EnvSamplers>,
-) {
-    let device = device.wgpu_device();
-    samplers.resampler = Some(ImageResampler::new(device));
-    samplers.resample_timer = AsyncTimer::new(device, &queue, "envis resample timer");
-    samplers.timer = AsyncTimer::new(device, &queue, "envis build timer");
-    samplers.pool_timer = AsyncTimer::new(device, &queue, "envis pool timer");
+fn init_samplers(device: Res<RenderDevice>, mut samplers: ResMut<EnvSamplers>) {
+    samplers.resampler = Some(ImageResampler::new(device.wgpu_device()));
 }
 
 /// Bump the version of every environment image that was added or changed on the CPU, and count
@@ -208,10 +207,8 @@ pub fn prepare_samplers(
     queue: Res<RenderQueue>,
     mut samplers: ResMut<EnvSamplers>,
     counters: Res<EnvisCounters>,
-    timings: Res<EnvisTimings>,
 ) {
     let samplers = &mut *samplers;
-    poll_build_timers(samplers, &timings);
     let mut used = HashSet::new();
     let mut live_views = HashSet::new();
     let mut frames = accumulated.0.lock().ok();
@@ -283,34 +280,6 @@ pub fn prepare_samplers(
     samplers.ticks.retain(|e, _| live_views.contains(e));
 }
 
-/// Hand the build passes' GPU times that came back to [`EnvisTimings`].
-fn poll_build_timers(samplers: &EnvSamplers, timings: &EnvisTimings) {
-    for (t, f) in [
-        (&samplers.resample_timer, resample_ms as fn(&mut _, f64)),
-        (&samplers.timer, build_ms),
-        (&samplers.pool_timer, pool_ms),
-    ] {
-        if let Some(ms) = t.as_ref().and_then(|t| t.poll()) {
-            timings.set(|p| f(p, ms));
-        }
-    }
-}
-
-/// The timer, when it can take a measurement and none was taken yet this frame.
-fn ready(t: &Option<AsyncTimer>, taken: bool) -> Option<&AsyncTimer> {
-    t.as_ref().filter(|t| t.ready() && !taken)
-}
-
-fn resample_ms(p: &mut super::PassTimes, ms: f64) {
-    p.resample_gpu_ms = Some(ms);
-}
-fn build_ms(p: &mut super::PassTimes, ms: f64) {
-    p.build_gpu_ms = Some(ms);
-}
-fn pool_ms(p: &mut super::PassTimes, ms: f64) {
-    p.pool_gpu_ms = Some(ms);
-}
-
 /// Record every pending build (resample, distribution, pool) into this frame's command stream,
 /// before any camera.
 pub fn build_distributions(
@@ -325,37 +294,26 @@ pub fn build_distributions(
         return;
     };
     let device = ctx.render_device().wgpu_device().clone();
-    let mut timed = false;
+    // GPU times in Bevy's render diagnostics (`render/envis_resample/elapsed_gpu`, ...).
+    let diagnostics = ctx.diagnostic_recorder();
+    let diagnostics = diagnostics.as_deref();
     let mut any = false;
     for slot in samplers.slots.values_mut().filter(|s| s.dirty) {
         let enc = ctx.command_encoder();
-        // Time the first build of the frame (timers are read back asynchronously).
-        let (resample_timer, timer, pool_timer) = (
-            ready(&samplers.resample_timer, timed),
-            ready(&samplers.timer, timed),
-            ready(&samplers.pool_timer, timed),
-        );
-        timed = true;
         let source = crate::gpu::resample::Source {
             view: &slot.source,
             layout: slot.layout,
             width: slot.width,
         };
-        resampler.encode(
-            &device,
-            enc,
-            source,
-            &slot.sampler,
-            resample_timer.map(|t| t.compute_writes()),
-        );
-        slot.sampler.encode_with(
-            enc,
-            timer.map(|t| t.compute_writes()),
-            pool_timer.map(|t| t.compute_writes()),
-        );
-        for t in [resample_timer, timer, pool_timer].into_iter().flatten() {
-            t.resolve(enc);
-        }
+        let span = diagnostics.time_span(enc, "envis_resample");
+        resampler.encode(&device, enc, source, &slot.sampler, None);
+        span.end(enc);
+        let span = diagnostics.time_span(enc, "envis_distribution");
+        slot.sampler.encode_distribution(enc, None);
+        span.end(enc);
+        let span = diagnostics.time_span(enc, "envis_pool");
+        slot.sampler.encode_pool(enc, None);
+        span.end(enc);
         slot.dirty = false;
         slot.generation += 1;
         any = true;

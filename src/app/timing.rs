@@ -1,7 +1,9 @@
 //! Per-pass times of the app, as a resource: CPU time to record each pass, and GPU time from
-//! timestamp queries where the device has them, read back asynchronously (a pass is timed again
-//! only after its previous result has been read, so the frame path never waits for the GPU).
+//! Bevy's render diagnostics (`RenderDiagnosticsPlugin`: timestamp queries where the device has
+//! them, read back without waiting), which envis's passes record as `render/envis_*`.
+//! [`AsyncRead`] is the non-blocking readback the probe uses.
 
+use bevy::diagnostic::{DiagnosticPath, DiagnosticsStore};
 use bevy::prelude::*;
 use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::{Arc, Mutex};
@@ -9,15 +11,17 @@ use std::sync::{Arc, Mutex};
 /// Milliseconds per pass (the latest value; `None` until measured or without timestamps).
 #[derive(Clone, Copy, Debug, Default, serde::Serialize)]
 pub struct PassTimes {
-    /// The environment image resampled into the distribution's cube texels: GPU time.
+    /// The environment image resampled into the distribution's cube texels: GPU time
+    /// ([`RESAMPLE_GPU`]).
     pub resample_gpu_ms: Option<f64>,
-    /// Distribution build (CDFs, face energies, pdf table): GPU time.
+    /// Distribution build (CDFs, face energies, pdf table): GPU time ([`DISTRIBUTION_GPU`]).
     pub build_gpu_ms: Option<f64>,
-    /// Light-sample pool: GPU time.
+    /// Light-sample pool: GPU time ([`POOL_GPU`]).
     pub pool_gpu_ms: Option<f64>,
     /// CPU time to record the resample, build and pool.
     pub build_cpu_ms: Option<f64>,
-    /// Lighting pass (all envis cameras of the last frame): GPU time, CPU time to record.
+    /// Lighting pass (the last envis camera's of the last frame measured): GPU time
+    /// ([`LIGHTING_GPU`]), CPU time to record.
     pub lighting_gpu_ms: Option<f64>,
     pub lighting_cpu_ms: Option<f64>,
 }
@@ -95,56 +99,33 @@ impl AsyncRead {
     }
 }
 
-/// Two timestamps around one pass, resolved and read back with an [`AsyncRead`].
-pub struct AsyncTimer {
-    set: wgpu::QuerySet,
-    resolve: wgpu::Buffer,
-    read: AsyncRead,
-    period_ns: f32,
-}
+/// Bevy's diagnostic paths of envis's GPU passes.
+pub const RESAMPLE_GPU: DiagnosticPath =
+    DiagnosticPath::const_new("render/envis_resample/elapsed_gpu");
+pub const DISTRIBUTION_GPU: DiagnosticPath =
+    DiagnosticPath::const_new("render/envis_distribution/elapsed_gpu");
+pub const POOL_GPU: DiagnosticPath = DiagnosticPath::const_new("render/envis_pool/elapsed_gpu");
+pub const LIGHTING_GPU: DiagnosticPath =
+    DiagnosticPath::const_new("render/envis_lighting/elapsed_gpu");
 
-impl AsyncTimer {
-    /// `None` when the device has no timestamp queries.
-    pub fn new(device: &wgpu::Device, queue: &wgpu::Queue, label: &str) -> Option<Self> {
-        if !device.features().contains(wgpu::Features::TIMESTAMP_QUERY) {
-            return None;
+/// The latest GPU times of envis's passes in Bevy's diagnostics into [`EnvisTimings`] (a pass
+/// keeps its last value until it runs again: a static map builds once).
+pub(crate) fn read_pass_diagnostics(
+    store: Option<Res<DiagnosticsStore>>,
+    timings: Res<EnvisTimings>,
+) {
+    let Some(store) = store else { return };
+    let ms = |p: &DiagnosticPath| store.get_measurement(p).map(|m| m.value);
+    timings.set(|t| {
+        for (path, field) in [
+            (&RESAMPLE_GPU, &mut t.resample_gpu_ms),
+            (&DISTRIBUTION_GPU, &mut t.build_gpu_ms),
+            (&POOL_GPU, &mut t.pool_gpu_ms),
+            (&LIGHTING_GPU, &mut t.lighting_gpu_ms),
+        ] {
+            if let Some(v) = ms(path) {
+                *field = Some(v);
+            }
         }
-        let (set, resolve) = crate::gpu::timestamp_pair(device, label);
-        Some(AsyncTimer {
-            set,
-            resolve,
-            read: AsyncRead::new(device, label, 16),
-            period_ns: queue.get_timestamp_period(),
-        })
-    }
-
-    /// Whether this pass should be timed now (the previous result has been collected).
-    pub fn ready(&self) -> bool {
-        self.read.ready()
-    }
-    pub fn compute_writes(&self) -> wgpu::ComputePassTimestampWrites<'_> {
-        wgpu::ComputePassTimestampWrites {
-            query_set: &self.set,
-            beginning_of_pass_write_index: Some(0),
-            end_of_pass_write_index: Some(1),
-        }
-    }
-    pub fn render_writes(&self) -> wgpu::RenderPassTimestampWrites<'_> {
-        wgpu::RenderPassTimestampWrites {
-            query_set: &self.set,
-            beginning_of_pass_write_index: Some(0),
-            end_of_pass_write_index: Some(1),
-        }
-    }
-    /// After the timed pass: resolve into the readback buffer.
-    pub fn resolve(&self, enc: &mut wgpu::CommandEncoder) {
-        enc.resolve_query_set(&self.set, 0..2, &self.resolve, 0);
-        self.read.copy_from(enc, &self.resolve);
-    }
-    /// Milliseconds of the timed pass, once they have arrived.
-    pub fn poll(&self) -> Option<f64> {
-        let v = self.read.poll()?;
-        let t: [u64; 2] = bytemuck::pod_read_unaligned(&v[..16]);
-        (t[1] > t[0]).then(|| (t[1] - t[0]) as f64 * self.period_ns as f64 * 1e-6)
-    }
+    });
 }

@@ -304,46 +304,58 @@ impl EnvSampler {
         dist_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
         pool_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) {
+        self.encode_distribution(enc, dist_writes);
+        self.encode_pool(enc, pool_writes);
+    }
+
+    /// The distribution pass of [`Self::encode_with`]: weights, CDFs, region energies, the pdf
+    /// table (and the `global` build when it is on).
+    pub fn encode_distribution(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
+    ) {
         let (n, k) = (self.n as u32, self.tiles as u32);
         let texels = 6 * n * n;
         enc.clear_buffer(&self.problems, 0, None);
-        let grid = |pass: &mut wgpu::ComputePass, p: &wgpu::ComputePipeline, (x, y): (u32, u32)| {
-            pass.set_pipeline(p);
-            pass.dispatch_workgroups(x, y, 1);
-        };
-        {
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("envis distribution"),
-                timestamp_writes: dist_writes,
-            });
-            pass.set_bind_group(0, &self.bind_group, &[]);
-            grid(&mut pass, &self.pipelines[0], dispatch_size(texels, 256));
-            grid(&mut pass, &self.pipelines[1], dispatch_size(6 * n * k, 1));
-            grid(&mut pass, &self.pipelines[2], dispatch_size(6 * k * k, 1));
-            grid(&mut pass, &self.pipelines[3], dispatch_size(texels, 256));
-            if let Some(g) = &self.global {
-                let (w, h) = (4 * n, 2 * n);
-                pass.set_bind_group(0, &g.bind_group, &[]);
-                grid(&mut pass, &g.pipelines[0], dispatch_size(w * h, 256));
-                grid(&mut pass, &g.pipelines[1], (h, 1));
-                grid(&mut pass, &g.pipelines[2], (1, 1));
-                grid(&mut pass, &g.pipelines[3], (h, 1));
-                grid(&mut pass, &g.pipelines[4], (1, 1));
-                grid(&mut pass, &g.pipelines[5], dispatch_size(w * h, 256));
-            }
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("envis distribution"),
+            timestamp_writes: writes,
+        });
+        pass.set_bind_group(0, &self.bind_group, &[]);
+        grid(&mut pass, &self.pipelines[0], dispatch_size(texels, 256));
+        grid(&mut pass, &self.pipelines[1], dispatch_size(6 * n * k, 1));
+        grid(&mut pass, &self.pipelines[2], dispatch_size(6 * k * k, 1));
+        grid(&mut pass, &self.pipelines[3], dispatch_size(texels, 256));
+        if let Some(g) = &self.global {
+            let (w, h) = (4 * n, 2 * n);
+            pass.set_bind_group(0, &g.bind_group, &[]);
+            grid(&mut pass, &g.pipelines[0], dispatch_size(w * h, 256));
+            grid(&mut pass, &g.pipelines[1], (h, 1));
+            grid(&mut pass, &g.pipelines[2], (1, 1));
+            grid(&mut pass, &g.pipelines[3], (h, 1));
+            grid(&mut pass, &g.pipelines[4], (1, 1));
+            grid(&mut pass, &g.pipelines[5], dispatch_size(w * h, 256));
         }
-        {
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("envis pool"),
-                timestamp_writes: pool_writes,
-            });
-            pass.set_bind_group(0, &self.bind_group, &[]);
-            grid(
-                &mut pass,
-                &self.pipelines[4],
-                dispatch_size(6 * k * k * self.m as u32, 64),
-            );
-        }
+    }
+
+    /// The pool pass of [`Self::encode_with`]: `M` light samples per region and block.
+    pub fn encode_pool(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
+    ) {
+        let k = self.tiles as u32;
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("envis pool"),
+            timestamp_writes: writes,
+        });
+        pass.set_bind_group(0, &self.bind_group, &[]);
+        grid(
+            &mut pass,
+            &self.pipelines[4],
+            dispatch_size(6 * k * k * self.m as u32, 64),
+        );
     }
 
     /// Headless: seed, encode, submit.
@@ -367,4 +379,10 @@ impl EnvSampler {
             self.pool_timer.as_ref().and_then(|t| t.read_ms(ctx)),
         )
     }
+}
+
+/// One dispatch of `p` over `(x, y)` workgroups.
+fn grid(pass: &mut wgpu::ComputePass, p: &wgpu::ComputePipeline, (x, y): (u32, u32)) {
+    pass.set_pipeline(p);
+    pass.dispatch_workgroups(x, y, 1);
 }

@@ -63,19 +63,30 @@ pub fn module(device: &wgpu::Device, label: &str, source: &str) -> wgpu::ShaderM
     })
 }
 
+/// The Bevy deferred lighting pass's modules, in order: file name and embedded text.
+pub const LIGHTING_MODULES: [(&str, &str); 8] = [
+    ("common.wgsl", COMMON),
+    ("sampling.wgsl", SAMPLING),
+    ("cdf.wgsl", CDF),
+    ("global_layout.wgsl", GLOBAL_LAYOUT),
+    ("shade.wgsl", SHADE),
+    ("image_source.wgsl", IMAGE_SOURCE),
+    ("visibility.wgsl", VISIBILITY),
+    ("lighting.wgsl", LIGHTING),
+];
+
 /// The Bevy deferred lighting pass (fullscreen vertex + fragment `lighting`).
 pub fn lighting_source() -> String {
-    [
-        COMMON,
-        SAMPLING,
-        CDF,
-        GLOBAL_LAYOUT,
-        SHADE,
-        IMAGE_SOURCE,
-        VISIBILITY,
-        LIGHTING,
-    ]
-    .concat()
+    LIGHTING_MODULES.iter().map(|(_, text)| *text).collect()
+}
+
+/// [`lighting_source`] read from the `.wgsl` files in `dir` (the shaders' folder) instead of the
+/// copies embedded at build time: what `EnvisShaderReloadPlugin` recompiles.
+pub fn lighting_source_from(dir: &std::path::Path) -> std::io::Result<String> {
+    LIGHTING_MODULES
+        .iter()
+        .map(|(name, _)| std::fs::read_to_string(dir.join(name)))
+        .collect()
 }
 
 /// The `global` baseline's build (lat-long distribution over the sphere).
@@ -115,6 +126,16 @@ mod tests {
         assert_eq!(
             wgsl_const(super::COMMON, "MAX_RADIANCE"),
             crate::envmap::MAX_RADIANCE
+        );
+    }
+
+    /// The reloadable source is the embedded one, file for file.
+    #[test]
+    fn lighting_modules_are_the_files() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
+        assert_eq!(
+            super::lighting_source_from(&dir).unwrap(),
+            super::lighting_source()
         );
     }
 }

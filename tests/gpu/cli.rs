@@ -51,6 +51,11 @@ fn cli_gpu_backends() {
             "48",
             "--face-size",
             "32",
+            // The built-in sky's stream gives the Bevy pass an image of the face size: the same
+            // radiance as the distribution's map (`--radiance full` has its own twin test,
+            // `shading::gpu_full_resolution_radiance_matches_cpu`).
+            "--radiance",
+            "distribution",
             "--backend",
             b,
         ];

@@ -79,8 +79,6 @@ pub fn run(opts: DemoOptions) -> AppExit {
         },
     ))
     .add_plugins(EguiPlugin::default())
-    // Bevy's own per-pass GPU timings (its prepass writes the G-buffer) for the Timings panel.
-    .add_plugins(bevy::render::diagnostic::RenderDiagnosticsPlugin)
     .insert_resource(DemoState {
         debug: false,
         script: opts.script.clone(),
@@ -144,6 +142,8 @@ pub struct DemoState {
     script_step: usize,
     script_next: u32,
     script_waited: u32,
+    /// Frames the script waited for the lighting pipeline to compile.
+    script_compile_wait: u32,
     face_size: usize,
     env_text: String,
     fps: f32,

@@ -84,6 +84,19 @@ pub(super) fn run_script(
     if f < state.script_next {
         return;
     }
+    // Bevy compiles the lighting pipeline in the background: the steps start once envis has
+    // lit a frame.
+    if counters.get(|c| &c.lighting_passes) == 0 {
+        state.script_compile_wait += 1;
+        if state.script_compile_wait > 20 * MAX_WAIT {
+            eprintln!(
+                "envis: error: the lighting pass did not run in {} frames",
+                20 * MAX_WAIT
+            );
+            exit.write(AppExit::error());
+        }
+        return;
+    }
     let step = state.script_step;
     if let Some(Step::AwaitProbe) = SCRIPT.get(step)
         && state.pixel.is_none()
@@ -145,6 +158,7 @@ pub(super) fn run_script(
                 "window": [w, h],
                 "frames": f,
                 "probe_wait_frames": state.script_waited,
+                "lighting_wait_frames": state.script_compile_wait,
                 "fps": state.fps,
                 "timings_ms": timings.get(),
                 "builds": counters.get(|c| &c.builds),

@@ -1,22 +1,112 @@
-//! The lighting pass's GPU objects: its bind group layout and render pipelines (one per target
-//! format), and each view's accumulation buffer.
+//! The lighting pass's GPU objects: its pipeline, one per target format through Bevy's
+//! `PipelineCache` (compiled from the `Shader` asset [`LightingShader`], so a changed source
+//! recompiles it), its bind group layout as one table, and the resources it keeps: the probe and
+//! its readback, and per view the uniforms and the accumulation buffer, written in place each
+//! frame.
 
 use crate::app::lighting_uniforms::PROBE_BYTES;
-use crate::app::timing::{AsyncRead, AsyncTimer};
-use crate::gpu::shaders;
+use crate::app::timing::AsyncRead;
 use bevy::prelude::*;
+use bevy::render::render_resource::binding_types::{
+    storage_buffer_read_only_sized, storage_buffer_sized, texture_2d, texture_depth_2d,
+    uniform_buffer_sized,
+};
+use bevy::render::render_resource::{
+    BindGroupLayoutDescriptor, BindGroupLayoutEntries, BlendState, ColorTargetState, ColorWrites,
+    FragmentState, RenderPipelineDescriptor, ShaderStages, SpecializedRenderPipeline,
+    TextureFormat, TextureSampleType, VertexState,
+};
+use bevy::shader::Shader;
 use std::collections::HashMap;
 use std::sync::Mutex;
 
-/// The lighting pipeline (raw wgpu, shared WGSL with the headless backend), one per target format.
+/// The lighting pass's WGSL (`gpu::shaders::lighting_source`) as a `Shader` asset, held in both
+/// worlds (the render world compiles from it; replacing the asset recompiles the pipelines).
+#[derive(Resource, Clone)]
+pub struct LightingShader(pub Handle<Shader>);
+
+/// The lighting pipeline's layout and shader; [`SpecializedRenderPipeline`] by target format.
 #[derive(Resource)]
-pub struct LightingPipelines {
-    pub(super) layout: wgpu::BindGroupLayout,
-    pub(super) pipeline_layout: wgpu::PipelineLayout,
-    pub(super) module: wgpu::ShaderModule,
-    pub(super) by_format: Mutex<HashMap<wgpu::TextureFormat, wgpu::RenderPipeline>>,
-    /// Times the first envis camera's lighting pass of a frame.
-    pub(super) timer: Option<AsyncTimer>,
+pub struct LightingPipeline {
+    pub(super) layout: BindGroupLayoutDescriptor,
+    shader: Handle<Shader>,
+}
+
+impl LightingPipeline {
+    pub(super) fn new(shader: Handle<Shader>) -> Self {
+        LightingPipeline {
+            layout: lighting_layout(),
+            shader,
+        }
+    }
+}
+
+/// The bind group layout, in binding order (`@binding(0)` ... `@binding(13)` of
+/// `shaders/lighting.wgsl`; `mis_lighting` binds the resources in the same order).
+pub fn lighting_layout() -> BindGroupLayoutDescriptor {
+    let ro = || storage_buffer_read_only_sized(false, None);
+    let entries = BindGroupLayoutEntries::sequential(
+        ShaderStages::FRAGMENT,
+        (
+            texture_2d(TextureSampleType::Uint), // 0: the deferred G-buffer
+            texture_depth_2d(),                  // 1: depth
+            ro(),                                // 2: texel table
+            ro(),                                // 3: light pool
+            ro(),                                // 4: regions
+            uniform_buffer_sized(false, None),   // 5: ShadeParams
+            uniform_buffer_sized(false, None),   // 6: LightingView
+            storage_buffer_sized(false, None),   // 7: probe record
+            storage_buffer_sized(false, None),   // 8: accumulation
+            ro(),                                // 9: global CDFs
+            texture_2d(TextureSampleType::Uint), // 10: deferred lighting pass ids
+            crate::gpu::resample::source_binding(), // 11: the environment image
+            ro(),                                // 12: BVH nodes
+            ro(),                                // 13: BVH triangles
+        ),
+    );
+    BindGroupLayoutDescriptor::new("envis lighting layout", &entries)
+}
+
+impl SpecializedRenderPipeline for LightingPipeline {
+    type Key = TextureFormat;
+
+    fn specialize(&self, format: TextureFormat) -> RenderPipelineDescriptor {
+        RenderPipelineDescriptor {
+            label: Some("envis lighting".into()),
+            layout: vec![self.layout.clone()],
+            vertex: VertexState {
+                shader: self.shader.clone(),
+                entry_point: Some("fullscreen".into()),
+                ..default()
+            },
+            fragment: Some(FragmentState {
+                shader: self.shader.clone(),
+                entry_point: Some("lighting".into()),
+                // Premultiplied: alpha 0 adds to Bevy's lighting, alpha 1 replaces.
+                targets: vec![Some(ColorTargetState {
+                    format,
+                    blend: Some(BlendState::PREMULTIPLIED_ALPHA_BLENDING),
+                    write_mask: ColorWrites::ALL,
+                })],
+                ..default()
+            }),
+            ..default()
+        }
+    }
+}
+
+/// One view's kept buffers: its uniforms (written each frame) and its running mean.
+pub(super) struct ViewBuffers {
+    pub(super) params: wgpu::Buffer,
+    pub(super) view: wgpu::Buffer,
+    /// One vec4 per viewport pixel while accumulating, a 16-byte placeholder otherwise.
+    pub(super) accum: wgpu::Buffer,
+    accum_size: UVec2,
+}
+
+/// What the lighting pass keeps between frames.
+#[derive(Resource)]
+pub struct LightingResources {
     /// The probed pixel's record (`lighting_uniforms::PROBE_RECORD`) and its readback.
     pub(super) probe: wgpu::Buffer,
     pub(super) probe_read: AsyncRead,
@@ -24,71 +114,12 @@ pub struct LightingPipelines {
     pub(super) no_shadows: wgpu::Buffer,
     /// The seed of the frame whose probe is being read back.
     pub(super) probe_seed: Mutex<u32>,
-    /// Per view: the running mean of the accumulated frames (one vec4 per pixel) and its size.
-    pub(super) accum: Mutex<HashMap<Entity, (wgpu::Buffer, UVec2)>>,
+    /// Per view, its buffers (dropped with the view).
+    pub(super) views: Mutex<HashMap<Entity, ViewBuffers>>,
 }
 
-impl LightingPipelines {
-    pub(super) fn new(device: &wgpu::Device, queue: &wgpu::Queue) -> Self {
-        use wgpu::{BindingType as B, BufferBindingType as BB, ShaderStages as S};
-        let e = |binding: u32, ty: B| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: S::FRAGMENT,
-            ty,
-            count: None,
-        };
-        let buf = |ty: BB| B::Buffer {
-            ty,
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        };
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("envis lighting layout"),
-            entries: &[
-                e(
-                    0,
-                    B::Texture {
-                        sample_type: wgpu::TextureSampleType::Uint,
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    },
-                ),
-                e(
-                    1,
-                    B::Texture {
-                        sample_type: wgpu::TextureSampleType::Depth,
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    },
-                ),
-                e(2, buf(BB::Storage { read_only: true })),
-                e(3, buf(BB::Storage { read_only: true })),
-                e(4, buf(BB::Storage { read_only: true })),
-                e(5, buf(BB::Uniform)),
-                e(6, buf(BB::Uniform)),
-                e(7, buf(BB::Storage { read_only: false })),
-                e(8, buf(BB::Storage { read_only: false })),
-                e(9, buf(BB::Storage { read_only: true })),
-                e(
-                    10,
-                    B::Texture {
-                        sample_type: wgpu::TextureSampleType::Uint,
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    },
-                ),
-                e(11, crate::gpu::resample::source_binding()),
-                e(12, buf(BB::Storage { read_only: true })),
-                e(13, buf(BB::Storage { read_only: true })),
-            ],
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("envis lighting"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let module = shaders::module(device, "envis lighting.wgsl", &shaders::lighting_source());
-        let timer = AsyncTimer::new(device, queue, "envis lighting timer");
+impl LightingResources {
+    pub(super) fn new(device: &wgpu::Device) -> Self {
         let probe = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("envis probe"),
             size: PROBE_BYTES,
@@ -105,82 +136,114 @@ impl LightingPipelines {
             usage: wgpu::BufferUsages::STORAGE,
             mapped_at_creation: false,
         });
-        LightingPipelines {
-            layout,
-            pipeline_layout,
-            module,
-            by_format: Mutex::new(HashMap::new()),
-            timer,
+        LightingResources {
             probe,
             probe_read,
             no_shadows,
             probe_seed: Mutex::new(0),
-            accum: Mutex::new(HashMap::new()),
+            views: Mutex::new(HashMap::new()),
         }
     }
 
-    /// The view's running-mean buffer: one vec4 per viewport pixel while accumulating (a new one,
-    /// so a new mean, when the viewport size changes), a 16-byte placeholder otherwise.
-    pub(super) fn accumulation_buffer(
+    /// The view's buffers, its uniforms written (`params`, `view`: the bytes of `ShadeParams`
+    /// and `LightingView`) and its running mean sized for viewport `vp` while `accumulate` (a new
+    /// one, so a new mean, when the viewport size changes).
+    pub(super) fn view_buffers(
         &self,
-        device: &wgpu::Device,
+        (device, queue): (&wgpu::Device, &wgpu::Queue),
         view: Entity,
-        accumulate: bool,
-        vp: UVec4,
-    ) -> wgpu::Buffer {
-        let buffer = |bytes: u64| {
+        (accumulate, vp): (bool, UVec4),
+        (params, lv): (&[u8], &[u8]),
+    ) -> (wgpu::Buffer, wgpu::Buffer, wgpu::Buffer) {
+        let buffer = |label: &str, bytes: u64, usage: wgpu::BufferUsages| {
             device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("envis accumulation"),
+                label: Some(label),
                 size: bytes,
-                // COPY_DST: cleared at every restart of the mean.
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                usage: usage | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             })
         };
-        let mut map = self.accum.lock().expect("accumulation buffers");
+        let uniform = wgpu::BufferUsages::UNIFORM;
+        let mut map = self.views.lock().expect("view buffers");
         let size = UVec2::new(vp.z.max(1), vp.w.max(1));
-        let entry = map.entry(view).or_insert_with(|| (buffer(16), UVec2::ZERO));
-        if accumulate && entry.1 != size {
-            *entry = (buffer(size.x as u64 * size.y as u64 * 16), size);
+        let v = map.entry(view).or_insert_with(|| ViewBuffers {
+            params: buffer("envis shade params", params.len() as u64, uniform),
+            view: buffer("envis lighting view", lv.len() as u64, uniform),
+            accum: buffer("envis accumulation", 16, wgpu::BufferUsages::STORAGE),
+            accum_size: UVec2::ZERO,
+        });
+        if accumulate && v.accum_size != size {
+            let bytes = size.x as u64 * size.y as u64 * 16;
+            v.accum = buffer("envis accumulation", bytes, wgpu::BufferUsages::STORAGE);
+            v.accum_size = size;
         }
-        entry.0.clone()
+        // Each view has its own buffers: writes land before this frame's passes, one per view.
+        queue.write_buffer(&v.params, 0, params);
+        queue.write_buffer(&v.view, 0, lv);
+        (v.params.clone(), v.view.clone(), v.accum.clone())
     }
 
-    pub(super) fn pipeline(
-        &self,
-        device: &wgpu::Device,
-        format: wgpu::TextureFormat,
-    ) -> wgpu::RenderPipeline {
-        let mut map = self.by_format.lock().expect("lighting pipelines");
-        map.entry(format)
-            .or_insert_with(|| {
-                device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                    label: Some("envis lighting"),
-                    layout: Some(&self.pipeline_layout),
-                    vertex: wgpu::VertexState {
-                        module: &self.module,
-                        entry_point: Some("fullscreen"),
-                        compilation_options: Default::default(),
-                        buffers: &[],
-                    },
-                    fragment: Some(wgpu::FragmentState {
-                        module: &self.module,
-                        entry_point: Some("lighting"),
-                        compilation_options: Default::default(),
-                        // Premultiplied: alpha 0 adds to Bevy's lighting, alpha 1 replaces.
-                        targets: &[Some(wgpu::ColorTargetState {
-                            format,
-                            blend: Some(wgpu::BlendState::PREMULTIPLIED_ALPHA_BLENDING),
-                            write_mask: wgpu::ColorWrites::ALL,
-                        })],
-                    }),
-                    primitive: Default::default(),
-                    depth_stencil: None,
-                    multisample: Default::default(),
-                    multiview_mask: None,
-                    cache: None,
-                })
+    /// Buffers of views that are gone (or stopped sampling) are freed.
+    pub(super) fn retain_views(&self, keep: impl Fn(Entity) -> bool) {
+        let mut map = self.views.lock().expect("view buffers");
+        if map.keys().any(|e| !keep(*e)) {
+            map.retain(|e, _| keep(*e));
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// What a WGSL declaration binds, in the layout's terms.
+    fn wgsl_kind(decl: &str) -> &'static str {
+        if decl.starts_with("var<uniform>") {
+            "uniform"
+        } else if decl.starts_with("var<storage, read_write>") {
+            "storage rw"
+        } else if decl.starts_with("var<storage, read>") {
+            "storage ro"
+        } else {
+            "texture"
+        }
+    }
+
+    fn layout_kind(ty: &wgpu::BindingType) -> &'static str {
+        use wgpu::{BindingType as B, BufferBindingType as BB};
+        match ty {
+            B::Buffer {
+                ty: BB::Uniform, ..
+            } => "uniform",
+            B::Buffer {
+                ty: BB::Storage { read_only: false },
+                ..
+            } => "storage rw",
+            B::Buffer {
+                ty: BB::Storage { read_only: true },
+                ..
+            } => "storage ro",
+            _ => "texture",
+        }
+    }
+
+    /// The one table (`lighting_layout`) and `shaders/lighting.wgsl` declare the same bindings,
+    /// in order, of the same kinds.
+    #[test]
+    fn lighting_layout_matches_the_wgsl_bindings() {
+        let wgsl: Vec<(u32, &str)> = crate::gpu::shaders::LIGHTING
+            .lines()
+            .filter_map(|l| l.strip_prefix("@group(0) @binding("))
+            .map(|l| {
+                let (n, rest) = l.split_once(") ").unwrap();
+                (n.parse().unwrap(), wgsl_kind(rest))
             })
-            .clone()
+            .collect();
+        let layout: Vec<(u32, &str)> = lighting_layout()
+            .entries
+            .iter()
+            .map(|e| (e.binding, layout_kind(&e.ty)))
+            .collect();
+        assert_eq!(wgsl, layout);
     }
 }
