@@ -873,3 +873,57 @@ fn bevy_shadows_follow_moving_meshes() {
         "the old shadow stayed: {right:?} {left:?}"
     );
 }
+
+/// `EnvisShaderReloadPlugin`: editing the lighting pass's WGSL on disk recompiles it (the
+/// `Shader` asset replaced, Bevy's pipeline cache recompiling): doubling the radiance the
+/// fragment returns doubles the envis term of an `EnvisMaterial` sphere (same seed every frame).
+#[test]
+fn bevy_shader_edit_recompiles_the_lighting_pass() {
+    use envis::app::headless::HeadlessSphere;
+    use envis::stream::StreamSource;
+    use std::time::{Duration, Instant};
+    let Some(_) = gpu() else { return };
+    let dir = super::support::TempDir::new("shader-reload");
+    let shaders = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
+    for (name, _) in envis::gpu::shaders::LIGHTING_MODULES {
+        std::fs::copy(shaders.join(name), dir.join(name)).unwrap();
+    }
+    let sampling = EnvironmentSampling {
+        light_samples: 4,
+        brdf_samples: 4,
+        ..default()
+    };
+    let brdf = EnvisBrdf::Lambert {
+        albedo: Vec3::splat(0.8),
+    };
+    let sky = StreamSource::Sky {
+        hours: 10.0,
+        speed: 0.0,
+    };
+    let mut h = HeadlessSphere::new(sky, 16, brdf, sampling, 24);
+    h.app.app.add_plugins(EnvisShaderReloadPlugin {
+        dir: dir.to_path_buf(),
+    });
+    let sum = |img: &[Vec3]| img.iter().map(|c| luminance(*c) as f64).sum::<f64>();
+    let before = sum(&h.capture().unwrap());
+    assert!(before > 0.0);
+    let path = dir.join("lighting.wgsl");
+    let src = std::fs::read_to_string(&path).unwrap();
+    let edited = src.replace(
+        "return vec4(color * scale, 0.0);",
+        "return vec4(color * scale * 2.0, 0.0);",
+    );
+    assert_ne!(edited, src, "the fragment's return was not found");
+    // A modification time later than the copy's, on file systems with coarse clocks.
+    std::thread::sleep(Duration::from_millis(1100));
+    std::fs::write(&path, edited).unwrap();
+    let start = Instant::now();
+    let mut ratio = 1.0;
+    while start.elapsed() < Duration::from_secs(60) && (ratio - 2.0f64).abs() > 1e-3 {
+        ratio = sum(&h.capture().unwrap()) / before;
+    }
+    assert!(
+        (ratio - 2.0).abs() < 1e-3,
+        "after the edit: {ratio} x the image"
+    );
+}
