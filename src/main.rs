@@ -107,8 +107,9 @@ struct SequenceArgs {
     /// N_B; default: the scene file's.
     #[arg(long)]
     brdf_samples: Option<usize>,
-    /// Shadow rays: overrides the scene file's `visibility`.
-    #[arg(long, value_enum)]
+    /// Shadow rays: overrides the scene file's `shadows` (`--shadows` is the same flag, under
+    /// the settings' name).
+    #[arg(long, value_enum, visible_alias = "shadows")]
     visibility: Option<envis::visibility::ShadowRays>,
     /// Write the settings and one object per frame as JSON.
     #[arg(long)]
@@ -152,8 +153,9 @@ struct SceneArgs {
     #[arg(long, default_value_t = 0.2)]
     alpha: f32,
     /// Shadow rays for every light and BRDF sample (CPU): `auto` (default, or the scene file's
-    /// `visibility`) casts them when some object can shadow a visible point.
-    #[arg(long, value_enum)]
+    /// `shadows`) casts them when some object can shadow a visible point (`--shadows` is the
+    /// same flag, under the settings' name).
+    #[arg(long, value_enum, visible_alias = "shadows")]
     visibility: Option<envis::visibility::ShadowRays>,
     /// With a scene file: the pose at this time, in seconds on its `[animation]` clock (the
     /// camera orbited, objects moved, the sky's clock advanced).
@@ -200,12 +202,14 @@ struct RenderArgs {
     strategy: Strategy,
     #[arg(long, value_enum, default_value_t = Counts::Fractional)]
     counts: Counts,
-    #[arg(long, value_enum, default_value_t = Heuristic::Balance)]
+    /// The MIS heuristic (`--heuristic` is the same flag, under the settings' name).
+    #[arg(long, value_enum, default_value_t = Heuristic::Balance, visible_alias = "heuristic")]
     mis: Heuristic,
     #[arg(long, default_value_t = 0)]
     seed: u32,
-    /// M, pool samples per face (default: N_L).
-    #[arg(long, default_value_t = 0)]
+    /// M, pool samples per face (default: N_L; `--pool-size` is the same flag, under the
+    /// settings' name).
+    #[arg(long, default_value_t = 0, visible_alias = "pool-size")]
     pool: usize,
     /// How pixels share the pool: `shared` (the paper's), `offset` (a random start per pixel),
     /// `blocks` (one of K independent pools per pixel).

@@ -2,130 +2,38 @@
 //! [`EnvisEnvironment`] (what to sample). Both live on the camera, as Bevy's own
 //! `EnvironmentMapLight` does, so two cameras can sample differently in one app.
 
-use super::Overlay;
-use crate::render::{PoolLayout, Settings, Strategy};
-use crate::sampling::{Counts, Heuristic};
-use bevy::core_pipeline::prepass::{DeferredPrepass, DepthPrepass};
+use crate::render::Settings;
 use bevy::prelude::*;
 use bevy::render::extract_component::ExtractComponent;
 
-/// Unbiased, per-frame importance-sampled environment lighting for this camera (Lu, Pacanowski &
-/// Granier 2013): every pixel with geometry gets `light_samples` face-weighted light samples and
-/// `brdf_samples` BRDF samples, combined by multiple importance sampling.
-///
-/// Requires the deferred prepasses, an HDR target and no MSAA (deferred rendering has none).
-/// Needs an [`EnvisEnvironment`] on the same camera to do anything. Removing it gives the camera
-/// back to Bevy's lighting alone.
-#[derive(Component, Clone, Debug, PartialEq, Reflect, ExtractComponent)]
-#[reflect(Component, Default, Clone)]
-#[require(DepthPrepass, DeferredPrepass, bevy::camera::Hdr, Msaa::Off)]
-pub struct EnvironmentSampling {
-    /// Light samples per pixel, `N_L` (shared between the cube faces by their face weights).
-    pub light_samples: u32,
-    /// BRDF samples per pixel, `N_B`.
-    pub brdf_samples: u32,
-    /// `paper` (the method: cosine face weights), `light` (energy only), `brdf`, or `global`
-    /// (one lat-long distribution: the baseline).
-    pub strategy: Strategy,
-    /// `fractional` counts are unbiased and do not pop; `integer` counts are the paper's toggle.
-    pub counts: Counts,
-    /// The MIS heuristic (balance or power).
-    pub heuristic: Heuristic,
-    /// Light samples drawn per cube face per frame, `M` (0: `light_samples`).
-    pub pool_size: u32,
-    /// How pixels share the pool: `shared` (the paper's: the same samples everywhere, coherent
-    /// error), `offset` (a random start per pixel) or `blocks` (one of `pool_blocks`
-    /// independent pools per pixel: the error becomes noise; `docs/benchmarks.md`).
-    pub pool_layout: PoolLayout,
-    /// Independent pools with `blocks`, `K`.
-    pub pool_blocks: u32,
-    /// Let each pixel's material split the budget (diffuse: all light samples; near-mirror: all
-    /// BRDF samples); `paper` only.
-    pub material_budget: bool,
-    /// `K`: each cube face cut into `K x K` tiles, each weighted and sampled on its own (1: the
-    /// paper's whole faces; at most [`crate::sampling::MAX_TILES`]).
-    pub tiles: u32,
-    /// With tiles: `Face` (the paper's counts per face, each sample drawing its tile) or `Tile`
-    /// (counts per tile).
-    pub tile_counts: crate::sampling::TileCounts,
-    /// Random seed of the pool and the per-pixel streams.
-    pub seed: u32,
-    /// Average frames while nothing changes (camera, settings, map, viewport size).
-    pub accumulate: bool,
-    /// A full-screen debug view instead of the image.
-    pub overlay: Overlay,
-    /// Face size of the sampling distribution (a sampling choice: radiance seen in the
-    /// background comes from the full-resolution image).
-    pub face_size: u32,
-    /// Pixel (viewport coordinates) whose G-buffer texel and estimate are read back into
-    /// [`super::EnvisProbe`] (the demo's sample-debug view).
-    pub probe: Option<UVec2>,
-    /// Shadow rays against the scene's meshes for every light and BRDF sample: `auto` (on
-    /// when some mesh casts shadows), `on` or `off`. `NotShadowCaster` meshes cast none.
-    pub shadows: crate::visibility::ShadowRays,
-}
+pub use crate::render::EnvironmentSampling;
 
-impl Default for EnvironmentSampling {
-    fn default() -> Self {
-        EnvironmentSampling {
-            light_samples: 32,
-            brdf_samples: 32,
-            strategy: Strategy::Paper,
-            counts: Counts::Fractional,
-            heuristic: Heuristic::Balance,
-            pool_size: 0,
-            pool_layout: PoolLayout::Blocks,
-            pool_blocks: crate::render::DEFAULT_POOL_BLOCKS as u32,
-            material_budget: false,
-            tiles: Settings::default().tiles as u32,
-            tile_counts: Settings::default().tile_counts,
-            seed: 0,
-            accumulate: false,
-            overlay: Overlay::None,
-            face_size: 64,
-            probe: None,
-            shadows: crate::visibility::ShadowRays::Auto,
-        }
-    }
-}
-
+/// The camera component is the core's settings type ([`EnvironmentSampling`] = `render::Settings`):
+/// these were the conversions when they were two types.
 impl EnvironmentSampling {
-    /// The core's settings (what the CPU renderer takes for the same image).
+    /// The core's settings (the same type: a copy).
+    #[deprecated(note = "`EnvironmentSampling` is the core's `Settings`: use it directly")]
     pub fn settings(&self) -> Settings {
-        Settings {
-            light_samples: self.light_samples as usize,
-            brdf_samples: self.brdf_samples as usize,
-            pool_size: self.pool_size as usize,
-            strategy: self.strategy,
-            counts: self.counts,
-            mis: self.heuristic,
-            seed: self.seed,
-            pool_layout: self.pool_layout,
-            pool_blocks: self.pool_blocks as usize,
-            material_budget: self.material_budget,
-            tiles: self.tiles as usize,
-            tile_counts: self.tile_counts,
-        }
+        *self
     }
 
-    /// Copy the core's settings in (the demo's panel edits a [`Settings`]).
+    /// Copy the sampling fields of `s` in, keeping this view's own (`accumulate`, `overlay`,
+    /// `face_size`, `probe`, `shadows`).
+    #[deprecated(note = "`EnvironmentSampling` is the core's `Settings`: assign the fields")]
     pub fn set_settings(&mut self, s: &Settings) {
-        self.light_samples = s.light_samples as u32;
-        self.brdf_samples = s.brdf_samples as u32;
-        self.pool_size = s.pool_size as u32;
-        self.strategy = s.strategy;
-        self.counts = s.counts;
-        self.heuristic = s.mis;
-        self.seed = s.seed;
-        self.pool_layout = s.pool_layout;
-        self.pool_blocks = s.pool_blocks as u32;
-        self.material_budget = s.material_budget;
-        self.tiles = s.tiles as u32;
-        self.tile_counts = s.tile_counts;
+        *self = EnvironmentSampling {
+            accumulate: self.accumulate,
+            overlay: self.overlay,
+            face_size: self.face_size,
+            probe: self.probe,
+            shadows: self.shadows,
+            ..*s
+        };
     }
 
-    /// `N_L + N_B`.
-    pub fn budget(&self) -> u32 {
+    /// `N_L + N_B`, the samples a pixel is given (its material or strategy splits them:
+    /// [`Settings::budget`]).
+    pub fn samples_per_pixel(&self) -> usize {
         self.light_samples + self.brdf_samples
     }
 }

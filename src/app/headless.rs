@@ -291,7 +291,7 @@ impl HeadlessSphere {
     ) -> Self {
         let target = h.float_target(size, size);
         let image = h.app.world().resource::<EnvMapStream>().image.clone();
-        sampling.face_size = face as u32;
+        sampling.face_size = face;
         let env = EnvisEnvironment {
             show_background: false,
             ..EnvisEnvironment::new(image)

@@ -179,7 +179,7 @@ fn mis_lighting(
     ) else {
         return;
     };
-    let mut s = sampling.settings();
+    let mut s = *sampling;
     if s.strategy == Strategy::Global && !sampler.has_global() {
         return; // its distribution is built from the next frame on
     }

@@ -49,6 +49,7 @@ pub mod shadows;
 pub mod stream;
 pub mod timing;
 
+pub use crate::render::Overlay;
 pub use components::{EnvironmentSampling, EnvisEnvironment, exposure_multiplier};
 pub use lighting::EnvisLightingPlugin;
 pub use material::{
@@ -153,35 +154,8 @@ pub(crate) fn share_resources(app: &mut App) {
     }
 }
 
-/// Full-screen debug overlays of the lighting pass.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Reflect)]
-pub enum Overlay {
-    #[default]
-    None,
-    /// Samples each pixel evaluated (used light + BRDF) over its budget, as a heat map.
-    EffectiveSamples,
-    /// Fraction of the used light samples with a negative cosine (the paper's yellow).
-    Wasted,
-    /// |fractional - integer| / fractional: where integer counts pop.
-    CountsDifference,
-}
-
+/// What each overlay's colour scale means (the app's side of [`Overlay`], the core's enum).
 impl Overlay {
-    pub const ALL: [Overlay; 4] = [
-        Overlay::None,
-        Overlay::EffectiveSamples,
-        Overlay::Wasted,
-        Overlay::CountsDifference,
-    ];
-    pub fn name(self) -> &'static str {
-        match self {
-            Overlay::None => "none",
-            Overlay::EffectiveSamples => "effective samples",
-            Overlay::Wasted => "wasted (yellow) fraction",
-            Overlay::CountsDifference => "fractional - integer",
-        }
-    }
-
     /// What the overlay's colour scale means: the value at the red end (blue is 0), its unit, and
     /// what is measured. `budget` is the pixel's `N_L + N_B`. `None` for no overlay.
     pub fn legend(self, budget: usize) -> Option<OverlayLegend> {

@@ -232,8 +232,8 @@ pub fn prepare_samplers(
             .as_ref()
             .and_then(|v| v.0.get(&env.image.id()).copied())
             .unwrap_or(0);
-        let settings = sampling.settings();
-        let face_size = (sampling.face_size as usize).clamp(1, 2048);
+        let settings = *sampling;
+        let face_size = sampling.face_size.clamp(1, 2048);
         // Accumulation: restart the mean whenever anything the image depends on changed.
         let scene = scene.as_ref().map_or(0, |s| s.0);
         let layers = super::shadows::layers_of(layers);

@@ -224,8 +224,8 @@ impl Shot<'_> {
                 frames,
             } => {
                 let sampling = EnvironmentSampling {
-                    light_samples: light,
-                    brdf_samples: brdf,
+                    light_samples: light as usize,
+                    brdf_samples: brdf as usize,
                     shadows: ShadowRays::On,
                     accumulate: frames > 1,
                     ..default()

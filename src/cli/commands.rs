@@ -16,7 +16,7 @@ pub fn render(r: RenderArgs) -> Result<()> {
         pool_size: r.pool,
         strategy: r.strategy,
         counts: r.counts,
-        mis: r.mis,
+        heuristic: r.mis,
         seed: r.seed,
         pool_layout: if r.pixel_offset {
             PoolLayout::Offset
@@ -27,6 +27,9 @@ pub fn render(r: RenderArgs) -> Result<()> {
         material_budget: r.material_budget,
         tiles: r.tiles,
         tile_counts: r.tile_counts,
+        face_size: r.scene.face_size,
+        shadows: r.scene.visibility.unwrap_or_default(),
+        ..Default::default()
     };
     settings.validate()?;
     let su = setup(&r.scene)?;
@@ -174,13 +177,12 @@ fn render_bevy(
     scene: Option<&envis::scene::Scene>,
     shadows: bool,
 ) -> Result<(render::Rendered, serde_json::Value)> {
-    use envis::app::{EnvironmentSampling, EnvisBrdf, headless::HeadlessSphere};
+    use envis::app::{EnvisBrdf, headless::HeadlessSphere};
     use envis::envmap::load::EnvSource;
     use envis::visibility::ShadowRays;
     envis::gpu::context::check_adapter()?;
     use envis::stream::{EnvStream, StreamSource};
-    let mut settings = EnvironmentSampling::default();
-    settings.set_settings(s);
+    let mut settings = *s;
     // Bevy traces the meshes it draws (a tessellated sphere included).
     settings.shadows = if shadows {
         ShadowRays::On

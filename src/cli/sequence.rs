@@ -31,7 +31,7 @@ pub fn sequence(a: SequenceArgs) -> Result<()> {
     settings.brdf_samples = a.brdf_samples.unwrap_or(settings.brdf_samples);
     settings.seed = a.seed.unwrap_or(settings.seed);
     settings.validate()?;
-    let vis = a.visibility.or(scene.file.sampling.visibility);
+    let vis = a.visibility.or(scene.file.sampling.shadows);
     let o = SequenceOptions {
         size: a.size,
         frames: a.frames,

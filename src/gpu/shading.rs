@@ -77,7 +77,7 @@ impl ShadeParams {
             nb: nb as u32,
             strategy: s.strategy.gpu_code(),
             counts: s.counts.gpu_code(),
-            mis: s.mis.gpu_code(),
+            mis: s.heuristic.gpu_code(),
             seed: s.seed,
             pool_layout: s.pool_layout.gpu_code(),
             pixel_count: pixel_count as u32,

@@ -304,7 +304,7 @@ impl<B: LocalBsdf> Pixel<'_, B> {
         } else {
             (self.bsdf.eval_local(self.ol, il), 0.0)
         };
-        let scale = weight * cos * mis::weight_over_density(self.s.mis, n_l, n_b);
+        let scale = weight * cos * mis::weight_over_density(self.s.heuristic, n_l, n_b);
         sum.add(dir, f * radiance(), cos, scale);
     }
 }

@@ -45,7 +45,7 @@ fn specialised_paths_are_bit_identical() {
             for mis in [Heuristic::Balance, Heuristic::Power] {
                 let s = Settings {
                     strategy,
-                    mis,
+                    heuristic: mis,
                     light_samples: 7,
                     brdf_samples: 21,
                     seed: 11,
@@ -96,7 +96,7 @@ fn same_as_material<B: LocalBsdf>(
         b.to_array().map(f32::to_bits),
         "{m:?} {:?} {:?} pixel {i}",
         s.strategy,
-        s.mis
+        s.heuristic
     );
     assert_eq!(
         (sa.green, sa.yellow, sa.brdf),

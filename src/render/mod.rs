@@ -11,6 +11,7 @@
 pub mod debug;
 pub mod estimator;
 pub mod output;
+mod overlay;
 pub mod reference;
 pub mod resampling;
 pub mod scene;
@@ -24,10 +25,11 @@ use rayon::prelude::*;
 
 pub use debug::{DebugSample, PixelDebug, SampleKind, debug_pixel, debug_pixel_at};
 pub use estimator::{FrameData, shade_pixel};
+pub use overlay::Overlay;
 pub use scene::{GPixel, sphere_gbuffer};
 pub use settings::{
-    DEFAULT_POOL_BLOCKS, NEAR_MIRROR_ALPHA, NEAR_MIRROR_EXPONENT, PoolLayout, Settings, Strategy,
-    budget_for, pool_seed,
+    DEFAULT_POOL_BLOCKS, EnvironmentSampling, NEAR_MIRROR_ALPHA, NEAR_MIRROR_EXPONENT, PoolLayout,
+    Settings, Strategy, budget_for, pool_seed,
 };
 pub use stats::{PixelStats, RenderStats};
 

@@ -4,6 +4,8 @@
 use crate::error::{Error, Result};
 use crate::sampling::rng::hash;
 use crate::sampling::{Counts, Heuristic};
+#[cfg(feature = "app")]
+use bevy::prelude::{ReflectComponent, ReflectDefault};
 
 /// Which estimator shades the pixels. The same lowercase names serve the command line
 /// (`--strategy`), scene files (`strategy = "paper"`), JSON output and the demo panel.
@@ -60,20 +62,53 @@ impl PoolLayout {
 /// image-mean flicker under 1% (`envis bench --suite flicker`).
 pub const DEFAULT_POOL_BLOCKS: usize = 16;
 
-/// Sampling settings of a render.
+/// How a render, or a Bevy camera, samples the environment: the one settings type of envis.
+///
+/// The CPU renderer, the GPU stages, the command line (`envis render`'s flags), scene files
+/// (`[sampling]`) and the Bevy camera component read these fields under these names (the core
+/// calls it [`Settings`]; with the `app` feature it *is* the camera component
+/// `envis::prelude::EnvironmentSampling`, reflected and extracted). Every pixel with geometry gets
+/// `light_samples` face-weighted light samples and `brdf_samples` BRDF samples, combined by
+/// multiple importance sampling (Lu, Pacanowski & Granier 2013).
+///
+/// As a camera component it requires the deferred prepasses, an HDR target and no MSAA
+/// (deferred rendering has none), and needs an `EnvisEnvironment` on the same camera to do
+/// anything; removing it gives the camera back to Bevy's lighting alone. The last five fields
+/// (`accumulate`, `overlay`, `face_size`, `probe`, `shadows`) are a view's: the CPU renderer takes
+/// the map, the shadow geometry and the pixels from its caller instead.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
-pub struct Settings {
-    /// N_L.
+#[cfg_attr(
+    feature = "app",
+    derive(
+        bevy::prelude::Component,
+        bevy::prelude::Reflect,
+        bevy::render::extract_component::ExtractComponent
+    ),
+    reflect(Component, Default, Clone),
+    require(
+        bevy::core_pipeline::prepass::DepthPrepass,
+        bevy::core_pipeline::prepass::DeferredPrepass,
+        bevy::camera::Hdr,
+        bevy::prelude::Msaa::Off
+    )
+)]
+pub struct EnvironmentSampling {
+    /// Light samples per pixel, `N_L` (shared between the cube faces by their face weights).
     pub light_samples: usize,
-    /// N_B.
+    /// BRDF samples per pixel, `N_B`.
     pub brdf_samples: usize,
-    /// M: pool samples per face (0 = N_L).
-    pub pool_size: usize,
+    /// `paper` (the method: cosine face weights), `light` (energy only), `brdf`, or `global`
+    /// (one lat-long distribution: the baseline).
     pub strategy: Strategy,
+    /// `fractional` counts are unbiased and do not pop; `integer` counts are the paper's toggle.
     pub counts: Counts,
-    pub mis: Heuristic,
-    pub seed: u32,
-    /// How pixels share the pool.
+    /// The MIS heuristic (balance or power); `--mis` on the command line.
+    pub heuristic: Heuristic,
+    /// Light samples drawn per cube face (or tile) per frame, `M` (0: `light_samples`); `--pool`.
+    pub pool_size: usize,
+    /// How pixels share the pool: `shared` (the paper's: the same samples everywhere, coherent
+    /// error), `offset` (a random start per pixel) or `blocks` (one of `pool_blocks`
+    /// independent pools per pixel: the error becomes noise; `docs/benchmarks.md`).
     pub pool_layout: PoolLayout,
     /// `K`, the pool's blocks with [`PoolLayout::Blocks`] (ignored otherwise).
     pub pool_blocks: usize,
@@ -85,7 +120,30 @@ pub struct Settings {
     pub tiles: usize,
     /// How the light samples are spread over tiles (`--tile-counts`; no effect with one tile).
     pub tile_counts: crate::sampling::TileCounts,
+    /// Random seed of the pool and the per-pixel streams.
+    pub seed: u32,
+    /// A view's: average frames while nothing changes (camera, settings, map, viewport size).
+    #[serde(skip)]
+    pub accumulate: bool,
+    /// A view's: a full-screen debug view instead of the image.
+    #[serde(skip)]
+    pub overlay: super::Overlay,
+    /// Face size of the sampling distribution (a sampling choice: radiance comes from the
+    /// full-resolution image; `--face-size` on the command line, whose map the caller loads).
+    pub face_size: usize,
+    /// A view's: the pixel (viewport coordinates) whose G-buffer texel and estimate are read
+    /// back into `EnvisProbe` (the demo's sample-debug view).
+    #[serde(skip)]
+    pub probe: Option<glam::UVec2>,
+    /// Shadow rays for every light and BRDF sample: `auto` (on when something can cast a
+    /// shadow), `on` or `off` (`--visibility`, a scene file's `shadows`). In a Bevy view,
+    /// `NotShadowCaster` meshes cast none; the CPU renderer casts them where its caller gives
+    /// it the scene (`Extras::shadows`).
+    pub shadows: crate::visibility::ShadowRays,
 }
+
+/// The core's name of [`EnvironmentSampling`]: what a render is asked to do.
+pub type Settings = EnvironmentSampling;
 
 /// Phong exponents from here up, and GGX roughness from here down, count as near-mirror lobes.
 pub const NEAR_MIRROR_EXPONENT: f32 = 1000.0;
@@ -118,15 +176,15 @@ pub fn budget_for(m: &crate::sampling::Material, nl: usize, nb: usize) -> (usize
     }
 }
 
-impl Default for Settings {
+impl Default for EnvironmentSampling {
     fn default() -> Self {
-        Settings {
+        EnvironmentSampling {
             light_samples: 32,
             brdf_samples: 32,
             pool_size: 0,
             strategy: Strategy::Paper,
             counts: Counts::Fractional,
-            mis: Heuristic::Balance,
+            heuristic: Heuristic::Balance,
             seed: 0,
             // Not the paper's shared pool: blocks meet the FLIP and flicker targets at the paper's
             // per-pixel error (`docs/benchmarks.md`, "Pool layouts"); `Shared` keeps the paper's.
@@ -135,6 +193,11 @@ impl Default for Settings {
             material_budget: false,
             tiles: 1,
             tile_counts: crate::sampling::TileCounts::Face,
+            accumulate: false,
+            overlay: super::Overlay::None,
+            face_size: 64,
+            probe: None,
+            shadows: crate::visibility::ShadowRays::Auto,
         }
     }
 }

@@ -88,7 +88,7 @@ impl RenderStats {
             height,
             strategy: s.strategy.to_string(),
             counts: s.counts.to_string(),
-            mis: s.mis.to_string(),
+            mis: s.heuristic.to_string(),
             light_samples: s.light_samples,
             brdf_samples: s.brdf_samples,
             pool_per_face,

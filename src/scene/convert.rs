@@ -8,9 +8,17 @@ use crate::sampling::{Lobe, Material};
 use glam::Vec3;
 use std::path::Path;
 
-/// The core's settings of a `[sampling]` table (defaults for what it leaves out).
-pub(super) fn sampling_settings(path: &Path, s: &SamplingSpec) -> Result<Settings> {
-    let mut out = Settings::default();
+/// The core's settings of a `[sampling]` table (defaults for what it leaves out), with the
+/// distribution's `face_size` of the `[environment]` table.
+pub(super) fn sampling_settings(
+    path: &Path,
+    s: &SamplingSpec,
+    face_size: usize,
+) -> Result<Settings> {
+    let mut out = Settings {
+        face_size,
+        ..Default::default()
+    };
     if let Some(v) = s.light_samples {
         out.light_samples = v;
     }
@@ -19,9 +27,9 @@ pub(super) fn sampling_settings(path: &Path, s: &SamplingSpec) -> Result<Setting
     }
     out.strategy = s.strategy.unwrap_or(out.strategy);
     out.counts = s.counts.unwrap_or(out.counts);
-    out.mis = s.mis.unwrap_or(out.mis);
+    out.heuristic = s.heuristic.unwrap_or(out.heuristic);
     out.seed = s.seed.unwrap_or(0);
-    out.pool_size = s.pool.unwrap_or(0);
+    out.pool_size = s.pool_size.unwrap_or(0);
     out.pool_layout = match (s.pool_layout, s.pixel_offset) {
         (Some(l), _) => l,
         (None, Some(true)) => crate::render::PoolLayout::Offset,
@@ -31,6 +39,7 @@ pub(super) fn sampling_settings(path: &Path, s: &SamplingSpec) -> Result<Setting
     out.material_budget = s.material_budget.unwrap_or(false);
     out.tiles = s.tiles.unwrap_or(out.tiles);
     out.tile_counts = s.tile_counts.unwrap_or(out.tile_counts);
+    out.shadows = s.shadows.unwrap_or_default();
     out.validate()
         .map_err(|e| err(path, format!("[sampling]: {e}")))?;
     Ok(out)

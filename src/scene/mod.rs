@@ -119,7 +119,7 @@ impl Scene {
         } else {
             resolve(&file.environment.source).display().to_string()
         };
-        let settings = sampling_settings(path, &file.sampling)?;
+        let settings = sampling_settings(path, &file.sampling, file.environment.face_size)?;
         let mut objects = Vec::new();
         // One mesh per asset (a glTF file, a torus's radii), however often it is placed.
         let mut meshes = MeshCache::default();

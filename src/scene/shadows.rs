@@ -185,7 +185,7 @@ impl Scene {
     /// Whether to cast shadow rays under `mode` (`None`: the scene file's `visibility`, else
     /// `auto`), and why, for `--stats`.
     pub fn shadows(&self, mode: Option<ShadowRays>) -> (bool, String) {
-        let mode = mode.or(self.file.sampling.visibility).unwrap_or_default();
+        let mode = mode.or(self.file.sampling.shadows).unwrap_or_default();
         let casters: Vec<&Shape> = self.occluders().shapes;
         match mode {
             ShadowRays::On => (true, "on (asked for)".into()),

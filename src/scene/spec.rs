@@ -64,9 +64,14 @@ pub struct SamplingSpec {
     pub brdf_samples: Option<usize>,
     pub strategy: Option<Strategy>,
     pub counts: Option<Counts>,
-    pub mis: Option<Heuristic>,
+    /// The MIS heuristic (`mis` in files written before it was named as the settings name it).
+    #[serde(alias = "mis")]
+    pub heuristic: Option<Heuristic>,
     pub seed: Option<u32>,
-    pub pool: Option<usize>,
+    /// Light samples per face per frame, `M` (`pool` in files written before it was named as
+    /// the settings name it).
+    #[serde(alias = "pool")]
+    pub pool_size: Option<usize>,
     /// `shared`, `offset` or `blocks` (`--pool-layout`).
     pub pool_layout: Option<crate::render::PoolLayout>,
     /// K of `pool_layout = "blocks"`.
@@ -78,8 +83,10 @@ pub struct SamplingSpec {
     pub tiles: Option<usize>,
     /// `face` or `tile` (`--tile-counts`).
     pub tile_counts: Option<crate::sampling::TileCounts>,
-    /// Shadow rays: `auto` (default), `on` or `off` (`--visibility` overrides it).
-    pub visibility: Option<crate::visibility::ShadowRays>,
+    /// Shadow rays: `auto` (default), `on` or `off` (`--visibility` overrides it; the key is also
+    /// read as `visibility`, its name before it was named as the settings name it).
+    #[serde(alias = "visibility")]
+    pub shadows: Option<crate::visibility::ShadowRays>,
 }
 
 #[derive(Clone, Debug, Deserialize)]

@@ -146,3 +146,31 @@ fn scene_files_load_render_and_report_errors() {
         assert_eq!(e.lines().count(), 1, "{file}: not one line: {e}");
     }
 }
+
+/// A scene file's `[sampling]` keys are the settings type's field names (`heuristic`,
+/// `pool_size`, `shadows`, as `EnvironmentSampling` names them); the names files used before
+/// (`mis`, `pool`, `visibility`) still read the same.
+#[test]
+fn sampling_keys_are_the_settings_field_names() {
+    let dir = tempdir();
+    let scene = |name: &str, sampling: &str| {
+        let p = dir.join(format!("{name}.toml"));
+        let text = format!(
+            "[environment]\nsource = \"builtin:sky\"\nface_size = 16\n[sampling]\n{sampling}\n\
+             [[object]]\nshape = \"sphere\"\nmaterial = {{ type = \"diffuse\", albedo = 0.8 }}\n"
+        );
+        std::fs::write(&p, text).unwrap();
+        envis::scene::Scene::load(&p).unwrap()
+    };
+    let new = scene(
+        "new",
+        "heuristic = \"power\"\npool_size = 7\nshadows = \"on\"",
+    );
+    let old = scene("old", "mis = \"power\"\npool = 7\nvisibility = \"on\"");
+    assert_eq!(new.settings, old.settings);
+    assert_eq!(new.settings.heuristic, Heuristic::Power);
+    assert_eq!(new.settings.pool_size, 7);
+    assert_eq!(new.settings.face_size, 16);
+    assert_eq!(new.settings.shadows, envis::visibility::ShadowRays::On);
+    assert_eq!(new.shadows(None).0, true);
+}

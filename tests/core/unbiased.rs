@@ -234,7 +234,7 @@ fn estimators_are_unbiased() {
         (
             "paper fractional power",
             Settings {
-                mis: Heuristic::Power,
+                heuristic: Heuristic::Power,
                 ..base
             },
         ),
@@ -293,7 +293,7 @@ fn estimators_are_unbiased() {
             "global power",
             Settings {
                 strategy: Strategy::Global,
-                mis: Heuristic::Power,
+                heuristic: Heuristic::Power,
                 ..base
             },
         ),

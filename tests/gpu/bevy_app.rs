@@ -9,11 +9,9 @@ use envis::app::headless::HeadlessSphere;
 use envis::app::{EnvFrame, EnvironmentSampling, EnvisBrdf};
 use envis::stream::StreamSource;
 
-/// A camera's sampling component with the core's settings `s`.
+/// A camera's sampling component with the core's settings `s` (the same type).
 fn sampling_of(s: &Settings) -> EnvironmentSampling {
-    let mut c = EnvironmentSampling::default();
-    c.set_settings(s);
-    c
+    *s
 }
 
 /// A Bevy frame of the sphere against the CPU renderer's: the mean over the sphere within 2%, and

@@ -131,12 +131,12 @@ fn bevy_standard_material_matches_cpu() {
     let (env, cpu_env) = latlong_image(64, |d| envis::envmap::sky::sky_radiance(d, 15.0));
     let env = h.add::<Image>(env);
     let sampling = EnvironmentSampling {
-        face_size: face,
+        face_size: face as usize,
         seed: 3,
         pool_blocks: 16,
         ..default()
     };
-    let target = sphere_camera(&mut h, env, sampling.clone(), size);
+    let target = sphere_camera(&mut h, env, sampling, size);
     let img = h.capture(&target).unwrap();
     // The pass reads densities from the resampled table and radiance from the image itself.
     let source = envis::envmap::resample::SourceImage::new_latlong(cpu_env);
@@ -147,7 +147,7 @@ fn bevy_standard_material_matches_cpu() {
         size as usize,
         standard_material_decoded(&material),
     );
-    let cpu = cpu_render_fine(&cube, &fine, &gbuf, size, &sampling.settings());
+    let cpu = cpu_render_fine(&cube, &fine, &gbuf, size, &sampling);
     // The sky's sun covers part of one texel: a pool sample whose direction (or the image texel
     // it reads) differs by rounding between the GPU and the CPU can see the sun in one and not
     // in the other, which moves every pixel of that sample's block (seen: one block off by 2x,
@@ -157,7 +157,7 @@ fn bevy_standard_material_matches_cpu() {
     let mut per = vec![(0.0f64, 0.0f64); k as usize];
     for (i, px) in gbuf.iter().enumerate() {
         if px.is_some() && on_sphere(size)(i) {
-            let b = envis::sampling::rng::Rng::new(sampling.seed, i as u32).next_u32() % k;
+            let b = envis::sampling::rng::Rng::new(sampling.seed, i as u32).next_u32() % k as u32;
             per[b as usize].0 += luminance(img[i]) as f64;
             per[b as usize].1 += luminance(cpu[i]) as f64;
         }
@@ -306,7 +306,7 @@ fn bevy_split_screen() {
                     target.clone(),
                     projection,
                     transform,
-                    settings[k].clone(),
+                    settings[k],
                     EnvisEnvironment::new(env.clone()),
                 ))
                 .insert(Camera {

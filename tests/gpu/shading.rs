@@ -52,7 +52,7 @@ fn gpu_render_matches_cpu_same_seed() {
                 brdf_samples: 8,
                 strategy,
                 counts,
-                mis,
+                heuristic: mis,
                 pool_layout,
                 pool_blocks: 4,
                 seed: 11,

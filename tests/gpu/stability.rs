@@ -367,7 +367,7 @@ fn gpu_hard_geometry_brdf_and_count_extremes() {
         Settings {
             light_samples: 7,
             brdf_samples: 3,
-            mis: Heuristic::Power,
+            heuristic: Heuristic::Power,
             pool_layout: envis::render::PoolLayout::Offset,
             seed: 99,
             ..Default::default()

@@ -20,7 +20,7 @@ pub(super) fn update_debug_view(
     // The seed the GPU used for the probed frame (it changes per frame while accumulating).
     let s = Settings {
         seed: p.seed,
-        ..sampling.settings()
+        ..*sampling
     };
     let key = (
         frame.generation,
@@ -35,7 +35,7 @@ pub(super) fn update_debug_view(
     // As the GPU: densities from the image resampled to the distribution's face size, radiance
     // from the image itself.
     let source = SourceImage::new_cube(bevy_cube_layers(&frame.map));
-    let coarse = source.to_cube(sampling.face_size as usize);
+    let coarse = source.to_cube(sampling.face_size);
     let fine = |d: Vec3| source.radiance_nearest(d);
     let mut fd = FrameData::prepare(&coarse, &s).with_fine(&fine);
     // The same shadow rays as the GPU, against the same meshes (the demo's map is unrotated, so

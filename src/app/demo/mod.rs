@@ -168,11 +168,7 @@ pub struct DemoCamera;
 
 /// The demo camera's envis components, lit by the stream's image, starting with `s`.
 fn envis_camera(stream: &EnvMapStream, s: &Settings, face_size: usize) -> impl Bundle {
-    let mut sampling = EnvironmentSampling {
-        face_size: face_size as u32,
-        ..default()
-    };
-    sampling.set_settings(s);
+    let sampling = EnvironmentSampling { face_size, ..*s };
     (
         sampling,
         EnvisEnvironment::new(stream.image.clone()),

@@ -66,8 +66,8 @@ pub(super) fn panel(
     egui::Window::new("envis").anchor(egui::Align2::RIGHT_TOP, [-8.0, 8.0]).default_width(320.0).show(&ctx, |ui| {
         egui::ScrollArea::vertical().show(ui, |ui| {
             ui.collapsing("Environment", |ui| environment_ui(ui, &mut stream, &mut env, &mut state));
-            if settings.face_size != state.face_size as u32 {
-                settings.face_size = state.face_size as u32;
+            if settings.face_size != state.face_size {
+                settings.face_size = state.face_size;
             }
             if ui.add(egui::Slider::new(&mut state.exposure, 0.01..=8.0).logarithmic(true).text("exposure")).changed() {
                 *exposure = exposure_multiplier(state.exposure);
@@ -88,7 +88,7 @@ pub(super) fn panel(
                 ui.label(format!("resample: GPU {}; distribution build: GPU {}; light pool: GPU {}; record: CPU {}", f(t.resample_gpu_ms), f(t.build_gpu_ms), f(t.pool_gpu_ms), f(t.build_cpu_ms)));
                 ui.label(format!("lighting (G-buffer -> MIS): GPU {}, CPU {}", f(t.lighting_gpu_ms), f(t.lighting_cpu_ms)));
                 let px = windows.single().map(|w| (w.physical_width() * w.physical_height()) as f64).unwrap_or(0.0);
-                let budget = settings.budget() as f64;
+                let budget = settings.samples_per_pixel() as f64;
                 ui.label(format!("{:.1} FPS, sample budget {:.1} M samples/s", state.fps, px * budget * state.fps as f64 / 1e6));
                 ui.label(format!("builds {}, image bytes uploaded {}, lighting passes {}", counters.get(|c| &c.builds), counters.get(|c| &c.image_bytes_uploaded), counters.get(|c| &c.lighting_passes)));
                 ui.label("overlays run inside the lighting pass (no pass of their own)");
@@ -110,7 +110,7 @@ pub(super) fn panel(
             }
         });
     });
-    let budget = settings.budget() as usize;
+    let budget = settings.samples_per_pixel();
     if let Some(legend) = settings.overlay.legend(budget) {
         egui::Window::new(format!("overlay: {}", settings.overlay.name()))
             .anchor(egui::Align2::CENTER_BOTTOM, [0.0, -8.0])
@@ -226,7 +226,8 @@ fn environment_ui(
 }
 
 fn sampling_ui(ui: &mut egui::Ui, settings: &mut EnvironmentSampling) {
-    let mut core = settings.settings();
+    // Edited on a copy, so that Bevy's change detection sees a change only when there is one.
+    let mut core = *settings;
     let s = &mut core;
     ui.add(egui::Slider::new(&mut s.light_samples, 0..=256).text("N_L light samples"));
     ui.add(egui::Slider::new(&mut s.brdf_samples, 0..=256).text("N_B BRDF samples"));
@@ -248,7 +249,7 @@ fn sampling_ui(ui: &mut egui::Ui, settings: &mut EnvironmentSampling) {
     ui.horizontal(|ui| {
         ui.label("MIS");
         for &h in Heuristic::value_variants() {
-            ui.selectable_value(&mut s.mis, h, h.to_string());
+            ui.selectable_value(&mut s.heuristic, h, h.to_string());
         }
     });
     ui.horizontal(|ui| {
@@ -281,8 +282,8 @@ fn sampling_ui(ui: &mut egui::Ui, settings: &mut EnvironmentSampling) {
         &mut s.material_budget,
         "material budget (diffuse: light only, mirror: BRDF only)",
     );
-    if core != settings.settings() {
-        settings.set_settings(&core);
+    if core != *settings {
+        *settings = core;
     }
     ui.checkbox(
         &mut settings.accumulate,

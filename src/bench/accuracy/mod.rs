@@ -143,7 +143,7 @@ fn strategies(n: usize) -> Vec<(String, Settings)> {
             "paper-blocks-power".to_string(),
             Settings {
                 pool_layout: crate::render::PoolLayout::Blocks,
-                mis: Heuristic::Power,
+                heuristic: Heuristic::Power,
                 ..half
             },
         ),
@@ -171,7 +171,7 @@ fn strategies(n: usize) -> Vec<(String, Settings)> {
             "global".to_string(),
             Settings {
                 strategy: Strategy::Global,
-                mis: Heuristic::Power,
+                heuristic: Heuristic::Power,
                 ..half
             },
         ),
@@ -202,7 +202,7 @@ fn strategies(n: usize) -> Vec<(String, Settings)> {
                 format!("global {tag}"),
                 Settings {
                     strategy: Strategy::Global,
-                    mis: Heuristic::Power,
+                    heuristic: Heuristic::Power,
                     ..s
                 },
             ));

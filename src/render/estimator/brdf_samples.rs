@@ -68,7 +68,7 @@ pub(super) fn brdf_samples<B: LocalBsdf>(
                 continue;
             }
             // The value the sampler computed with the sample (`LocalBsdf::sample_lanes`).
-            let scale = il.z * mis::weight_over_density(s.mis, nb_f * p, n_l);
+            let scale = il.z * mis::weight_over_density(s.heuristic, nb_f * p, n_l);
             sum.add(d, smp.value(k) * fd.radiance(d, t.truncate()), il.z, scale);
         }
     }
