@@ -172,5 +172,5 @@ fn sampling_keys_are_the_settings_field_names() {
     assert_eq!(new.settings.pool_size, 7);
     assert_eq!(new.settings.face_size, 16);
     assert_eq!(new.settings.shadows, envis::visibility::ShadowRays::On);
-    assert_eq!(new.shadows(None).0, true);
+    assert!(new.shadows(None).0);
 }
