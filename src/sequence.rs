@@ -8,7 +8,7 @@ use crate::envmap::load::{EnvSource, load_env};
 use crate::envmap::{CubeMap, Image};
 use crate::error::Result;
 use crate::render::resampling::{
-    self, History, Mutation, Resampling, Reservoir, ReuseStats, Screen,
+    self, History, Mutation, Resampling, Reservoirs, ReuseStats, Screen, Split,
 };
 use crate::render::{self, Extras, Settings};
 use crate::scene::{Camera, Scene, SceneScreen};
@@ -80,9 +80,9 @@ impl Posed {
         })
     }
 
-    fn screen<'a>(&'a self, occluder: Option<&'a dyn Occluder>) -> Screen<'a> {
+    fn screen<'a>(&'a self, occluder: Option<&'a dyn Occluder>, split: &'a Split) -> Screen<'a> {
         Screen {
-            map: &self.map,
+            split,
             gbuf: &self.screen.gbuf,
             points: &self.screen.points,
             surfaces: &self.screen.surfaces,
@@ -120,7 +120,7 @@ pub fn run(
 ) -> Result<()> {
     o.settings.validate()?;
     let (shadows, _) = scene.shadows(o.visibility);
-    let mut prev: Option<(Posed, Vec<Reservoir>)> = None;
+    let mut prev: Option<(Posed, Split, Vec<Reservoirs>)> = None;
     for k in 0..o.frames {
         let cur = Posed::new(scene, scene.frame_time(k), o.size)?;
         let occ = cur.scene.occluders();
@@ -129,31 +129,46 @@ pub fn run(
             each(plain_frame(&cur, occ, &o.settings, k)?)?;
             continue;
         };
-        let prev_occ = prev.as_ref().map(|(p, _)| p.scene.occluders());
+        let prev_occ = prev.as_ref().map(|(p, _, _)| p.scene.occluders());
         let reproject = |i: usize| {
-            let (p, _) = prev.as_ref()?;
+            let (p, _, _) = prev.as_ref()?;
             cur.reproject(p, i, r.mutation)
         };
-        let history = prev.as_ref().map(|(p, res)| {
+        let history = prev.as_ref().map(|(p, split, res)| {
             let occ = prev_occ
                 .as_ref()
                 .filter(|_| shadows)
                 .map(|o| o as &dyn Occluder);
             let h = History {
-                screen: p.screen(occ),
+                screen: p.screen(occ, split),
                 reservoirs: res,
             };
             (h, &reproject as resampling::Reproject)
         });
-        let out = resampling::resample_frame(&cur.screen(occ), history, &o.settings, &r, k)?;
+        let split = split_map(&cur.map, &r);
+        let out =
+            resampling::resample_frame(&cur.screen(occ, &split), history, &o.settings, &r, k)?;
         drop(prev_occ);
         each(SequenceFrame {
             stats: frame_stats(k, cur.time, &out.stats, out.reuse),
             image: out.image,
         })?;
-        prev = Some((cur, out.reservoirs));
+        prev = Some((cur, split, out.reservoirs));
     }
     Ok(())
+}
+
+/// A frame's map split as `r` asks ([`Split`]); with [`Mutation::BrightCountedTwice`] the rest
+/// keeps the bright texels.
+fn split_map(map: &CubeMap, r: &Resampling) -> Split {
+    match (r.split_bright, r.mutation) {
+        (true, Some(Mutation::BrightCountedTwice)) => Split {
+            rest: map.clone(),
+            ..Split::new(map)
+        },
+        (true, _) => Split::new(map),
+        (false, _) => Split::whole(map),
+    }
 }
 
 /// A frame of today's estimator (every sample shadow-tested).

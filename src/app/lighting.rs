@@ -7,9 +7,10 @@
 
 use super::components::{EnvironmentSampling, EnvisEnvironment};
 use super::lighting_uniforms::{ViewParts, decode_probe, lighting_view};
-use super::sampling::{EnvSamplers, ViewSampling};
+use super::sampling::{EnvSamplers, SamplerSlot, ViewSampling};
 use super::timing::EnvisTimings;
 use super::{EnvisCounters, EnvisProbe, Overlay};
+use crate::gpu::sampler::EnvSampler;
 use crate::gpu::shaders;
 use crate::gpu::shading::ShadeParams;
 use crate::render::Strategy;
@@ -22,7 +23,8 @@ use bevy::prelude::*;
 use bevy::render::camera::{ExtractedCamera, TemporalJitter};
 use bevy::render::diagnostic::RecordDiagnostics;
 use bevy::render::render_resource::{
-    BindGroupEntries, CachedRenderPipelineId, PipelineCache, SpecializedRenderPipelines,
+    BindGroup, BindGroupEntries, CachedRenderPipelineId, PipelineCache, RenderPipeline,
+    SpecializedRenderPipelines, TextureView,
 };
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
 use bevy::render::view::{ExtractedView, ViewTarget};
@@ -171,7 +173,6 @@ fn mis_lighting(
     let Some(render_pipeline) = cache.get_render_pipeline(vp_id.0) else {
         return;
     };
-    let sampler = &slot.sampler;
     let (Some(depth), Some(deferred), Some(ids)) = (
         prepass.depth_view(),
         prepass.deferred_view(),
@@ -179,16 +180,10 @@ fn mis_lighting(
     ) else {
         return;
     };
-    let mut s = *sampling;
-    if s.strategy == Strategy::Global && !sampler.has_global() {
-        return; // its distribution is built from the next frame on
-    }
-    if s.light_samples + s.brdf_samples == 0 {
-        s.light_samples = 1;
-    }
     let vp = ev.viewport;
-    s.seed = vs.seed;
-    let mut params = ShadeParams::new(&s, sampler.n, sampler.m, (vp.z * vp.w) as usize);
+    let Some(mut params) = shade_params(sampling, vs.seed, &slot.sampler, vp) else {
+        return;
+    };
     let parts = ViewParts {
         ev,
         cam,
@@ -217,28 +212,12 @@ fn mis_lighting(
         (sampling.accumulate, vp),
         (bytemuck::bytes_of(&params), bytemuck::bytes_of(&lv)),
     );
-    use wgpu::BindingResource as R;
-    // In binding order (`lighting_layout`).
-    let entries = BindGroupEntries::sequential((
-        R::TextureView(deferred),
-        R::TextureView(depth),
-        sampler.texels.as_entire_binding(),
-        sampler.pool.as_entire_binding(),
-        R::Buffer(sampler.regions_binding()),
-        pbuf.as_entire_binding(),
-        vbuf.as_entire_binding(),
-        res.probe.as_entire_binding(),
-        accum.as_entire_binding(),
-        sampler.gdist.as_entire_binding(),
-        R::TextureView(&ids.texture.default_view),
-        R::TextureView(&slot.source),
-        bvh_nodes.as_entire_binding(),
-        bvh_triangles.as_entire_binding(),
-    ));
-    let bind = device.create_bind_group(
-        "envis lighting",
-        &cache.get_bind_group_layout(&layout.layout),
-        &entries,
+    let bind = lighting_bind_group(
+        (&device, &cache, &layout),
+        (slot, &res),
+        (deferred, depth, &ids.texture.default_view),
+        [&pbuf, &vbuf, &accum],
+        (bvh_nodes, bvh_triangles),
     );
     let probing = sampling.probe.is_some() && res.probe_read.ready();
     let diagnostics = ctx.diagnostic_recorder();
@@ -252,24 +231,7 @@ fn mis_lighting(
         // shade (no geometry yet: a mesh is drawn from the frame after it was spawned).
         enc.clear_buffer(&accum, 0, None);
     }
-    {
-        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("envis mis lighting"),
-            color_attachments: &[Some(target.get_color_attachment())],
-            depth_stencil_attachment: None,
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
-        // GPU time in Bevy's render diagnostics (`render/envis_lighting/elapsed_gpu`).
-        let span = diagnostics.pass_span(&mut pass, "envis_lighting");
-        // Only this camera's viewport: a split-screen neighbour keeps its pixels.
-        pass.set_viewport(vp.x as f32, vp.y as f32, vp.z as f32, vp.w as f32, 0.0, 1.0);
-        pass.set_pipeline(render_pipeline);
-        pass.set_bind_group(0, &*bind, &[]);
-        pass.draw(0..3, 0..1);
-        span.end(&mut pass);
-    }
+    record_lighting_pass(enc, &diagnostics, target, vp, render_pipeline, &bind);
     if probing {
         res.probe_read.copy_from(enc, &res.probe);
         *res.probe_seed.lock().expect("probe seed") = vs.seed;
@@ -280,4 +242,90 @@ fn mis_lighting(
     }
     let ms = t0.elapsed().as_secs_f64() * 1e3;
     timings.set(|t| t.lighting_cpu_ms = Some(ms));
+}
+
+/// The view's shading parameters: its settings with the view's `seed`, over its viewport `vp`.
+/// `None` while the global strategy's distribution is not built (it is from the next frame on).
+fn shade_params(
+    sampling: &EnvironmentSampling,
+    seed: u32,
+    sampler: &EnvSampler,
+    vp: UVec4,
+) -> Option<ShadeParams> {
+    let mut s = *sampling;
+    if s.strategy == Strategy::Global && !sampler.has_global() {
+        return None;
+    }
+    if s.light_samples + s.brdf_samples == 0 {
+        s.light_samples = 1;
+    }
+    s.seed = seed;
+    Some(ShadeParams::new(
+        &s,
+        sampler.n,
+        sampler.m,
+        (vp.z * vp.w) as usize,
+    ))
+}
+
+/// The lighting pass's bind group, in binding order (`lighting_layout`): the prepass views
+/// (deferred G-buffer, depth, lighting-pass ids), the sampler's tables, the per-view buffers
+/// (params, view, accumulation), the source image and the shadow BVH.
+fn lighting_bind_group(
+    (device, cache, layout): (&RenderDevice, &PipelineCache, &LightingPipeline),
+    (slot, res): (&SamplerSlot, &LightingResources),
+    (deferred, depth, ids): (&TextureView, &TextureView, &TextureView),
+    [pbuf, vbuf, accum]: [&wgpu::Buffer; 3],
+    (bvh_nodes, bvh_triangles): (&wgpu::Buffer, &wgpu::Buffer),
+) -> BindGroup {
+    use wgpu::BindingResource as R;
+    let sampler = &slot.sampler;
+    let entries = BindGroupEntries::sequential((
+        R::TextureView(deferred),
+        R::TextureView(depth),
+        sampler.texels.as_entire_binding(),
+        sampler.pool.as_entire_binding(),
+        R::Buffer(sampler.regions_binding()),
+        pbuf.as_entire_binding(),
+        vbuf.as_entire_binding(),
+        res.probe.as_entire_binding(),
+        accum.as_entire_binding(),
+        sampler.gdist.as_entire_binding(),
+        R::TextureView(ids),
+        R::TextureView(&slot.source),
+        bvh_nodes.as_entire_binding(),
+        bvh_triangles.as_entire_binding(),
+    ));
+    device.create_bind_group(
+        "envis lighting",
+        &cache.get_bind_group_layout(&layout.layout),
+        &entries,
+    )
+}
+
+/// One fullscreen triangle over the view's target, limited to its viewport `vp`, timed in
+/// Bevy's render diagnostics (`render/envis_lighting/elapsed_gpu`).
+fn record_lighting_pass(
+    enc: &mut wgpu::CommandEncoder,
+    diagnostics: &impl RecordDiagnostics,
+    target: &ViewTarget,
+    vp: UVec4,
+    pipeline: &RenderPipeline,
+    bind: &BindGroup,
+) {
+    let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some("envis mis lighting"),
+        color_attachments: &[Some(target.get_color_attachment())],
+        depth_stencil_attachment: None,
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    });
+    let span = diagnostics.pass_span(&mut pass, "envis_lighting");
+    // Only this camera's viewport: a split-screen neighbour keeps its pixels.
+    pass.set_viewport(vp.x as f32, vp.y as f32, vp.z as f32, vp.w as f32, 0.0, 1.0);
+    pass.set_pipeline(pipeline);
+    pass.set_bind_group(0, &**bind, &[]);
+    pass.draw(0..3, 0..1);
+    span.end(&mut pass);
 }

@@ -110,6 +110,9 @@ pub struct BenchArgs {
     /// Accuracy suite: do not also time each point on the GPU backend.
     #[arg(long)]
     pub cpu_only: bool,
+    /// Motion suite: the animated scene file (default: `assets/scenes/motion.toml`).
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
 }
 
 pub(crate) fn median(mut v: Vec<f64>) -> f64 {

@@ -6,7 +6,8 @@
 //! - `restir 4+4`: spatiotemporal reuse of 4 + 4 candidates, unbiased (the default);
 //! - `restir 4+4 biased`;
 //! - `temporal 4+4`: temporal reuse only;
-//! - `restir 4+4 shadowed candidates`: every candidate shadow-tested (`candidate_visibility`).
+//! - `restir 4+4 shadowed candidates`: every candidate shadow-tested (`candidate_visibility`);
+//! - `restir 4+4 unsplit`: the map's bright part resampled with the rest (`split_bright` off).
 //!
 //! Per configuration over the measured frames: mean relMSE and HDR-FLIP against the reference,
 //! lighting cost (build + shading) and shadow rays per pixel, and each as a ratio to
@@ -59,7 +60,8 @@ pub(super) fn relmse(img: &Image, rf: &Image) -> f64 {
 }
 
 pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes/motion.toml");
+    let default = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes/motion.toml");
+    let path = a.scene.clone().unwrap_or(default);
     let scene = Scene::load(&path)?;
     let (size, frames, first) = if a.quick {
         (48, 6, 3)
@@ -72,7 +74,11 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
         candidate_visibility: true,
         ..Default::default()
     };
-    let configs: [(&str, Option<Resampling>, usize); 6] = [
+    let unsplit = Resampling {
+        split_bright: false,
+        ..Default::default()
+    };
+    let configs: [(&str, Option<Resampling>, usize); 7] = [
         ("single 32+32", None, 32),
         ("single 4+4", None, 4),
         (
@@ -91,6 +97,7 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
             4,
         ),
         ("restir 4+4 shadowed candidates", Some(shadowed), 4),
+        ("restir 4+4 unsplit", Some(unsplit), 4),
     ];
     let mut rows: Vec<MotionRow> = Vec::new();
     for (name, r, n) in configs {
@@ -155,7 +162,7 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
     let out = dir.join("bench-motion.json");
     let v = serde_json::json!({
         "suite": "motion",
-        "scene": "assets/scenes/motion.toml",
+        "scene": a.scene.as_ref().map_or("assets/scenes/motion.toml".into(), |p| p.display().to_string()),
         "size": size,
         "frames": [first, frames],
         "reference_samples": REF_SAMPLES,

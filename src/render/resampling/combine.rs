@@ -26,8 +26,8 @@
 //! The biased option selects by `M_j p̂(X_j) W_j` and weights by `1 / Σ M_j`: no rays, darker
 //! where domains' visibility differs (docs/temporal.md measures it).
 
-use super::{Mutation, Reservoir, target_rgb};
-use crate::envmap::{CubeMap, luminance};
+use super::{Mutation, Part, Reservoir, Split, target_rgb};
+use crate::envmap::luminance;
 use crate::render::GPixel;
 use crate::sampling::rng::Rng;
 use crate::visibility::Occluder;
@@ -36,7 +36,9 @@ use glam::Vec3;
 /// Where a domain's target and visibility are evaluated: its pixel's surface in its frame.
 #[derive(Clone, Copy)]
 pub struct DomainSurface<'a> {
-    pub map: &'a CubeMap,
+    /// Its frame's map, split, and the part the reservoirs resample.
+    pub split: &'a Split,
+    pub part: Part,
     pub px: &'a GPixel,
     pub point: Vec3,
     pub occluder: Option<&'a dyn Occluder>,
@@ -46,7 +48,7 @@ impl DomainSurface<'_> {
     /// `p̂(d)` here, and whether `d` is unblocked (a shadow ray, counted in `rays`, cast only
     /// where the target is positive).
     pub fn target_visible(&self, d: Vec3, rays: &mut u32) -> f32 {
-        let t = luminance(target_rgb(self.map, self.px, d));
+        let t = luminance(target_rgb(self.split, self.part, self.px, d));
         if t > 0.0 && !self.visible(d, rays) {
             return 0.0;
         }
@@ -83,12 +85,12 @@ impl<'a> Domain<'a> {
     }
 
     /// Another pixel's (or frame's) reservoir `res`, made at `at`, its sample re-evaluated for
-    /// the canonical pixel `px` under this frame's `map`.
-    pub fn reused(res: Reservoir, at: DomainSurface<'a>, map: &CubeMap, px: &GPixel) -> Self {
+    /// the canonical pixel `px` under this frame's map `split`.
+    pub fn reused(res: Reservoir, at: DomainSurface<'a>, split: &Split, px: &GPixel) -> Self {
         Domain {
             res,
             at,
-            here: target_rgb(map, px, res.dir),
+            here: target_rgb(split, at.part, px, res.dir),
         }
     }
 }
@@ -159,7 +161,7 @@ fn pairwise(
     let k = (domains.len() - 1).max(1) as f32;
     let m_c_share = canonical.res.m / k;
     let dropped = mutation == Some(Mutation::DroppedMisTerm);
-    let (mut w_sum, mut selected) = (0.0f32, None);
+    let mut pick = Pick::default();
     for (j, d) in domains.iter().enumerate() {
         let p_here = canonical_target(domains, j, mutation, rays);
         if !(p_here > 0.0 && d.res.ucw > 0.0) {
@@ -186,73 +188,75 @@ fn pairwise(
             let p_c = if dropped { 0.0 } else { p_here };
             pair_share(d.res.m, d.res.target, m_c_share, p_c, c_total).0
         };
-        let w = m * p_here * d.res.ucw;
-        if !(w > 0.0 && w.is_finite()) {
-            continue;
-        }
-        w_sum += w;
-        if rng.next_f32() * w_sum < w {
-            selected = Some(j);
-        }
+        pick.offer(j, m * p_here * d.res.ucw, rng);
     }
-    let Some(s) = selected else {
-        return Reservoir {
-            m: c_total,
-            ucw: 0.0,
-            ..canonical.res
-        };
-    };
-    let chosen = &domains[s];
-    let rgb = chosen.here;
-    let target = luminance(rgb);
-    let ucw = w_sum / target;
-    Reservoir {
-        dir: chosen.res.dir,
-        ucw: if ucw.is_finite() { ucw } else { 0.0 },
-        m: c_total,
-        target,
-        rgb,
-        // Every selectable sample was seen from here.
-        visible: true,
-    }
+    // Every selectable sample was seen from here.
+    pick.finish(domains, c_total, 1.0, |_| true)
 }
 
 /// Biased: selection by `M_k p̂(X_k) W_k` and weights `1 / Σ M_k`, no rays; the final sample's
 /// visibility is tested by the caller where it came from another pixel.
 fn biased(domains: &[Domain], mutation: Option<Mutation>, rng: &mut Rng) -> Reservoir {
     let m_total: f32 = domains.iter().map(|d| d.res.m).sum();
-    let (mut w_sum, mut selected) = (0.0f32, None);
+    let mut pick = Pick::default();
     for (k, d) in domains.iter().enumerate() {
         let here = match mutation {
             Some(Mutation::StaleTarget) if k > 0 => d.res.target,
             _ => luminance(d.here),
         };
-        let w = d.res.m * here * d.res.ucw;
+        pick.offer(k, d.res.m * here * d.res.ucw, rng);
+    }
+    pick.finish(domains, m_total, m_total, |s| {
+        domains[s].res.visible && s == 0
+    })
+}
+
+/// Weighted reservoir sampling over the domains' samples (the combination's selection).
+#[derive(Default)]
+struct Pick {
+    w_sum: f32,
+    selected: Option<usize>,
+}
+
+impl Pick {
+    /// Offer domain `j`'s sample with resampling weight `w` (skipped unless positive, finite).
+    fn offer(&mut self, j: usize, w: f32, rng: &mut Rng) {
         if !(w > 0.0 && w.is_finite()) {
-            continue;
+            return;
         }
-        w_sum += w;
-        if rng.next_f32() * w_sum < w {
-            selected = Some(k);
+        self.w_sum += w;
+        if rng.next_f32() * self.w_sum < w {
+            self.selected = Some(j);
         }
     }
-    let canonical = &domains[0];
-    let Some(s) = selected else {
-        return Reservoir {
-            m: m_total,
-            ucw: 0.0,
-            ..canonical.res
+
+    /// The combined reservoir, of confidence `m`: the selected sample re-evaluated here with
+    /// `W = Σ w / (p̂(Y) norm)`, `visible(j)` whether it is known to be unblocked from here;
+    /// nothing selected, the canonical reservoir emptied.
+    fn finish(
+        self,
+        domains: &[Domain],
+        m: f32,
+        norm: f32,
+        visible: impl Fn(usize) -> bool,
+    ) -> Reservoir {
+        let Some(s) = self.selected else {
+            return Reservoir {
+                m,
+                ucw: 0.0,
+                ..domains[0].res
+            };
         };
-    };
-    let chosen = &domains[s];
-    let target = luminance(chosen.here);
-    let ucw = w_sum / (target * m_total);
-    Reservoir {
-        dir: chosen.res.dir,
-        ucw: if ucw.is_finite() { ucw } else { 0.0 },
-        m: m_total,
-        target,
-        rgb: chosen.here,
-        visible: chosen.res.visible && s == 0,
+        let chosen = &domains[s];
+        let target = luminance(chosen.here);
+        let ucw = self.w_sum / (target * norm);
+        Reservoir {
+            dir: chosen.res.dir,
+            ucw: if ucw.is_finite() { ucw } else { 0.0 },
+            m,
+            target,
+            rgb: chosen.here,
+            visible: visible(s),
+        }
     }
 }

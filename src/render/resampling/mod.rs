@@ -1,37 +1,46 @@
 //! Reservoir resampling (ReSTIR) of the paper's samples across pixels and frames: the CPU oracle.
 //!
-//! Per frame, for every pixel:
-//! 1. **Candidates** ([`CandidateSink`]): the paper's face-weighted light samples (fractional
-//!    counts) and the BRDF samples, exactly as the estimator draws them but without shadow rays,
-//!    streamed into one reservoir. The target `p̂` is the luminance of the unshadowed integrand
-//!    (BRDF x cosine x radiance). The selected sample gets one shadow ray; blocked, the
-//!    reservoir is culled (`W = 0`).
+//! The map is split into its bright part (a sun) and the rest ([`Split`]); each part has a
+//! reservoir per pixel ([`Part`]), and per frame, for every pixel and part:
+//! 1. **Candidates**: for the rest, the paper's face-weighted light samples (fractional counts,
+//!    on a distribution built from the rest) and the BRDF samples, exactly as the estimator
+//!    draws them but without shadow rays, streamed into one reservoir ([`CandidateSink`]); for
+//!    the bright part, one sample of its own table and one BRDF sample ([`bright_reservoir`]).
+//!    The target `p̂` is the luminance of the part's unshadowed integrand (BRDF x cosine x the
+//!    part's radiance). The selected sample gets one shadow ray; blocked, the reservoir is
+//!    culled (`W = 0`).
 //! 2. **Temporal reuse**: the previous frame's final reservoir at the reprojected pixel (the
 //!    caller's `reproject`), rejected on disocclusion ([`similar`]), its confidence capped at
 //!    `max_history`, its sample's target re-evaluated under this frame's map and geometry, and
-//!    combined with the candidates ([`combine`](combine::combine)).
+//!    combined with the candidates ([`combine`](combine::combine)). The bright part's history
+//!    only where the bright light has not changed ([`BrightLight::same_light`]).
 //! 3. **Spatial reuse**: `spatial` neighbours' temporal reservoirs in a disc of
 //!    [`SPATIAL_RADIUS`] pixels, passing the same geometric tests, combined the same way.
-//! 4. The estimate `f(Y) V(Y) W`; the final reservoirs are the next frame's history.
+//! 4. The estimate: `f(Y) V(Y) W` summed over the parts; the final reservoirs are the next
+//!    frame's history.
 //!
 //! Unbiased by default (pairwise MIS, [`combine`](combine::combine)): shadow rays are the
-//! candidate's, one per reused sample (the canonical pixel must see what it selects), and one per
-//! other domain for the canonical sample's MIS weight: at most `1 + 2 (1 + spatial)` per pixel
-//! (9 at the defaults; 4.6 on average on the motion scene, docs/temporal.md). The biased option
-//! spends at most 2. Deterministic: every pass draws from its own per-pixel stream.
+//! candidates', one per reused sample (the canonical pixel must see what it selects), and one
+//! per other domain for the canonical sample's MIS weight: at most `2 + 4 (1 + spatial)` per
+//! pixel (18 at the defaults; 7.1 on average on the motion scene, docs/temporal.md). The biased
+//! option spends at most 4. Deterministic: every pass draws from its own per-pixel stream.
 
+mod bright;
 mod combine;
 mod passes;
 mod reservoir;
 
+pub use bright::{
+    BRIGHT_MAX_AREA, BRIGHT_OVER_MEAN, BrightLight, Part, Split, bright_reservoir, bright_threshold,
+};
 pub use combine::{Domain, DomainSurface, combine};
 pub use reservoir::{CandidateSink, Reservoir};
 
-use passes::{candidates, spatial, temporal};
+use passes::{Candidates, candidates, spatial, temporal};
 
 use super::estimator::{FrameData, shading_directions};
 use super::{GPixel, PixelStats, RenderStats, Settings};
-use crate::envmap::{CubeMap, Image};
+use crate::envmap::Image;
 use crate::sampling::rng::{Rng, hash_combine};
 use crate::sampling::warp::Frame;
 use crate::visibility::Occluder;
@@ -76,6 +85,9 @@ pub struct Resampling {
     /// the shadowed integrand from the start: no blocked sun can inflate a sky sample's weight
     /// (docs/temporal.md). Off by default: the budget is one ray per selected sample.
     pub candidate_visibility: bool,
+    /// Sample and shade the map's bright part (a sun) apart from the rest, with its own table
+    /// and shadow ray ([`Split`]; only the rest is resampled and reused).
+    pub split_bright: bool,
     /// A deliberate fault, for the tests that must catch it (`None` in any real use).
     #[serde(skip)]
     pub mutation: Option<Mutation>,
@@ -89,6 +101,7 @@ impl Default for Resampling {
             max_history: 20,
             unbiased: true,
             candidate_visibility: false,
+            split_bright: true,
             mutation: None,
         }
     }
@@ -119,6 +132,9 @@ pub enum Mutation {
     /// Reprojection looks the point up with this frame's camera instead of the previous one
     /// (applied by the sequence driver, which owns the cameras).
     WrongReprojection,
+    /// The rest keeps the bright texels that the bright part's own estimate also counts (the
+    /// split counts the sun twice; applied by the sequence driver, which makes the split).
+    BrightCountedTwice,
 }
 
 /// Spatial neighbours are drawn uniformly in a disc of this radius, in pixels.
@@ -146,11 +162,11 @@ pub fn similar(n_a: Vec3, a: Surface, n_b: Vec3, b: Surface) -> bool {
         && (a.depth - b.depth).abs() <= DEPTH_REL * a.depth.max(b.depth)
 }
 
-/// One frame's screen: the map, the G-buffer, each pixel's surface point and [`Surface`], and
+/// One frame's screen: the map (split), the G-buffer, each pixel's surface point and [`Surface`], and
 /// the scene's shadow-casting geometry (`None`: no shadows).
 #[derive(Clone, Copy)]
 pub struct Screen<'a> {
-    pub map: &'a CubeMap,
+    pub split: &'a Split,
     pub gbuf: &'a [Option<GPixel>],
     pub points: &'a [Vec3],
     pub surfaces: &'a [Surface],
@@ -160,9 +176,11 @@ pub struct Screen<'a> {
 }
 
 impl<'a> Screen<'a> {
-    fn surface(&self, i: usize) -> Option<DomainSurface<'a>> {
+    /// Pixel `i`'s surface, as the reservoirs of `part` see it.
+    fn surface(&self, i: usize, part: Part) -> Option<DomainSurface<'a>> {
         self.gbuf[i].as_ref().map(|px| DomainSurface {
-            map: self.map,
+            split: self.split,
+            part,
             px,
             point: self.points[i],
             occluder: self.occluder,
@@ -174,8 +192,11 @@ impl<'a> Screen<'a> {
 #[derive(Clone, Copy)]
 pub struct History<'a> {
     pub screen: Screen<'a>,
-    pub reservoirs: &'a [Reservoir],
+    pub reservoirs: &'a [Reservoirs],
 }
+
+/// A pixel's reservoirs, one per [`Part`] of the map (indexed by `Part as usize`).
+pub type Reservoirs = [Reservoir; 2];
 
 /// Where pixel `i` of this frame was in the previous one: the pixel, and the distance from the
 /// previous camera its point had then (for the depth test). `None`: off screen.
@@ -185,7 +206,7 @@ pub type Reproject<'a> = &'a (dyn Fn(usize) -> Option<(usize, f32)> + Sync);
 pub struct Resampled {
     pub image: Image,
     /// The history for the next frame.
-    pub reservoirs: Vec<Reservoir>,
+    pub reservoirs: Vec<Reservoirs>,
     pub stats: RenderStats,
     pub reuse: ReuseStats,
 }
@@ -201,8 +222,9 @@ pub struct ReuseStats {
     pub mean_history: f64,
 }
 
-/// The unshadowed integrand `f(o, d) L(d) <n, d>+` at a pixel (the target's colour).
-pub fn target_rgb(map: &CubeMap, px: &GPixel, d: Vec3) -> Vec3 {
+/// The unshadowed integrand `f(o, d) L(d) <n, d>+` at a pixel (the target's colour), `L` the
+/// radiance of the map's `part` (zero outside it).
+pub fn target_rgb(split: &Split, part: Part, px: &GPixel, d: Vec3) -> Vec3 {
     let Some((n, o)) = shading_directions(px) else {
         return Vec3::ZERO;
     };
@@ -211,7 +233,7 @@ pub fn target_rgb(map: &CubeMap, px: &GPixel, d: Vec3) -> Vec3 {
         return Vec3::ZERO;
     }
     let frame = Frame::new(n);
-    px.material.eval_local(frame.to_local(o), frame.to_local(d)) * map.lookup(d) * cos
+    px.material.eval_local(frame.to_local(o), frame.to_local(d)) * split.radiance(part, d) * cos
 }
 
 /// The seed of frame `frame` of a sequence whose settings' seed is `seed`: frames draw new
@@ -234,7 +256,7 @@ pub fn resample_frame(
     r: &Resampling,
     frame: u32,
 ) -> crate::error::Result<Resampled> {
-    s.validate_for(cur.map.size)?;
+    s.validate_for(cur.split.rest.size)?;
     let n_px = cur.width * cur.height;
     assert_eq!(cur.gbuf.len(), n_px);
     let s = Settings {
@@ -242,96 +264,138 @@ pub fn resample_frame(
         ..*s
     };
     let t0 = std::time::Instant::now();
-    let mut fd = FrameData::prepare(cur.map, &s);
+    let mut fd = FrameData::prepare(&cur.split.rest, &s);
     if r.candidate_visibility {
         fd.occluder = cur.occluder;
     }
     let build_ms = t0.elapsed().as_secs_f64() * 1e3;
     let t1 = std::time::Instant::now();
     let stream = |pass: u32, i: usize| Rng::new(hash_combine(&[s.seed, pass, 0x5e57]), i as u32);
-    // 1. Candidates, and the selected one's shadow ray.
-    let first: Vec<(Reservoir, Option<PixelStats>, u32)> = (0..n_px)
+    // 1. Candidates, and the selected ones' shadow rays.
+    let first: Vec<Candidates> = (0..n_px)
         .into_par_iter()
         .map(|i| candidates(cur, &fd, &s, r, i, stream(1, i)))
         .collect();
-    let mut rays: Vec<u32> = first.iter().map(|f| f.2).collect();
-    let per_pixel: Vec<Option<PixelStats>> = first.iter().map(|f| f.1).collect();
-    let mut res: Vec<Reservoir> = first.into_iter().map(|f| f.0).collect();
+    let mut rays: Vec<u32> = first.iter().map(|f| f.rays).collect();
+    let per_pixel: Vec<Option<PixelStats>> = first.iter().map(|f| f.stats).collect();
+    let mut res: Vec<Reservoirs> = first.into_iter().map(|f| f.res).collect();
     let mut reuse = ReuseStats::default();
-    // 2. Temporal.
-    if let (true, Some((h, reproject))) = (r.temporal, history) {
-        let out: Vec<(Reservoir, u32, bool)> = (0..n_px)
-            .into_par_iter()
-            .map(|i| temporal(cur, &h, reproject, r, &res, i, stream(2, i)))
-            .collect();
-        reuse.temporal_accepted = out.iter().filter(|o| o.2).count() as u64;
-        for (i, (t, n, _)) in out.into_iter().enumerate() {
-            res[i] = t;
-            rays[i] += n;
+    for part in Part::ALL {
+        let stream = |pass: u32, i: usize| stream(pass + 4 * part as u32, i);
+        let (t, sp) = reuse_part(cur, history, r, part, (&mut res, &mut rays), stream);
+        if part == Part::Rest {
+            (reuse.temporal_accepted, reuse.spatial_accepted) = (t, sp);
         }
     }
-    // 3. Spatial.
-    if r.spatial > 0 {
-        let out: Vec<(Reservoir, u32, u32)> = (0..n_px)
-            .into_par_iter()
-            .map(|i| spatial(cur, r, &res, i, stream(3, i)))
-            .collect();
-        reuse.spatial_accepted = out.iter().map(|o| o.2 as u64).sum();
-        for (i, (t, n, _)) in out.into_iter().enumerate() {
-            res[i] = t;
-            rays[i] += n;
-        }
-    }
-    // 4. Shade: the final sample's visibility where it is not known yet (the biased mode).
-    let data: Vec<(Vec3, u32)> = res
-        .par_iter_mut()
-        .enumerate()
-        .map(|(i, q)| {
-            let mut n = 0;
-            if let (Some(at), true) = (cur.surface(i), q.is_live() && !q.visible) {
-                q.visible = at.visible(q.dir, &mut n);
-                if !q.visible {
-                    q.ucw = 0.0;
-                }
-            }
-            (
-                if q.is_live() {
-                    q.estimate()
-                } else {
-                    Vec3::ZERO
-                },
-                n,
-            )
-        })
-        .collect();
+    // 4. Shade.
+    let (image, shade_rays) = shade(cur, &mut res);
     let shade_ms = t1.elapsed().as_secs_f64() * 1e3;
     let mut stats = RenderStats::for_settings(cur.width, cur.height, &s, fd.pool.block);
     (stats.build_ms, stats.shade_ms) = (build_ms, shade_ms);
     stats.accumulate(&per_pixel);
     // The candidates' own rays (`candidate_visibility`) are in `accumulate`'s count already.
-    stats.shadow_rays += rays
-        .iter()
-        .zip(&data)
-        .map(|(a, b)| (a + b.1) as u64)
-        .sum::<u64>();
-    let shaded = cur.gbuf.iter().filter(|p| p.is_some()).count().max(1);
-    reuse.mean_history = cur
-        .gbuf
-        .iter()
-        .zip(&res)
-        .filter(|(p, _)| p.is_some())
-        .map(|(_, q)| q.m as f64)
-        .sum::<f64>()
-        / shaded as f64;
-    let image = Image {
-        width: cur.width,
-        height: cur.height,
-        data: data.into_iter().map(|d| d.0).collect(),
-    };
+    stats.shadow_rays += rays.iter().map(|&n| n as u64).sum::<u64>() + shade_rays;
+    reuse.mean_history = mean_history(cur, &res);
     Ok(Resampled {
         image,
         reservoirs: res,
         stats,
         reuse,
     })
+}
+
+/// Temporal (2.) and spatial (3.) reuse of the reservoirs of `part`, in place, their rays added
+/// to `rays`; the domains each accepted. The bright part's history is reused only where the
+/// bright light is the one it was made under ([`BrightLight::same_light`]).
+fn reuse_part(
+    cur: &Screen,
+    history: Option<(History, Reproject)>,
+    r: &Resampling,
+    part: Part,
+    (res, rays): (&mut Vec<Reservoirs>, &mut [u32]),
+    stream: impl Fn(u32, usize) -> Rng + Sync,
+) -> (u64, u64) {
+    let n_px = res.len();
+    let history = history
+        .filter(|(h, _)| part == Part::Rest || h.screen.split.bright.same_light(&cur.split.bright));
+    let mut accepted = (0, 0);
+    if let (true, Some((h, reproject))) = (r.temporal, history) {
+        let out = per_pixel_pass(n_px, |i| {
+            temporal(cur, &h, reproject, r, (res, part), i, stream(2, i))
+        });
+        accepted.0 = replace(res, part, rays, out);
+    }
+    if r.spatial > 0 {
+        let out = per_pixel_pass(n_px, |i| spatial(cur, r, (res, part), i, stream(3, i)));
+        accepted.1 = replace(res, part, rays, out);
+    }
+    accepted
+}
+
+/// A reuse pass over every pixel, in parallel: `pass(i)` gives pixel `i`'s new reservoir, the
+/// rays it cast and the domains it accepted.
+fn per_pixel_pass(
+    n_px: usize,
+    pass: impl Fn(usize) -> (Reservoir, u32, u32) + Sync,
+) -> Vec<(Reservoir, u32, u32)> {
+    (0..n_px).into_par_iter().map(&pass).collect()
+}
+
+/// Take a pass's reservoirs of `part`, add its rays; the domains it accepted, summed.
+fn replace(
+    res: &mut [Reservoirs],
+    part: Part,
+    rays: &mut [u32],
+    out: Vec<(Reservoir, u32, u32)>,
+) -> u64 {
+    let mut accepted = 0;
+    for (i, (q, n, a)) in out.into_iter().enumerate() {
+        res[i][part as usize] = q;
+        rays[i] += n;
+        accepted += a as u64;
+    }
+    accepted
+}
+
+/// The image: per pixel, `f(Y) V(Y) W` summed over the parts' reservoirs, testing a final
+/// sample's visibility where it is not known yet (the biased mode); and the rays that cast.
+fn shade(cur: &Screen, res: &mut [Reservoirs]) -> (Image, u64) {
+    let data: Vec<(Vec3, u32)> = res
+        .par_iter_mut()
+        .enumerate()
+        .map(|(i, qs)| {
+            let (mut sum, mut n) = (Vec3::ZERO, 0);
+            for (q, part) in qs.iter_mut().zip(Part::ALL) {
+                if let (Some(at), true) = (cur.surface(i, part), q.is_live() && !q.visible) {
+                    q.visible = at.visible(q.dir, &mut n);
+                    if !q.visible {
+                        q.ucw = 0.0;
+                    }
+                }
+                if q.is_live() {
+                    sum += q.estimate();
+                }
+            }
+            (sum, n)
+        })
+        .collect();
+    let rays = data.iter().map(|d| d.1 as u64).sum();
+    let image = Image {
+        width: cur.width,
+        height: cur.height,
+        data: data.into_iter().map(|d| d.0).collect(),
+    };
+    (image, rays)
+}
+
+/// The mean confidence of the final reservoirs (of the rest) over shaded pixels.
+fn mean_history(cur: &Screen, res: &[Reservoirs]) -> f64 {
+    let shaded = cur.gbuf.iter().filter(|p| p.is_some()).count().max(1);
+    cur.gbuf
+        .iter()
+        .zip(res)
+        .filter(|(p, _)| p.is_some())
+        .map(|(_, q)| q[Part::Rest as usize].m as f64)
+        .sum::<f64>()
+        / shaded as f64
 }

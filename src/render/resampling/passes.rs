@@ -6,22 +6,36 @@ use super::{
     similar,
 };
 use crate::render::estimator::{FrameData, shade_pixel_into};
-use crate::render::resampling::CandidateSink;
+use crate::render::resampling::{CandidateSink, Part, Reservoirs, bright_reservoir};
 use crate::render::{PixelStats, Settings};
 use crate::sampling::rng::Rng;
 
-/// Pixel `i`'s candidate reservoir, its sample statistics and the shadow rays it cast.
+/// What the candidates pass gives a pixel.
+pub(super) struct Candidates {
+    /// Its reservoirs, each culled where its sample is blocked.
+    pub res: Reservoirs,
+    pub stats: Option<PixelStats>,
+    pub rays: u32,
+}
+
+/// Pixel `i`'s candidates: the rest's reservoir (the paper's samples) and the bright part's
+/// ([`bright_reservoir`]), the sample statistics and the shadow rays cast.
 pub(super) fn candidates(
     cur: &Screen,
     fd: &FrameData,
     s: &Settings,
     r: &Resampling,
     i: usize,
-    rng: Rng,
-) -> (Reservoir, Option<PixelStats>, u32) {
-    let Some(at) = cur.surface(i) else {
-        return (Reservoir::default(), None, 0);
+    mut rng: Rng,
+) -> Candidates {
+    let Some(at) = cur.surface(i, Part::Rest) else {
+        return Candidates {
+            res: Default::default(),
+            stats: None,
+            rays: 0,
+        };
     };
+    let mut bright_rng = Rng::new(rng.next_u32(), i as u32);
     let mut sink = CandidateSink::new(rng);
     // Without a surface point the candidates cast no shadow rays; with one (and `fd.occluder`)
     // a blocked candidate never reaches the sink.
@@ -37,25 +51,31 @@ pub(super) fn candidates(
             q.ucw = 0.0;
         }
     }
-    (q, Some(st), rays)
+    let bright = bright_reservoir(&cur.split.bright, &at, &mut bright_rng, &mut rays);
+    Candidates {
+        res: [q, bright],
+        stats: Some(st),
+        rays,
+    }
 }
 
-/// Pixel `i` after temporal reuse: its reservoir, the rays cast, whether history was accepted.
+/// Pixel `i` after temporal reuse: its reservoir, the rays cast, whether history was accepted
+/// (1 or 0).
 pub(super) fn temporal(
     cur: &Screen,
     h: &History,
     reproject: Reproject,
     r: &Resampling,
-    res: &[Reservoir],
+    (res, part): (&[Reservoirs], Part),
     i: usize,
     mut rng: Rng,
-) -> (Reservoir, u32, bool) {
-    let own = res[i];
-    let Some(at) = cur.surface(i) else {
-        return (own, 0, false);
+) -> (Reservoir, u32, u32) {
+    let own = res[i][part as usize];
+    let Some(at) = cur.surface(i, part) else {
+        return (own, 0, 0);
     };
     let prev = reproject(i).and_then(|(q, depth)| {
-        let p = h.screen.surface(q)?;
+        let p = h.screen.surface(q, part)?;
         let expect = Surface {
             depth,
             id: cur.surfaces[i].id,
@@ -63,26 +83,29 @@ pub(super) fn temporal(
         similar(at.px.n, expect, p.px.n, h.screen.surfaces[q]).then_some((q, p))
     });
     let Some((q, p)) = prev else {
-        return (own, 0, false);
+        return (own, 0, 0);
     };
-    let mut old = h.reservoirs[q];
+    let mut old = h.reservoirs[q][part as usize];
     old.m = old.m.min(r.max_history as f32);
-    let domains = [Domain::own(own, at), Domain::reused(old, p, cur.map, at.px)];
+    let domains = [
+        Domain::own(own, at),
+        Domain::reused(old, p, cur.split, at.px),
+    ];
     let mut rays = 0;
     let out = combine(&domains, r.unbiased, r.mutation, &mut rng, &mut rays);
-    (out, rays, true)
+    (out, rays, 1)
 }
 
 /// Pixel `i` after spatial reuse: its reservoir, the rays cast, the neighbours accepted.
 pub(super) fn spatial(
     cur: &Screen,
     r: &Resampling,
-    res: &[Reservoir],
+    (res, part): (&[Reservoirs], Part),
     i: usize,
     mut rng: Rng,
 ) -> (Reservoir, u32, u32) {
-    let own = res[i];
-    let Some(at) = cur.surface(i) else {
+    let own = res[i][part as usize];
+    let Some(at) = cur.surface(i, part) else {
         return (own, 0, 0);
     };
     let (w, h) = (cur.width as i64, cur.height as i64);
@@ -100,11 +123,13 @@ pub(super) fn spatial(
             continue;
         }
         let j = (ny * w + nx) as usize;
-        let Some(nb) = cur.surface(j) else { continue };
+        let Some(nb) = cur.surface(j, part) else {
+            continue;
+        };
         if !similar(at.px.n, cur.surfaces[i], nb.px.n, cur.surfaces[j]) {
             continue;
         }
-        domains.push(Domain::reused(res[j], nb, cur.map, at.px));
+        domains.push(Domain::reused(res[j][part as usize], nb, cur.split, at.px));
     }
     let accepted = domains.len() as u32 - 1;
     if accepted == 0 {

@@ -1,0 +1,329 @@
+//! The map's bright part (a sun, a lamp: a few texels holding much of the light) is sampled
+//! and shaded apart from the rest of the map.
+//!
+//! Why: the target of one reservoir is the *unshadowed* integrand, so where a sun is blocked
+//! (a contact shadow) the reservoir selects the sun almost every time, its one shadow ray finds
+//! it blocked, and the pixel's estimate is the unshadowed integral times a rare Bernoulli draw
+//! (about 1 in 30 under the motion scene's sun): fireflies that reuse only averages slowly
+//! (docs/temporal.md). Split by direction into two integrals, each gets an estimator that fits
+//! it:
+//! - **the rest** (the map with the bright texels zeroed, [`Split::rest`]) is smooth and mostly
+//!   seen where the sun is not: the paper's face-weighted sampler is built on it, and its
+//!   samples are resampled and reused across pixels and frames;
+//! - **the bright part** is tiny, so its samples share one visibility (one ray decides it, but
+//!   in a penumbra): one sample of its own table ([`BrightLight`], texels in proportion to
+//!   `Y Ω`) and one of the BRDF, balance heuristic, resampled to one shadow ray
+//!   ([`bright_estimate`]). Sampled from the paper's distribution instead, the sun would get a
+//!   random number of the pixel's few light samples (its face's fractional count, and the
+//!   face's sky beside it), the estimate's spread at 4 + 4 candidates.
+//!
+//! The split is a fixed function of direction in each frame (a texel is bright or not), so the
+//! two estimates sum to an unbiased estimate of the whole.
+
+use super::combine::DomainSurface;
+use super::reservoir::{CandidateSink, Reservoir};
+use crate::envmap::{CubeMap, dir_to_texel, face_ab_to_vec, luminance, texel_solid_angle};
+use crate::render::estimator::{Sink, shading_directions};
+use crate::sampling::distribution::Distribution1D;
+use crate::sampling::mis::{Heuristic, weight_over_density};
+use crate::sampling::rng::Rng;
+use crate::sampling::warp::Frame;
+use glam::{Vec2, Vec3};
+
+/// A texel is bright when its luminance is over this many times the map's mean radiance...
+pub const BRIGHT_OVER_MEAN: f64 = 16.0;
+/// ...and the texels at least as bright cover at most this fraction of the sphere (a broad
+/// bright region, an overcast sky's, is not split off: nothing gained, a ray more).
+pub const BRIGHT_MAX_AREA: f64 = 0.005;
+
+/// The two parts of a [`Split`] map, each resampled by reservoirs of its own.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Part {
+    /// The map with its bright texels zeroed: the paper's samples.
+    Rest = 0,
+    /// The bright texels: [`BrightLight`]'s samples.
+    Bright = 1,
+}
+
+impl Part {
+    pub const ALL: [Part; 2] = [Part::Rest, Part::Bright];
+}
+
+/// A frame's map split into its bright part and the rest.
+pub struct Split {
+    /// The map with its bright texels zeroed: what the paper's sampler and the reservoirs see.
+    pub rest: CubeMap,
+    pub bright: BrightLight,
+}
+
+impl Split {
+    /// `map` split at [`bright_threshold`].
+    pub fn new(map: &CubeMap) -> Self {
+        Self::at(map, bright_threshold(map))
+    }
+
+    /// `map` whole: nothing is bright.
+    pub fn whole(map: &CubeMap) -> Self {
+        Self::at(map, f32::INFINITY)
+    }
+
+    /// Texels of luminance above `threshold` are bright.
+    pub fn at(map: &CubeMap, threshold: f32) -> Self {
+        let bright = BrightLight::new(map, threshold);
+        let mut rest = map.clone();
+        for &t in &bright.texels {
+            rest.data[t as usize] = Vec3::ZERO;
+        }
+        Split { rest, bright }
+    }
+
+    /// The radiance of the map's `part` in direction `d` (zero outside it).
+    pub fn radiance(&self, part: Part, d: Vec3) -> Vec3 {
+        match part {
+            Part::Rest => self.rest.lookup(d),
+            Part::Bright => self.bright.radiance(d),
+        }
+    }
+}
+
+/// The luminance above which `map`'s texels are its bright part: the smallest texel luminance
+/// over [`BRIGHT_OVER_MEAN`] times the mean such that the texels from it up cover at most
+/// [`BRIGHT_MAX_AREA`] of the sphere. Infinite where no texel qualifies.
+pub fn bright_threshold(map: &CubeMap) -> f32 {
+    let n = map.size;
+    let mut texels: Vec<(f32, f64)> = Vec::with_capacity(map.data.len());
+    let mut energy = 0.0;
+    for f in 0..6 {
+        for r in 0..n {
+            for c in 0..n {
+                let (y, a) = (luminance(map.texel(f, c, r)), texel_solid_angle(c, r, n));
+                energy += y as f64 * a;
+                texels.push((y, a));
+            }
+        }
+    }
+    let floor = BRIGHT_OVER_MEAN * energy / (4.0 * std::f64::consts::PI);
+    let limit = BRIGHT_MAX_AREA * 4.0 * std::f64::consts::PI;
+    texels.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+    let (mut i, mut area, mut threshold) = (0, 0.0, f32::INFINITY);
+    // Whole groups of equal luminance at a time, so that the area bound holds with ties.
+    while i < texels.len() && texels[i].0 as f64 > floor {
+        let y = texels[i].0;
+        let group = texels[i..].iter().take_while(|t| t.0 == y);
+        let (count, group_area) = group.fold((0, 0.0), |(c, s), t| (c + 1, s + t.1));
+        if area + group_area > limit {
+            break;
+        }
+        area += group_area;
+        // Bright are those strictly above the threshold: set just below this group.
+        threshold = y.next_down();
+        i += count;
+    }
+    threshold
+}
+
+/// The bright part as a light of its own: its texels, chosen in proportion to `Y Ω`, the
+/// direction uniform in face coordinates inside the texel (as the paper's face sampler does).
+pub struct BrightLight {
+    size: usize,
+    /// Cube-map indices of the bright texels, and their radiance.
+    texels: Vec<u32>,
+    radiance: Vec<Vec3>,
+    /// Per cube-map texel: its place in `texels`, or `u32::MAX`.
+    place: Vec<u32>,
+    dist: Option<Distribution1D>,
+}
+
+impl BrightLight {
+    /// The texels of `map` brighter than `threshold`.
+    pub fn new(map: &CubeMap, threshold: f32) -> Self {
+        let n = map.size;
+        let mut place = vec![u32::MAX; map.data.len()];
+        let (mut texels, mut radiance, mut weights) = (Vec::new(), Vec::new(), Vec::new());
+        for (i, l) in map.data.iter().enumerate() {
+            if luminance(*l) > threshold {
+                let (c, r) = (i % n, (i / n) % n);
+                place[i] = texels.len() as u32;
+                texels.push(i as u32);
+                radiance.push(*l);
+                weights.push(luminance(*l) * texel_solid_angle(c, r, n) as f32);
+            }
+        }
+        let dist = (!weights.is_empty()).then(|| Distribution1D::new(weights));
+        BrightLight {
+            size: n,
+            texels,
+            radiance,
+            place,
+            dist,
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.dist.is_none()
+    }
+
+    /// Whether `other` is the same light: the same texels with the same radiance. The bright
+    /// part's history is reused only then: a moving sun moves radiance by orders of magnitude
+    /// between a sample's frame and the next (measured: 300x the error of no reuse).
+    pub fn same_light(&self, other: &BrightLight) -> bool {
+        self.size == other.size && self.texels == other.texels && self.radiance == other.radiance
+    }
+
+    /// Whether direction `d` is in the bright part.
+    pub fn contains(&self, d: Vec3) -> bool {
+        self.place[dir_to_texel(d, self.size).index(self.size)] != u32::MAX
+    }
+
+    /// The bright part's radiance in direction `d` (zero outside it).
+    pub fn radiance(&self, d: Vec3) -> Vec3 {
+        match self.place[dir_to_texel(d, self.size).index(self.size)] {
+            u32::MAX => Vec3::ZERO,
+            k => self.radiance[k as usize],
+        }
+    }
+
+    /// A direction and its solid-angle pdf: `u.x` chooses the texel (and is re-stretched across
+    /// it), `u.y` the other coordinate. `None` when there is no bright part.
+    pub fn sample(&self, u: Vec2) -> Option<(Vec3, f32)> {
+        let dist = self.dist.as_ref()?;
+        let (k, du) = dist.sample(u.x);
+        let (n, t) = (self.size, self.texels[k] as usize);
+        let (face, row, col) = (t / (n * n), (t / n) % n, t % n);
+        let h = 2.0 / n as f32;
+        let a = -1.0 + (col as f32 + du) * h;
+        let b = -1.0 + (row as f32 + u.y) * h;
+        let d = face_ab_to_vec(face, a, b).normalize();
+        Some((d, self.texel_pdf(k, a, b)))
+    }
+
+    /// The solid-angle pdf of [`Self::sample`] choosing `d` (0 outside the bright part).
+    pub fn pdf(&self, d: Vec3) -> f32 {
+        let t = dir_to_texel(d, self.size);
+        match self.place[t.index(self.size)] {
+            u32::MAX => 0.0,
+            k => self.texel_pdf(k as usize, t.a, t.b),
+        }
+    }
+
+    /// `P(texel k) / (2/N)^2 * (1 + a^2 + b^2)^(3/2)` at face coordinates `(a, b)`.
+    fn texel_pdf(&self, k: usize, a: f32, b: f32) -> f32 {
+        let Some(dist) = &self.dist else { return 0.0 };
+        let h = 2.0 / self.size as f32;
+        let q = 1.0 + a * a + b * b;
+        dist.bin_pmf(k) / (h * h) * q * q.sqrt()
+    }
+}
+
+/// The bright part's reservoir at a surface: one sample of [`BrightLight`] and one of the BRDF
+/// (counted where it lands in the bright part), power heuristic, one of the two kept by
+/// resampling (target: the unshadowed integrand) and shadow-tested (a ray, counted in `rays`;
+/// culled where blocked). Reused across frames and pixels as the rest's is.
+/// The power heuristic, not the balance: on a diffuse surface the BRDF's density on the sun is
+/// about 1/1000 of the light's, and a balance-weighted BRDF sample that lands on it counts
+/// the whole sun a second time (measured: pixels at twice their reference).
+pub fn bright_reservoir(
+    bright: &BrightLight,
+    at: &DomainSurface,
+    rng: &mut Rng,
+    rays: &mut u32,
+) -> Reservoir {
+    let none = Reservoir {
+        m: 1.0,
+        ..Default::default()
+    };
+    if bright.is_empty() {
+        return none;
+    }
+    let Some((n, o)) = shading_directions(at.px) else {
+        return none;
+    };
+    let frame = Frame::new(n);
+    let (mat, ol) = (&at.px.material, frame.to_local(o));
+    let u = [
+        rng.next_f32(),
+        rng.next_f32(),
+        rng.next_f32(),
+        rng.next_f32(),
+    ];
+    let mut sink = CandidateSink::new(Rng::new(rng.next_u32(), 0));
+    // `light`: whether `d` is the bright light's sample (else the BRDF's).
+    let mut offer = |d: Vec3, light: bool| {
+        let il = frame.to_local(d);
+        let l = bright.radiance(d);
+        if il.z <= 0.0 || l == Vec3::ZERO {
+            return;
+        }
+        let (p_light, p_brdf) = (bright.pdf(d), mat.pdf_local(ol, il));
+        let (own, other) = if light {
+            (p_light, p_brdf)
+        } else {
+            (p_brdf, p_light)
+        };
+        let scale = il.z * weight_over_density(Heuristic::Power, own, other);
+        sink.add(d, mat.eval_local(ol, il) * l, il.z, scale);
+    };
+    if let Some((d, _)) = bright.sample(Vec2::new(u[0], u[1])) {
+        offer(d, true);
+    }
+    if let Some((il, _)) = mat.sample_local(ol, Vec2::new(u[2], u[3])) {
+        offer(frame.to_world(il).normalize(), false);
+    }
+    let mut q = sink.finish();
+    if q.is_live() {
+        q.visible = at.visible(q.dir, rays);
+        if !q.visible {
+            q.ucw = 0.0;
+        }
+    }
+    q
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::envmap::sky::{sky_cube, sun_direction};
+
+    /// The built-in sky's sun is split off, and only it: the bright texels are few, hold most
+    /// of the light, and the sun's direction is among them.
+    #[test]
+    fn the_sun_is_the_bright_part() {
+        let map = sky_cube(32, 14.0);
+        let threshold = bright_threshold(&map);
+        let split = Split::at(&map, threshold);
+        assert!(threshold.is_finite());
+        assert!(split.bright.contains(sun_direction(14.0)));
+        let (mut area, mut bright_energy, mut energy) = (0.0, 0.0, 0.0);
+        for f in 0..6 {
+            for r in 0..32 {
+                for c in 0..32 {
+                    let (y, a) = (luminance(map.texel(f, c, r)), texel_solid_angle(c, r, 32));
+                    energy += y as f64 * a;
+                    if y > threshold {
+                        area += a;
+                        bright_energy += y as f64 * a;
+                    }
+                }
+            }
+        }
+        assert!(
+            area <= BRIGHT_MAX_AREA * 4.0 * std::f64::consts::PI,
+            "{area}"
+        );
+        assert!(bright_energy > 0.5 * energy, "{bright_energy} of {energy}");
+        assert_eq!(split.radiance(Part::Rest, sun_direction(14.0)), Vec3::ZERO);
+        assert_eq!(split.radiance(Part::Rest, Vec3::Y), map.lookup(Vec3::Y));
+    }
+
+    /// A map without a small bright region is not split: uniform, and a bright half.
+    #[test]
+    fn broad_light_is_not_split() {
+        assert_eq!(
+            bright_threshold(&CubeMap::from_fn(8, |_| Vec3::ONE)),
+            f32::INFINITY
+        );
+        let half = CubeMap::from_fn(8, |d| Vec3::splat(if d.y > 0.0 { 100.0 } else { 0.01 }));
+        assert_eq!(bright_threshold(&half), f32::INFINITY);
+        assert!(Split::whole(&half).bright.is_empty());
+    }
+}
