@@ -205,7 +205,7 @@ fn biased_reuse_bias_is_detected() {
         unbiased: false,
         ..Default::default()
     };
-    let t = sequence_checks(&scene, &[3], 48, r);
+    let t = sequence_checks(&scene, &[3], 128, r);
     let worst = t.checks.iter().map(|c| c.z()).fold(0.0, f64::max);
     eprintln!("biased_reuse_bias_is_detected: worst |t| {worst:.2}");
     for c in &t.checks {

@@ -9,15 +9,19 @@
 //!    The target `p̂` is the luminance of the part's unshadowed integrand (BRDF x cosine x the
 //!    part's radiance). The selected sample gets one shadow ray; blocked, the reservoir is
 //!    culled (`W = 0`).
-//! 2. **Temporal reuse**: the previous frame's final reservoir at the reprojected pixel (the
+//! 2. **Temporal reuse**: the previous frame's reservoir at the reprojected pixel (the
 //!    caller's `reproject`), rejected on disocclusion ([`similar`]), its confidence capped at
 //!    `max_history`, its sample's target re-evaluated under this frame's map and geometry, and
 //!    combined with the candidates ([`combine`](combine::combine)). The bright part's history
-//!    only where the bright light has not changed ([`BrightLight::same_light`]).
+//!    only where the bright light has not changed ([`BrightLight::same_light`]). The result is
+//!    the next frame's history.
 //! 3. **Spatial reuse**: `spatial` neighbours' temporal reservoirs in a disc of
-//!    [`SPATIAL_RADIUS`] pixels, passing the same geometric tests, combined the same way.
-//! 4. The estimate: `f(Y) V(Y) W` summed over the parts; the final reservoirs are the next
-//!    frame's history.
+//!    [`SPATIAL_RADIUS`] pixels, passing the same geometric tests, their confidence capped at
+//!    [`SPATIAL_CONFIDENCE`] of the pixel's, combined the same way. Shading only: fed back as
+//!    history, a neighbour's sample (made for another normal) stays at full confidence for
+//!    frames (measured on the still motion scene: 3.6x against 1.7x the error of today's 32 + 32
+//!    with the temporal result as history, before the cap).
+//! 4. The estimate: `f(Y) V(Y) W` summed over the parts.
 //!
 //! Unbiased by default (pairwise MIS, [`combine`](combine::combine)): shadow rays are the
 //! candidates', one per reused sample (the canonical pixel must see what it selects), and one
@@ -139,6 +143,13 @@ pub enum Mutation {
 
 /// Spatial neighbours are drawn uniformly in a disc of this radius, in pixels.
 pub const SPATIAL_RADIUS: f32 = 8.0;
+/// A spatial neighbour's confidence is capped at this fraction of the pixel's own. Its
+/// integrand differs (another normal, another view), so where the pixel's history has
+/// converged, mixing neighbours in at equal confidence adds the variance of that difference:
+/// on the motion scene held still, restir measured 3.6x the error of today's 32 + 32 at equal
+/// confidence, 0.79x capped at 1/4 (temporal reuse alone: 0.66x). Any confidences keep the
+/// pairwise weights summing to 1: unbiased either way.
+pub const SPATIAL_CONFIDENCE: f32 = 0.25;
 /// Two pixels' surfaces may share samples when their normals are within this cosine...
 pub const NORMAL_COS: f32 = 0.9;
 /// ...their camera distances within this fraction of each other, and they are the same object
@@ -280,9 +291,21 @@ pub fn resample_frame(
     let per_pixel: Vec<Option<PixelStats>> = first.iter().map(|f| f.stats).collect();
     let mut res: Vec<Reservoirs> = first.into_iter().map(|f| f.res).collect();
     let mut reuse = ReuseStats::default();
+    // The next frame's history: the temporal pass's reservoirs, not the spatial pass's (below).
+    let mut next = res.clone();
     for part in Part::ALL {
+        if part == Part::Bright && cur.split.bright.is_empty() {
+            continue; // its target is 0 everywhere: nothing to reuse
+        }
         let stream = |pass: u32, i: usize| stream(pass + 4 * part as u32, i);
-        let (t, sp) = reuse_part(cur, history, r, part, (&mut res, &mut rays), stream);
+        let (t, sp) = reuse_part(
+            cur,
+            history,
+            r,
+            part,
+            (&mut res, &mut next, &mut rays),
+            stream,
+        );
         if part == Part::Rest {
             (reuse.temporal_accepted, reuse.spatial_accepted) = (t, sp);
         }
@@ -298,7 +321,7 @@ pub fn resample_frame(
     reuse.mean_history = mean_history(cur, &res);
     Ok(Resampled {
         image,
-        reservoirs: res,
+        reservoirs: next,
         stats,
         reuse,
     })
@@ -312,7 +335,7 @@ fn reuse_part(
     history: Option<(History, Reproject)>,
     r: &Resampling,
     part: Part,
-    (res, rays): (&mut Vec<Reservoirs>, &mut [u32]),
+    (res, next, rays): (&mut Vec<Reservoirs>, &mut [Reservoirs], &mut [u32]),
     stream: impl Fn(u32, usize) -> Rng + Sync,
 ) -> (u64, u64) {
     let n_px = res.len();
@@ -324,6 +347,9 @@ fn reuse_part(
             temporal(cur, &h, reproject, r, (res, part), i, stream(2, i))
         });
         accepted.0 = replace(res, part, rays, out);
+    }
+    for (n, q) in next.iter_mut().zip(res.iter()) {
+        n[part as usize] = q[part as usize];
     }
     if r.spatial > 0 {
         let out = per_pixel_pass(n_px, |i| spatial(cur, r, (res, part), i, stream(3, i)));

@@ -2,8 +2,8 @@
 //! reuse against the reprojected history, spatial reuse among neighbours.
 
 use super::{
-    Domain, History, Reproject, Resampling, Reservoir, SPATIAL_RADIUS, Screen, Surface, combine,
-    similar,
+    Domain, History, Reproject, Resampling, Reservoir, SPATIAL_CONFIDENCE, SPATIAL_RADIUS, Screen,
+    Surface, combine, similar,
 };
 use crate::render::estimator::{FrameData, shade_pixel_into};
 use crate::render::resampling::{CandidateSink, Part, Reservoirs, bright_reservoir};
@@ -129,7 +129,9 @@ pub(super) fn spatial(
         if !similar(at.px.n, cur.surfaces[i], nb.px.n, cur.surfaces[j]) {
             continue;
         }
-        domains.push(Domain::reused(res[j][part as usize], nb, cur.split, at.px));
+        let mut q = res[j][part as usize];
+        q.m = q.m.min(SPATIAL_CONFIDENCE * own.m);
+        domains.push(Domain::reused(q, nb, cur.split, at.px));
     }
     let accepted = domains.len() as u32 - 1;
     if accepted == 0 {
