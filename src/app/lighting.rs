@@ -192,19 +192,11 @@ fn mis_lighting(
         skybox: skybox.is_some_and(|s| s.image.is_some()),
     };
     let lv = lighting_view(parts, sampling, env, slot.layout);
-    // Shadow rays when the camera asks for them and the uploaded geometry is this frame's.
-    let geometry = match shadows {
-        (Some(g), Some(gpu)) if g.enabled(sampling.shadows) && gpu.generation == g.generation => {
-            params.bvh_nodes = gpu.node_count;
-            Some(gpu)
-        }
-        _ => None,
-    };
-    let (bvh_nodes, bvh_triangles) = geometry
-        .as_ref()
-        .map_or((&res.no_shadows, &res.no_shadows), |g| {
-            (&g.nodes, &g.triangles)
-        });
+    let (geometry, bvh_nodes) = shadow_geometry(&shadows, sampling);
+    params.bvh_nodes = bvh_nodes;
+    let (bvh_nodes, bvh_triangles) = geometry.map_or((&res.no_shadows, &res.no_shadows), |g| {
+        (&g.nodes, &g.triangles)
+    });
     let device = ctx.render_device().clone();
     let (pbuf, vbuf, accum) = res.view_buffers(
         (device.wgpu_device(), &queue),
@@ -242,6 +234,23 @@ fn mis_lighting(
     }
     let ms = t0.elapsed().as_secs_f64() * 1e3;
     timings.set(|t| t.lighting_cpu_ms = Some(ms));
+}
+
+/// The shadow geometry the view's rays traverse, and its BVH's node count (0: no shadow rays):
+/// when the camera asks for shadows and the uploaded geometry is this frame's.
+fn shadow_geometry<'a>(
+    shadows: &'a (
+        Option<Res<super::shadows::ShadowGeometry>>,
+        Option<Res<super::shadows::GpuShadowGeometry>>,
+    ),
+    sampling: &EnvironmentSampling,
+) -> (Option<&'a super::shadows::GpuShadowGeometry>, u32) {
+    match shadows {
+        (Some(g), Some(gpu)) if g.enabled(sampling.shadows) && gpu.generation == g.generation => {
+            (Some(&**gpu), gpu.node_count)
+        }
+        _ => (None, 0),
+    }
 }
 
 /// The view's shading parameters: its settings with the view's `seed`, over its viewport `vp`.

@@ -219,21 +219,13 @@ pub fn prepare_samplers(
         let Some(gpu) = images.get(env.image.id()) else {
             continue; // not loaded yet: Bevy's lighting alone until it is
         };
-        let layout = match check_source(gpu) {
-            Ok(l) => l,
-            Err(e) => {
-                if samplers.refused.insert(env.image.id()) {
-                    error!("envis: the environment image cannot be used: {e}");
-                }
-                continue;
-            }
+        let Some(layout) = usable_layout(samplers, gpu, env) else {
+            continue;
         };
         let version = versions
             .as_ref()
             .and_then(|v| v.0.get(&env.image.id()).copied())
             .unwrap_or(0);
-        let settings = *sampling;
-        let face_size = sampling.face_size.clamp(1, 2048);
         // Accumulation: restart the mean whenever anything the image depends on changed.
         let scene = scene.as_ref().map_or(0, |s| s.0);
         let layers = super::shadows::layers_of(layers);
@@ -243,18 +235,7 @@ pub fn prepare_samplers(
             f.insert(main.id(), frame);
         }
         let seed = frame_seed(sampling.seed, frame, tick);
-        let key = SamplerKey {
-            image: env.image.id(),
-            face_size,
-            tiles: crate::sampling::TileGrid::new(face_size, settings.tiles).k,
-            pool_slots: settings.pool_slots(),
-            pool_blocks: settings.pool_block_count(),
-            seed: if sampling.accumulate || tick.is_some() {
-                SeedOwner::View(entity)
-            } else {
-                SeedOwner::Shared(sampling.seed)
-            },
-        };
+        let key = sampler_key(sampling, env, entity, tick.is_some());
         let Some(slot) = slot_for(samplers, key, gpu, layout, &device, &queue, &counters) else {
             continue;
         };
@@ -262,7 +243,7 @@ pub fn prepare_samplers(
         slot.refresh(
             source,
             pool_seed(seed),
-            settings.strategy,
+            sampling.strategy,
             (&device, &queue),
         );
         used.insert(key);
@@ -278,6 +259,48 @@ pub fn prepare_samplers(
     );
     samplers.accumulation.retain(|e, _| live_views.contains(e));
     samplers.ticks.retain(|e, _| live_views.contains(e));
+}
+
+/// The layout of a view's environment image, or `None` (said once per image) when envis cannot
+/// use it.
+fn usable_layout(
+    samplers: &mut EnvSamplers,
+    gpu: &GpuImage,
+    env: &EnvisEnvironment,
+) -> Option<SourceLayout> {
+    match check_source(gpu) {
+        Ok(l) => Some(l),
+        Err(e) => {
+            if samplers.refused.insert(env.image.id()) {
+                error!("envis: the environment image cannot be used: {e}");
+            }
+            None
+        }
+    }
+}
+
+/// Which distribution a view uses: its image, face size, tiles and pool, and whose seed (the
+/// view's own when it accumulates or is jittered, `ticking`; else shared by every view with its
+/// seed).
+fn sampler_key(
+    sampling: &EnvironmentSampling,
+    env: &EnvisEnvironment,
+    entity: Entity,
+    ticking: bool,
+) -> SamplerKey {
+    let face_size = sampling.face_size.clamp(1, 2048);
+    SamplerKey {
+        image: env.image.id(),
+        face_size,
+        tiles: crate::sampling::TileGrid::new(face_size, sampling.tiles).k,
+        pool_slots: sampling.pool_slots(),
+        pool_blocks: sampling.pool_block_count(),
+        seed: if sampling.accumulate || ticking {
+            SeedOwner::View(entity)
+        } else {
+            SeedOwner::Shared(sampling.seed)
+        },
+    }
 }
 
 /// Record every pending build (resample, distribution, pool) into this frame's command stream,

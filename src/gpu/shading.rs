@@ -275,21 +275,11 @@ impl Shader {
         let count = pixels.len();
         let limits = ctx.device.limits();
         check_binding(&limits, "the G-buffer", count as u64 * 64)?;
-        let mk = |label: &str, size: u64, usage: wgpu::BufferUsages| {
-            ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: size.max(16),
-                usage,
-                mapped_at_creation: false,
-            })
-        };
-        let su = wgpu::BufferUsages::STORAGE
-            | wgpu::BufferUsages::COPY_SRC
-            | wgpu::BufferUsages::COPY_DST;
-        let gbuf = mk("envis gbuffer", count as u64 * 64, su);
-        let color = mk("envis color", count as u64 * 16, su);
-        let stats = mk("envis pixel stats", count as u64 * 16, su);
-        let rays = mk("envis pixel shadow rays", count as u64 * 8, su);
+        let mk = |label: &str, size: u64| storage_buffer(ctx, label, size);
+        let gbuf = mk("envis gbuffer", count as u64 * 64);
+        let color = mk("envis color", count as u64 * 16);
+        let stats = mk("envis pixel stats", count as u64 * 16);
+        let rays = mk("envis pixel shadow rays", count as u64 * 8);
         ctx.queue
             .write_buffer(&gbuf, 0, bytemuck::cast_slice(pixels));
         let mut params = ShadeParams::new(s, sampler.n, sampler.m, count);
@@ -297,7 +287,7 @@ impl Shader {
             assert_eq!(p.len(), count, "one surface point per pixel");
             params.bvh_nodes = bvh.node_count;
             let v: Vec<[f32; 4]> = p.iter().map(|p| p.extend(0.0).to_array()).collect();
-            let b = mk("envis surface points", count as u64 * 16, su);
+            let b = mk("envis surface points", count as u64 * 16);
             ctx.queue.write_buffer(&b, 0, bytemuck::cast_slice(&v));
             b
         });
@@ -310,21 +300,33 @@ impl Shader {
         ctx.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         // In binding order (`shaders/shade_compute.wgsl`).
-        let resources = [
-            sampler.texels.as_entire_binding(),
-            sampler.pool.as_entire_binding(),
-            wgpu::BindingResource::Buffer(sampler.regions_binding()),
-            gbuf.as_entire_binding(),
-            color.as_entire_binding(),
-            stats.as_entire_binding(),
-            self.params.as_entire_binding(),
-            sampler.gdist.as_entire_binding(),
-            nodes.as_entire_binding(),
-            triangles.as_entire_binding(),
-            points.as_entire_binding(),
-            rays.as_entire_binding(),
-            fine.as_entire_binding(),
-        ];
+        let bind = self.bind_group(
+            ctx,
+            [
+                sampler.texels.as_entire_binding(),
+                sampler.pool.as_entire_binding(),
+                wgpu::BindingResource::Buffer(sampler.regions_binding()),
+                gbuf.as_entire_binding(),
+                color.as_entire_binding(),
+                stats.as_entire_binding(),
+                self.params.as_entire_binding(),
+                sampler.gdist.as_entire_binding(),
+                nodes.as_entire_binding(),
+                triangles.as_entire_binding(),
+                points.as_entire_binding(),
+                rays.as_entire_binding(),
+                fine.as_entire_binding(),
+            ],
+        );
+        self.dispatch_and_read(ctx, &bind, count, [&color, &stats, &rays])
+    }
+
+    /// The pass's bind group of `resources`, numbered in order.
+    fn bind_group<const N: usize>(
+        &self,
+        ctx: &GpuContext,
+        resources: [wgpu::BindingResource; N],
+    ) -> wgpu::BindGroup {
         let entries: Vec<wgpu::BindGroupEntry> = resources
             .into_iter()
             .enumerate()
@@ -333,11 +335,22 @@ impl Shader {
                 resource,
             })
             .collect();
-        let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("envis shade bind group"),
             layout: &self.layout,
             entries: &entries,
-        });
+        })
+    }
+
+    /// Shade `count` pixels with `bind` and read back the colour, statistics and shadow-ray
+    /// buffers (`out`) and the pass timer, in one readback.
+    fn dispatch_and_read(
+        &self,
+        ctx: &GpuContext,
+        bind: &wgpu::BindGroup,
+        count: usize,
+        [color, stats, rays]: [&wgpu::Buffer; 3],
+    ) -> Result<ShadeJob> {
         let mut enc = ctx.device.create_command_encoder(&Default::default());
         {
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -345,7 +358,7 @@ impl Shader {
                 timestamp_writes: self.timer.as_ref().map(|t| t.writes()),
             });
             pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &bind, &[]);
+            pass.set_bind_group(0, bind, &[]);
             let (x, y) = dispatch_size(count as u32, 64);
             pass.dispatch_workgroups(x, y, 1);
         }
@@ -354,11 +367,10 @@ impl Shader {
         }
         let idx = ctx.queue.submit([enc.finish()]);
         ctx.wait(idx)?;
-        // One readback for the image, the per-pixel statistics and the pass timer.
         let mut parts = vec![
-            (&color, 0, count as u64 * 16),
-            (&stats, 0, count as u64 * 16),
-            (&rays, 0, count as u64 * 8),
+            (color, 0, count as u64 * 16),
+            (stats, 0, count as u64 * 16),
+            (rays, 0, count as u64 * 8),
         ];
         parts.extend(self.timer.as_ref().map(|t| t.part()));
         let data = ctx.read_many(&parts)?;
@@ -370,4 +382,17 @@ impl Shader {
             gpu_ms,
         })
     }
+}
+
+/// A storage buffer the pass reads or writes and the host fills or reads back (at least 16
+/// bytes: an empty binding is invalid).
+fn storage_buffer(ctx: &GpuContext, label: &str, size: u64) -> wgpu::Buffer {
+    ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: size.max(16),
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_SRC
+            | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
 }

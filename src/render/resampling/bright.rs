@@ -197,6 +197,23 @@ impl BrightLight {
         Some((d, self.texel_pdf(k, a, b)))
     }
 
+    /// Invert: the `u` that [`Self::sample`] maps to direction `d` (`None` outside the bright
+    /// part).
+    pub fn invert(&self, d: Vec3) -> Option<Vec2> {
+        let dist = self.dist.as_ref()?;
+        let t = dir_to_texel(d, self.size);
+        let k = self.place[t.index(self.size)];
+        if k == u32::MAX {
+            return None;
+        }
+        let x = (t.a + 1.0) * 0.5 * self.size as f32 - t.col as f32;
+        let y = (t.b + 1.0) * 0.5 * self.size as f32 - t.row as f32;
+        Some(Vec2::new(
+            dist.invert(k as usize, x.clamp(0.0, 1.0)),
+            y.clamp(0.0, 1.0),
+        ))
+    }
+
     /// The solid-angle pdf of [`Self::sample`] choosing `d` (0 outside the bright part).
     pub fn pdf(&self, d: Vec3) -> f32 {
         let t = dir_to_texel(d, self.size);
@@ -283,6 +300,7 @@ pub fn bright_reservoir(
 mod tests {
     use super::*;
     use crate::envmap::sky::{sky_cube, sun_direction};
+    use crate::sampling::rng::Rng;
 
     /// The built-in sky's sun is split off, and only it: the bright texels are few, hold most
     /// of the light, and the sun's direction is among them.
@@ -313,6 +331,29 @@ mod tests {
         assert!(bright_energy > 0.5 * energy, "{bright_energy} of {energy}");
         assert_eq!(split.radiance(Part::Rest, sun_direction(14.0)), Vec3::ZERO);
         assert_eq!(split.radiance(Part::Rest, Vec3::Y), map.lookup(Vec3::Y));
+    }
+
+    /// `invert` takes a sample's direction back to its random numbers.
+    #[test]
+    fn bright_light_inverts_its_samples() {
+        let map = sky_cube(16, 9.0);
+        let light = BrightLight::new(&map, bright_threshold(&map));
+        let mut rng = Rng::new(3, 0);
+        let mut n = 0;
+        for _ in 0..2000 {
+            let u = Vec2::new(rng.next_f32(), rng.next_f32());
+            let Some((d, _)) = light.sample(u) else {
+                panic!("the sky has a sun")
+            };
+            let back = light.invert(d).expect("a sample is in the bright part");
+            assert!(
+                (back - u).abs().max_element() < 2e-3,
+                "{u} -> {d} -> {back}"
+            );
+            n += 1;
+        }
+        assert_eq!(n, 2000);
+        assert_eq!(light.invert(-sun_direction(9.0)), None);
     }
 
     /// A map without a small bright region is not split: uniform, and a bright half.
