@@ -24,6 +24,9 @@ use crate::scene::Scene;
 use crate::sequence::{self, Posed, SequenceOptions};
 use std::path::{Path, PathBuf};
 
+/// The suite's scene, relative to the crate root (`--scene` replaces it).
+const DEFAULT_SCENE: &str = "assets/scenes/motion.toml";
+
 /// Samples of each kind per pixel in the reference frames.
 const REF_SAMPLES: usize = 1024;
 
@@ -60,7 +63,7 @@ pub(super) fn relmse(img: &Image, rf: &Image) -> f64 {
 }
 
 pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
-    let default = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes/motion.toml");
+    let default = Path::new(env!("CARGO_MANIFEST_DIR")).join(DEFAULT_SCENE);
     let path = a.scene.clone().unwrap_or(default);
     let scene = Scene::load(&path)?;
     let (size, frames, first) = if a.quick {
@@ -162,7 +165,7 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
     let out = dir.join("bench-motion.json");
     let v = serde_json::json!({
         "suite": "motion",
-        "scene": a.scene.as_ref().map_or("assets/scenes/motion.toml".into(), |p| p.display().to_string()),
+        "scene": a.scene.as_ref().map_or(DEFAULT_SCENE.into(), |p| p.display().to_string()),
         "size": size,
         "frames": [first, frames],
         "reference_samples": REF_SAMPLES,

@@ -275,7 +275,7 @@ impl Shader {
         let count = pixels.len();
         let limits = ctx.device.limits();
         check_binding(&limits, "the G-buffer", count as u64 * 64)?;
-        let mk = |label: &str, size: u64| storage_buffer(ctx, label, size);
+        let mk = |label: &str, size: u64| super::sampler::storage(&ctx.device, label, size);
         let gbuf = mk("envis gbuffer", count as u64 * 64);
         let color = mk("envis color", count as u64 * 16);
         let stats = mk("envis pixel stats", count as u64 * 16);
@@ -382,17 +382,4 @@ impl Shader {
             gpu_ms,
         })
     }
-}
-
-/// A storage buffer the pass reads or writes and the host fills or reads back (at least 16
-/// bytes: an empty binding is invalid).
-fn storage_buffer(ctx: &GpuContext, label: &str, size: u64) -> wgpu::Buffer {
-    ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some(label),
-        size: size.max(16),
-        usage: wgpu::BufferUsages::STORAGE
-            | wgpu::BufferUsages::COPY_SRC
-            | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    })
 }

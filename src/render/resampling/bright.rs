@@ -22,9 +22,9 @@
 
 use super::combine::DomainSurface;
 use super::reservoir::{CandidateSink, Reservoir};
-use crate::envmap::{CubeMap, dir_to_texel, face_ab_to_vec, luminance, texel_solid_angle};
+use crate::envmap::{CubeMap, dir_to_texel, face_ab_to_vec, luminance};
 use crate::render::estimator::{Sink, shading_directions};
-use crate::sampling::distribution::Distribution1D;
+use crate::sampling::distribution::{Distribution1D, face_solid_angles};
 use crate::sampling::mis::{Heuristic, weight_over_density};
 use crate::sampling::rng::Rng;
 use crate::sampling::warp::Frame;
@@ -90,18 +90,15 @@ impl Split {
 /// over [`BRIGHT_OVER_MEAN`] times the mean such that the texels from it up cover at most
 /// [`BRIGHT_MAX_AREA`] of the sphere. Infinite where no texel qualifies.
 pub fn bright_threshold(map: &CubeMap) -> f32 {
-    let n = map.size;
-    let mut texels: Vec<(f32, f64)> = Vec::with_capacity(map.data.len());
+    let omega = face_solid_angles(map.size);
     let mut energy = 0.0;
-    for f in 0..6 {
-        for r in 0..n {
-            for c in 0..n {
-                let (y, a) = (luminance(map.texel(f, c, r)), texel_solid_angle(c, r, n));
-                energy += y as f64 * a;
-                texels.push((y, a));
-            }
-        }
-    }
+    let mut texels: Vec<(f32, f64)> = (map.data.iter().zip(omega.iter().cycle()))
+        .map(|(l, &a)| {
+            let (y, a) = (luminance(*l), a as f64);
+            energy += y as f64 * a;
+            (y, a)
+        })
+        .collect();
     let floor = BRIGHT_OVER_MEAN * energy / (4.0 * std::f64::consts::PI);
     let limit = BRIGHT_MAX_AREA * 4.0 * std::f64::consts::PI;
     texels.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
@@ -138,15 +135,15 @@ impl BrightLight {
     /// The texels of `map` brighter than `threshold`.
     pub fn new(map: &CubeMap, threshold: f32) -> Self {
         let n = map.size;
+        let omega = face_solid_angles(n);
         let mut place = vec![u32::MAX; map.data.len()];
         let (mut texels, mut radiance, mut weights) = (Vec::new(), Vec::new(), Vec::new());
         for (i, l) in map.data.iter().enumerate() {
             if luminance(*l) > threshold {
-                let (c, r) = (i % n, (i / n) % n);
                 place[i] = texels.len() as u32;
                 texels.push(i as u32);
                 radiance.push(*l);
-                weights.push(luminance(*l) * texel_solid_angle(c, r, n) as f32);
+                weights.push(luminance(*l) * omega[i % (n * n)]);
             }
         }
         let dist = (!weights.is_empty()).then(|| Distribution1D::new(weights));
@@ -300,6 +297,7 @@ pub fn bright_reservoir(
 mod tests {
     use super::*;
     use crate::envmap::sky::{sky_cube, sun_direction};
+    use crate::envmap::texel_solid_angle;
     use crate::sampling::rng::Rng;
 
     /// The built-in sky's sun is split off, and only it: the bright texels are few, hold most
