@@ -429,7 +429,7 @@ fn brdf_samples(p: Pixel, rng: ptr<function, Rng>, dens: LightDensities, res: pt
                 let r = tile_region(hit.face, hit.col, hit.row, size, sp.tiles);
                 density = region_density(p.n, r, dens.total, p.nl, dens.window_len, p.counts, p.use_cosine);
             }
-            n_l = density * t.w * (q * sqrt(q));
+            n_l = density * t.w * (q * sqrt(q)) * sub_texel_factor(d);
         } else if (sp.strategy == STRATEGY_GLOBAL) {
             n_l = f32(p.nl) * global_pdf(size, d);
         }

@@ -20,8 +20,8 @@
 @group(0) @binding(10) var<storage, read> points: array<vec4<f32>>;
 // Per pixel: (shadow rays cast, light samples blocked) (render::PixelStats).
 @group(0) @binding(11) var<storage, read_write> out_rays: array<vec2<u32>>;
-// The map at its own resolution, one rgb(a) per texel of sp.fine_n^2 faces; a placeholder when
-// sp.fine_n is 0.
+// The map at its own resolution, one (r, g, b, sub-texel factor) per texel of sp.fine_n^2 faces;
+// a placeholder when sp.fine_n is 0.
 @group(0) @binding(12) var<storage, read> fine: array<vec4<f32>>;
 
 var<private> shadow_rays: u32;
@@ -65,4 +65,16 @@ fn env_radiance(d: vec3<f32>, coarse: vec3<f32>) -> vec3<f32> {
     let n = sp.fine_n;
     let hit = dir_to_texel(d, n);
     return fine[(hit.face * n + hit.row) * n + hit.col].xyz;
+}
+
+// The factor the coarse texel's density takes in the fine texel d falls in (sub-texel sampling,
+// subtexel.wgsl; 1 where the pool was not refined), kept in the fine table's w (CPU twin:
+// SubTexels::factor).
+fn sub_texel_factor(d: vec3<f32>) -> f32 {
+    if (sp.fine_n == 0u) {
+        return 1.0;
+    }
+    let n = sp.fine_n;
+    let hit = dir_to_texel(d, n);
+    return fine[(hit.face * n + hit.row) * n + hit.col].w;
 }

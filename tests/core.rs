@@ -171,6 +171,9 @@ mod resampling;
 #[path = "core/unbiased.rs"]
 mod unbiased;
 
+#[path = "core/subtexel.rs"]
+mod subtexel;
+
 #[path = "core/loaders.rs"]
 mod loaders;
 

@@ -35,6 +35,8 @@ ap.add_argument("--alpha", type=float, default=0.02)
 ap.add_argument("--seeds", type=int, default=4)
 ap.add_argument("--ref-spp", type=int, default=4096)
 ap.add_argument("--envis", default=os.environ.get("ENVIS", "target/release/envis"))
+ap.add_argument("--baseline", help="another envis build, run with --radiance full beside --envis "
+                "(e.g. the one before a change, in the same sitting): adds envis_baseline_*")
 ap.add_argument("--out")
 a = ap.parse_args()
 mi.set_variant("llvm_ad_rgb")
@@ -78,9 +80,9 @@ def relmse(img, ref):
     return float(e[interior].mean())
 
 
-def envis_run(env_path, radiance, seed, d):
+def envis_run(env_path, radiance, seed, d, exe=None):
     out = os.path.join(d, "e.exr")
-    subprocess.run([a.envis, "render", "--env", env_path, "--face-size", str(a.face_size), "--size", str(W),
+    subprocess.run([exe or a.envis, "render", "--env", env_path, "--face-size", str(a.face_size), "--size", str(W),
                     "--brdf", "ggx", "--alpha", str(a.alpha), "--albedo", "0.8", "--light-samples", "32",
                     "--brdf-samples", "32", "--seed", str(seed), "--radiance", radiance, "--out", out],
                    check=True, capture_output=True)
@@ -97,15 +99,18 @@ with tempfile.TemporaryDirectory() as d:
         imgs = [render(scene(env, 1, 32, 32), s) for s in range(a.seeds)]
         mts = np.mean([relmse(i, ref) for i in imgs])
         row = {"map": name, "mitsuba": mts, "mitsuba_of_mean": relmse(np.mean(imgs, axis=0), ref)}
-        for radiance in ["full", "distribution"]:
-            imgs = [envis_run(env, radiance, s, d) for s in range(a.seeds)]
+        runs = [("full", "full", None), ("distribution", "distribution", None)]
+        if a.baseline:
+            runs.append(("baseline", "full", a.baseline))
+        for key, radiance, exe in runs:
+            imgs = [envis_run(env, radiance, s, d, exe) for s in range(a.seeds)]
             e = np.mean([relmse(i, ref) for i in imgs])
-            row[f"envis_{radiance}"] = e
-            row[f"envis_{radiance}_over_mitsuba"] = e / mts
-            row[f"envis_{radiance}_of_mean"] = relmse(np.mean(imgs, axis=0), ref)
+            row[f"envis_{key}"] = e
+            row[f"envis_{key}_over_mitsuba"] = e / mts
+            row[f"envis_{key}_of_mean"] = relmse(np.mean(imgs, axis=0), ref)
         print(json.dumps(row), flush=True)
         rows.append(row)
-res = {"alpha": a.alpha, "face_size": a.face_size, "size": W, "seeds": a.seeds, "ref_spp": a.ref_spp,
+res = {"baseline": a.baseline, "alpha": a.alpha, "face_size": a.face_size, "size": W, "seeds": a.seeds, "ref_spp": a.ref_spp,
        "samples": "32 + 32", "threads": os.cpu_count(), "mitsuba": mi.__version__, "rows": rows}
 print(json.dumps(res, indent=2))
 if a.out:

@@ -2,6 +2,7 @@
 //! files.
 
 use super::*;
+use std::path::Path;
 
 /// The sweep's progress on stderr (indicatif): on a terminal a bar redrawn in place, with the
 /// count, the time so far, the time left and the rate; elsewhere (logs, CI) the same figures as a
@@ -60,15 +61,8 @@ pub(super) fn accuracy_suite(a: BenchArgs, dir: PathBuf) -> Result<()> {
         cfg.envs.len(),
         cfg.materials.len()
     );
-    // The GPU backend, when this build has it and a device is there (`--cpu-only` skips it).
     #[cfg(feature = "gpu")]
-    let gpu_ctx = if a.cpu_only {
-        None
-    } else {
-        crate::gpu::GpuContext::new()
-            .map_err(|e| eprintln!("accuracy: no GPU backend ({e}); CPU only"))
-            .ok()
-    };
+    let gpu_ctx = gpu_backend(&a);
     #[cfg(feature = "gpu")]
     let gpu_device = gpu_ctx
         .as_ref()
@@ -79,44 +73,11 @@ pub(super) fn accuracy_suite(a: BenchArgs, dir: PathBuf) -> Result<()> {
     // Resumable: every finished point is appended to `accuracy.partial.jsonl` (first line: the
     // sweep's fingerprint). A rerun with the same configuration takes those points and measures
     // only the rest; the file is removed once the outputs are written.
-    let fingerprint = accuracy::fingerprint(&cfg, gpu_device.as_deref());
+    let fingerprint = serde_json::to_string(&accuracy::fingerprint(&cfg, gpu_device.as_deref()))
+        .map_err(|e| Error::invalid(format!("accuracy: {e}")))?;
     let partial = dir.join("accuracy.partial.jsonl");
-    let resume: Vec<accuracy::Point> = match std::fs::read_to_string(&partial) {
-        Ok(text) => {
-            let mut lines = text.lines();
-            if lines.next() == Some(serde_json::to_string(&fingerprint).unwrap().as_str()) {
-                // A line cut short by the interruption is dropped (and measured again).
-                let pts: Vec<accuracy::Point> =
-                    lines.filter_map(|l| serde_json::from_str(l).ok()).collect();
-                eprintln!(
-                    "accuracy: resuming {} of {total} points from {}",
-                    pts.len(),
-                    partial.display()
-                );
-                pts
-            } else {
-                eprintln!(
-                    "accuracy: {} is from a different configuration; starting over",
-                    partial.display()
-                );
-                Vec::new()
-            }
-        }
-        Err(_) => Vec::new(),
-    };
-    let mut journal = {
-        let mut text = serde_json::to_string(&fingerprint).unwrap() + "\n";
-        for p in &resume {
-            text += &(serde_json::to_string(p).unwrap() + "\n");
-        }
-        std::fs::write(&partial, text)
-            .map_err(|e| Error::file(&partial, format!("cannot write: {e}")))?;
-        std::fs::OpenOptions::new()
-            .append(true)
-            .open(&partial)
-            .map_err(|e| Error::file(&partial, format!("cannot append: {e}")))?
-    };
-    let resumed = resume.len();
+    let resume = resumed_points(&partial, &fingerprint, total);
+    let mut journal = open_journal(&partial, &fingerprint, &resume)?;
     let mut journal_error = None;
     let mut progress: Option<Progress> = None;
     let report_progress = |done: usize, total: usize, p: &accuracy::Point, was_resumed: bool| {
@@ -132,24 +93,7 @@ pub(super) fn accuracy_suite(a: BenchArgs, dir: PathBuf) -> Result<()> {
         );
     };
     #[cfg(feature = "gpu")]
-    let points = match &gpu_ctx {
-        Some(ctx) => {
-            let mut renderer = crate::gpu::GpuRenderer::new(ctx);
-            let mut time = |map: &CubeMap,
-                            gbuf: &[Option<render::GPixel>],
-                            size: usize,
-                            s: &Settings|
-             -> Result<(f64, f64)> {
-                let (_, t) = renderer.render(map, gbuf, size, size, s)?;
-                Ok((
-                    t.build_gpu_ms.unwrap_or(t.build_wall_ms),
-                    t.shade_gpu_ms.unwrap_or(t.shade_wall_ms),
-                ))
-            };
-            accuracy::sweep(&cfg, &resume, Some(&mut time), report_progress)?
-        }
-        None => accuracy::sweep(&cfg, &resume, None, report_progress)?,
-    };
+    let points = sweep_on(&cfg, &resume, gpu_ctx.as_ref(), report_progress)?;
     #[cfg(not(feature = "gpu"))]
     let points = accuracy::sweep(&cfg, &resume, None, report_progress)?;
     if let Some(e) = journal_error {
@@ -158,6 +102,99 @@ pub(super) fn accuracy_suite(a: BenchArgs, dir: PathBuf) -> Result<()> {
             partial.display()
         );
     }
+    let out = Outputs {
+        dir: &dir,
+        command: suite_command(&a),
+        gpu_device: gpu_device.as_deref(),
+        start,
+        resumed: resume.len(),
+    };
+    out.write(&cfg, &points)?;
+    let _ = std::fs::remove_file(&partial);
+    Ok(())
+}
+
+/// The GPU backend, when this build has it and a device is there (`--cpu-only` skips it).
+#[cfg(feature = "gpu")]
+fn gpu_backend(a: &BenchArgs) -> Option<crate::gpu::GpuContext> {
+    if a.cpu_only {
+        return None;
+    }
+    crate::gpu::GpuContext::new()
+        .map_err(|e| eprintln!("accuracy: no GPU backend ({e}); CPU only"))
+        .ok()
+}
+
+/// [`accuracy::sweep`], each point also timed on `gpu` when there is one.
+#[cfg(feature = "gpu")]
+fn sweep_on(
+    cfg: &accuracy::Config,
+    resume: &[accuracy::Point],
+    gpu: Option<&crate::gpu::GpuContext>,
+    progress: impl FnMut(usize, usize, &accuracy::Point, bool),
+) -> Result<Vec<accuracy::Point>> {
+    let Some(ctx) = gpu else {
+        return accuracy::sweep(cfg, resume, None, progress);
+    };
+    let mut renderer = crate::gpu::GpuRenderer::new(ctx);
+    let mut time = |map: &CubeMap,
+                    gbuf: &[Option<render::GPixel>],
+                    size: usize,
+                    s: &Settings|
+     -> Result<(f64, f64)> {
+        let (_, t) = renderer.render(map, gbuf, size, size, s)?;
+        Ok((
+            t.build_gpu_ms.unwrap_or(t.build_wall_ms),
+            t.shade_gpu_ms.unwrap_or(t.shade_wall_ms),
+        ))
+    };
+    accuracy::sweep(cfg, resume, Some(&mut time), progress)
+}
+
+/// The points an interrupted run of the same configuration (first line `fingerprint`) left in
+/// `partial`; none if it is from another configuration or absent. A line cut short by the
+/// interruption is dropped (and measured again).
+fn resumed_points(partial: &Path, fingerprint: &str, total: usize) -> Vec<accuracy::Point> {
+    let Ok(text) = std::fs::read_to_string(partial) else {
+        return Vec::new();
+    };
+    let mut lines = text.lines();
+    if lines.next() != Some(fingerprint) {
+        eprintln!(
+            "accuracy: {} is from a different configuration; starting over",
+            partial.display()
+        );
+        return Vec::new();
+    }
+    let pts: Vec<accuracy::Point> = lines.filter_map(|l| serde_json::from_str(l).ok()).collect();
+    eprintln!(
+        "accuracy: resuming {} of {total} points from {}",
+        pts.len(),
+        partial.display()
+    );
+    pts
+}
+
+/// `partial` rewritten with `fingerprint` and the `resume`d points, open for appending.
+fn open_journal(
+    partial: &Path,
+    fingerprint: &str,
+    resume: &[accuracy::Point],
+) -> Result<std::fs::File> {
+    let mut text = format!("{fingerprint}\n");
+    for p in resume {
+        text += &(serde_json::to_string(p).unwrap() + "\n");
+    }
+    std::fs::write(partial, text)
+        .map_err(|e| Error::file(partial, format!("cannot write: {e}")))?;
+    std::fs::OpenOptions::new()
+        .append(true)
+        .open(partial)
+        .map_err(|e| Error::file(partial, format!("cannot append: {e}")))
+}
+
+/// The command line that reproduces this run, for the report.
+fn suite_command(a: &BenchArgs) -> String {
     let mut command = String::from("envis bench --suite accuracy");
     if a.quick {
         command.push_str(" --quick");
@@ -165,47 +202,72 @@ pub(super) fn accuracy_suite(a: BenchArgs, dir: PathBuf) -> Result<()> {
     if let Some(m) = &a.maps {
         command.push_str(&format!(" --maps {}", m.display()));
     }
-    let write = |name: &str, text: String| -> Result<()> {
-        let p = dir.join(name);
+    command
+}
+
+/// Where and how the suite's files are written.
+struct Outputs<'a> {
+    dir: &'a Path,
+    command: String,
+    gpu_device: Option<&'a str>,
+    start: Instant,
+    /// Points taken from an interrupted run.
+    resumed: usize,
+}
+
+impl Outputs<'_> {
+    fn file(&self, name: &str, text: String) -> Result<()> {
+        let p = self.dir.join(name);
         std::fs::write(&p, text).map_err(|e| Error::file(&p, format!("cannot write: {e}")))
-    };
-    write("accuracy.csv", accuracy::csv(&points))?;
-    crate::render::output::write_json(
-        &dir.join("accuracy.json"),
-        &serde_json::json!({ "command": command, "points": points }),
-    )?;
-    let mut md = accuracy::report(&cfg, &points, &command, gpu_device.as_deref());
-    md.push_str("## Plots\n\n");
-    md.push_str("Each plot is written as SVG and PNG (plotters); the PNGs are shown here.\n\n");
-    for (mname, _) in &cfg.materials {
-        let stem = accuracy::plot_stem(mname);
-        let (_, time_png) = accuracy::plot_error_vs_time(&points, mname).write(&dir, &stem)?;
-        let (_, samples_png) = accuracy::plot_error_vs_samples(&points, mname)
-            .write(&dir, &format!("{stem}-samples"))?;
-        md.push_str(&format!(
-            "![{mname}: error vs time]({time_png}) ![{mname}: error vs samples]({samples_png})\n\n"
-        ));
     }
-    let (_, wasted_png) = accuracy::plot_wasted(&points).write(&dir, "accuracy-wasted")?;
-    md.push_str(&format!("![wasted light samples]({wasted_png})\n\n"));
-    md.push_str(&format!(
-        "Sweep time: {:.0} s{}.\n",
-        start.elapsed().as_secs_f64(),
-        if resumed > 0 {
-            format!(
-                " ({resumed} of {} points resumed from an interrupted run)",
-                points.len()
-            )
-        } else {
-            String::new()
+
+    /// `accuracy.csv`, `accuracy.json`, the plots and `accuracy-vs-time.md`.
+    fn write(&self, cfg: &accuracy::Config, points: &[accuracy::Point]) -> Result<()> {
+        self.file("accuracy.csv", accuracy::csv(points))?;
+        crate::render::output::write_json(
+            &self.dir.join("accuracy.json"),
+            &serde_json::json!({ "command": self.command, "points": points }),
+        )?;
+        let mut md = accuracy::report(cfg, points, &self.command, self.gpu_device);
+        md.push_str(&self.plots(cfg, points)?);
+        md.push_str(&format!(
+            "Sweep time: {:.0} s{}.\n",
+            self.start.elapsed().as_secs_f64(),
+            if self.resumed > 0 {
+                format!(
+                    " ({} of {} points resumed from an interrupted run)",
+                    self.resumed,
+                    points.len()
+                )
+            } else {
+                String::new()
+            }
+        ));
+        self.file("accuracy-vs-time.md", md)?;
+        eprintln!(
+            "wrote accuracy.csv, accuracy.json, accuracy-vs-time.md to {} in {:.0} s",
+            self.dir.display(),
+            self.start.elapsed().as_secs_f64()
+        );
+        Ok(())
+    }
+
+    /// The plots (SVG and PNG) and the report's section showing them.
+    fn plots(&self, cfg: &accuracy::Config, points: &[accuracy::Point]) -> Result<String> {
+        let mut md = String::from("## Plots\n\n");
+        md.push_str("Each plot is written as SVG and PNG (plotters); the PNGs are shown here.\n\n");
+        for (mname, _) in &cfg.materials {
+            let stem = accuracy::plot_stem(mname);
+            let (_, time_png) =
+                accuracy::plot_error_vs_time(points, mname).write(self.dir, &stem)?;
+            let (_, samples_png) = accuracy::plot_error_vs_samples(points, mname)
+                .write(self.dir, &format!("{stem}-samples"))?;
+            md.push_str(&format!(
+                "![{mname}: error vs time]({time_png}) ![{mname}: error vs samples]({samples_png})\n\n"
+            ));
         }
-    ));
-    write("accuracy-vs-time.md", md)?;
-    let _ = std::fs::remove_file(&partial);
-    eprintln!(
-        "wrote accuracy.csv, accuracy.json, accuracy-vs-time.md to {} in {:.0} s",
-        dir.display(),
-        start.elapsed().as_secs_f64()
-    );
-    Ok(())
+        let (_, wasted_png) = accuracy::plot_wasted(points).write(self.dir, "accuracy-wasted")?;
+        md.push_str(&format!("![wasted light samples]({wasted_png})\n\n"));
+        Ok(md)
+    }
 }

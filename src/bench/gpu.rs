@@ -57,50 +57,7 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
     };
     let mut builds = Vec::new();
     for &n in &faces {
-        let sampler = match EnvSampler::new(&ctx, n, m) {
-            Ok(s) => s,
-            Err(e) => {
-                eprintln!("  {n}^2: skipped on this device: {e}");
-                continue;
-            }
-        };
-        let map = load_env(&EnvSource::Sky { hours: 10.0 }, n)?.cube;
-        sampler.upload(&ctx.queue, &map);
-        let (mut g, mut w, mut c) = (Vec::new(), Vec::new(), Vec::new());
-        for k in 0..=repeat {
-            let t = Instant::now();
-            ctx.wait(sampler.run(&ctx, pool_seed(k as u32)))?;
-            let wall = t.elapsed().as_secs_f64() * 1e3;
-            let gms = sampler.last_gpu_ms(&ctx);
-            let t = Instant::now();
-            let dist = CubeDistribution::build(&map);
-            let pool = LightPool::build(&map, &dist, m, pool_seed(k as u32));
-            let cpu = t.elapsed().as_secs_f64() * 1e3;
-            std::hint::black_box(pool.samples.len());
-            if k > 0 {
-                w.push(wall);
-                c.push(cpu);
-                if let Some(x) = gms {
-                    g.push(x);
-                }
-            }
-        }
-        let gpu_ms = (!g.is_empty()).then(|| median(g));
-        let (gpu_wall_ms, cpu_ms) = (median(w), median(c));
-        let row = BuildRow {
-            face: n,
-            texels: 6 * n * n,
-            pool_per_face: m,
-            gpu_ms,
-            gpu_wall_ms,
-            cpu_ms,
-            cpu_over_gpu: gpu_ms.map(|g| cpu_ms / g),
-        };
-        eprintln!(
-            "  build+pool 6x{n}^2, M={m}: GPU {} ms (wall {gpu_wall_ms:.3} ms), CPU {cpu_ms:.3} ms",
-            fmt(gpu_ms)
-        );
-        builds.push(row);
+        builds.extend(build_row(&ctx, n, m, repeat)?);
     }
 
     // A full frame.
@@ -109,8 +66,7 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
     } else {
         (a.size.max(1), a.height.unwrap_or(a.size * 9 / 16).max(1))
     };
-    let face = a.face_size;
-    let map = load_env(&a.env.parse::<EnvSource>()?, face)?.cube;
+    let map = load_env(&a.env.parse::<EnvSource>()?, a.face_size)?.cube;
     let s = Settings {
         light_samples: a.light_samples,
         brdf_samples: a.brdf_samples,
@@ -123,55 +79,15 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
         ("ggx 0.2", Material::ggx(0.8, 0.2)),
     ] {
         let gbuf = render::sphere_gbuffer(width, height, mat);
-        let shaded = gbuf.iter().filter(|p| p.is_some()).count();
-        let pixels: Vec<GpuGPixel> = gbuf.iter().map(GpuGPixel::from).collect();
-        let sampler = EnvSampler::for_settings(&ctx, face, &s)?;
-        sampler.upload(&ctx.queue, &map);
-        let shader = Shader::new(&ctx);
-        let (mut gb, mut gs, mut gw, mut cs) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-        for k in 0..=repeat.min(3) {
-            ctx.wait(sampler.run(&ctx, pool_seed(s.seed)))?;
-            let b = sampler.last_gpu_ms(&ctx);
-            let t = Instant::now();
-            let job = shader.shade(&ctx, &sampler, &pixels, &s)?;
-            let wall = t.elapsed().as_secs_f64() * 1e3;
-            let cpu = render::render(&map, &gbuf, width, height, &s)?
-                .stats
-                .shade_ms;
-            if k > 0 {
-                if let Some(x) = b {
-                    gb.push(x)
-                }
-                if let Some(x) = job.gpu_ms {
-                    gs.push(x)
-                }
-                gw.push(wall);
-                cs.push(cpu);
-            }
-        }
-        let gpu_shade_ms = (!gs.is_empty()).then(|| median(gs));
-        let cpu_shade_ms = median(cs);
-        let row = FrameRow {
-            width,
-            height,
-            shaded_pixels: shaded,
-            light_samples: s.light_samples,
-            brdf_samples: s.brdf_samples,
-            material: name.into(),
-            gpu_build_ms: (!gb.is_empty()).then(|| median(gb)),
-            gpu_shade_ms,
-            gpu_shade_wall_ms: median(gw),
-            cpu_shade_ms,
-            cpu_over_gpu: gpu_shade_ms.map(|g| cpu_shade_ms / g),
-        };
-        eprintln!(
-            "  frame {width}x{height} {name}, {}+{}: GPU shade {} ms (wall incl. upload/readback {:.1} ms), CPU {cpu_shade_ms:.1} ms",
-            s.light_samples,
-            s.brdf_samples,
-            fmt(row.gpu_shade_ms),
-            row.gpu_shade_wall_ms
-        );
-        frames.push(row);
+        frames.push(frame_row(
+            &ctx,
+            &map,
+            &gbuf,
+            (width, height),
+            name,
+            &s,
+            repeat,
+        )?);
     }
     let out = serde_json::json!({
         "device": ctx.info.name,
@@ -186,6 +102,107 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
     crate::render::output::write_json(&path, &out)?;
     eprintln!("wrote {}", path.display());
     Ok(())
+}
+
+/// The distribution build + pool of `M = m` per face on 6 x `n`^2 faces on the GPU and on the
+/// CPU, medians of `repeat` after a warm-up; `None` where the device cannot bind the tables.
+fn build_row(ctx: &GpuContext, n: usize, m: usize, repeat: usize) -> Result<Option<BuildRow>> {
+    let sampler = match EnvSampler::new(ctx, n, m) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("  {n}^2: skipped on this device: {e}");
+            return Ok(None);
+        }
+    };
+    let map = load_env(&EnvSource::Sky { hours: 10.0 }, n)?.cube;
+    sampler.upload(&ctx.queue, &map);
+    let (mut g, mut w, mut c) = (Vec::new(), Vec::new(), Vec::new());
+    for k in 0..=repeat {
+        let t = Instant::now();
+        ctx.wait(sampler.run(ctx, pool_seed(k as u32)))?;
+        let wall = t.elapsed().as_secs_f64() * 1e3;
+        let gms = sampler.last_gpu_ms(ctx);
+        let t = Instant::now();
+        let dist = CubeDistribution::build(&map);
+        let pool = LightPool::build(&map, &dist, m, pool_seed(k as u32));
+        let cpu = t.elapsed().as_secs_f64() * 1e3;
+        std::hint::black_box(pool.samples.len());
+        if k > 0 {
+            w.push(wall);
+            c.push(cpu);
+            g.extend(gms);
+        }
+    }
+    let gpu_ms = (!g.is_empty()).then(|| median(g));
+    let (gpu_wall_ms, cpu_ms) = (median(w), median(c));
+    eprintln!(
+        "  build+pool 6x{n}^2, M={m}: GPU {} ms (wall {gpu_wall_ms:.3} ms), CPU {cpu_ms:.3} ms",
+        fmt(gpu_ms)
+    );
+    Ok(Some(BuildRow {
+        face: n,
+        texels: 6 * n * n,
+        pool_per_face: m,
+        gpu_ms,
+        gpu_wall_ms,
+        cpu_ms,
+        cpu_over_gpu: gpu_ms.map(|g| cpu_ms / g),
+    }))
+}
+
+/// One frame of G-buffer `gbuf` (`size`, material `name`) shaded on the GPU and on the CPU,
+/// medians of up to 3 runs after a warm-up.
+fn frame_row(
+    ctx: &GpuContext,
+    map: &crate::envmap::CubeMap,
+    gbuf: &[Option<render::GPixel>],
+    (width, height): (usize, usize),
+    name: &str,
+    s: &Settings,
+    repeat: usize,
+) -> Result<FrameRow> {
+    let pixels: Vec<GpuGPixel> = gbuf.iter().map(GpuGPixel::from).collect();
+    let sampler = EnvSampler::for_settings(ctx, map.size, s)?;
+    sampler.upload(&ctx.queue, map);
+    let shader = Shader::new(ctx);
+    let (mut gb, mut gs, mut gw, mut cs) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for k in 0..=repeat.min(3) {
+        ctx.wait(sampler.run(ctx, pool_seed(s.seed)))?;
+        let b = sampler.last_gpu_ms(ctx);
+        let t = Instant::now();
+        let job = shader.shade(ctx, &sampler, &pixels, s)?;
+        let wall = t.elapsed().as_secs_f64() * 1e3;
+        let cpu = render::render(map, gbuf, width, height, s)?.stats.shade_ms;
+        if k > 0 {
+            gb.extend(b);
+            gs.extend(job.gpu_ms);
+            gw.push(wall);
+            cs.push(cpu);
+        }
+    }
+    let gpu_shade_ms = (!gs.is_empty()).then(|| median(gs));
+    let cpu_shade_ms = median(cs);
+    let row = FrameRow {
+        width,
+        height,
+        shaded_pixels: gbuf.iter().filter(|p| p.is_some()).count(),
+        light_samples: s.light_samples,
+        brdf_samples: s.brdf_samples,
+        material: name.into(),
+        gpu_build_ms: (!gb.is_empty()).then(|| median(gb)),
+        gpu_shade_ms,
+        gpu_shade_wall_ms: median(gw),
+        cpu_shade_ms,
+        cpu_over_gpu: gpu_shade_ms.map(|g| cpu_shade_ms / g),
+    };
+    eprintln!(
+        "  frame {width}x{height} {name}, {}+{}: GPU shade {} ms (wall incl. upload/readback {:.1} ms), CPU {cpu_shade_ms:.1} ms",
+        s.light_samples,
+        s.brdf_samples,
+        fmt(row.gpu_shade_ms),
+        row.gpu_shade_wall_ms
+    );
+    Ok(row)
 }
 
 fn fmt(x: Option<f64>) -> String {

@@ -1,6 +1,7 @@
 //! Suite `popping`: integer against fractional counts while the sun moves (the paper's popping).
 
 use super::*;
+use std::path::Path;
 
 /// Suite `popping`: temporal stability of integer vs fractional counts (the paper's "smooth
 /// transitions"). The built-in sun moves from 9h to 11h over `frames` frames; every frame uses the
@@ -20,16 +21,7 @@ pub(super) fn popping(a: BenchArgs, dir: PathBuf) -> Result<()> {
     let maps: Vec<crate::envmap::CubeMap> = (0..frames)
         .map(|t| crate::envmap::sky::sky_cube(face, hours(t)))
         .collect();
-    let refs: Vec<Vec<f64>> = maps
-        .iter()
-        .map(|m| {
-            crate::render::reference::reference_image(m, &gbuf, size, size, 1.0)
-                .1
-                .iter()
-                .map(|&c| crate::envmap::luminance_f64(c))
-                .collect()
-        })
-        .collect();
+    let refs = reference_luminances(&maps, &gbuf, size);
     let ref_change: f64 = (1..frames)
         .map(|t| {
             idx.iter()
@@ -67,19 +59,7 @@ pub(super) fn popping(a: BenchArgs, dir: PathBuf) -> Result<()> {
             .iter()
             .map(|m| render::render(m, &gbuf, size, size, &s).map(|o| o.image))
             .collect::<Result<_>>()?;
-        let (mut change, mut jumps, mut pairs) = (0.0, 0usize, 0usize);
-        for t in 1..frames {
-            for &i in &idx {
-                let (x0, x1) = (lum(imgs[t - 1].data[i]), lum(imgs[t].data[i]));
-                let d = (x1 - x0).abs();
-                change += d;
-                pairs += 1;
-                let r = (refs[t][i] - refs[t - 1][i]).abs();
-                if d > 0.1 * x0.max(x1).max(1e-6) && r < 0.01 * refs[t][i].max(1e-6) {
-                    jumps += 1;
-                }
-            }
-        }
+        let (change, jumps, pairs) = frame_changes(&imgs, &refs, &idx);
         series.push(accuracy::Series {
             name: format!("{name} counts"),
             color,
@@ -96,21 +76,7 @@ pub(super) fn popping(a: BenchArgs, dir: PathBuf) -> Result<()> {
             "  {name:10}: mean |frame change| = {ratio:.2} x the reference's; discontinuities {:.3}% of pixel-frames",
             100.0 * jump_frac
         );
-        // Strip of 6 frames, spread over the animation.
-        let picks: Vec<usize> = (0..6).map(|k| k * (frames - 1) / 5).collect();
-        let mut strip = crate::envmap::Image::new(6 * size, size);
-        for (k, &t) in picks.iter().enumerate() {
-            for y in 0..size {
-                for x in 0..size {
-                    strip.data[y * 6 * size + k * size + x] = imgs[t].get(x, y);
-                }
-            }
-        }
-        crate::render::output::write_png(
-            &dir.join(format!("popping-strip-{name}.png")),
-            &strip,
-            1.0,
-        )?;
+        let picks = write_strip(&dir, name, &imgs, size)?;
         rows.push(serde_json::json!({ "counts": name, "change_over_reference": ratio, "discontinuity_fraction": jump_frac, "strip_frames": picks }));
     }
     let report = serde_json::json!({ "suite": "popping", "frames": frames, "hours": [9.0, 11.0], "size": size, "face_size": face, "light_samples": a.light_samples, "brdf_samples": a.brdf_samples, "seed": "1 for every frame", "rows": rows });
@@ -130,4 +96,67 @@ pub(super) fn popping(a: BenchArgs, dir: PathBuf) -> Result<()> {
         path.display()
     );
     Ok(())
+}
+
+/// Per frame, the reference's luminance of every pixel of `gbuf` (`size x size`).
+fn reference_luminances(
+    maps: &[crate::envmap::CubeMap],
+    gbuf: &[Option<render::GPixel>],
+    size: usize,
+) -> Vec<Vec<f64>> {
+    maps.iter()
+        .map(|m| {
+            crate::render::reference::reference_image(m, gbuf, size, size, 1.0)
+                .1
+                .iter()
+                .map(|&c| crate::envmap::luminance_f64(c))
+                .collect()
+        })
+        .collect()
+}
+
+/// Over the frames and the pixels `idx`: the summed |luminance change| of `imgs`, how many
+/// (pixel, frame) pairs jump by over 10% while the reference `refs` moves by under 1%, and the
+/// pairs counted.
+fn frame_changes(
+    imgs: &[crate::envmap::Image],
+    refs: &[Vec<f64>],
+    idx: &[usize],
+) -> (f64, usize, usize) {
+    let lum = |c: glam::Vec3| crate::envmap::luminance(c) as f64;
+    let (mut change, mut jumps, mut pairs) = (0.0, 0usize, 0usize);
+    for t in 1..imgs.len() {
+        for &i in idx {
+            let (x0, x1) = (lum(imgs[t - 1].data[i]), lum(imgs[t].data[i]));
+            let d = (x1 - x0).abs();
+            change += d;
+            pairs += 1;
+            let r = (refs[t][i] - refs[t - 1][i]).abs();
+            if d > 0.1 * x0.max(x1).max(1e-6) && r < 0.01 * refs[t][i].max(1e-6) {
+                jumps += 1;
+            }
+        }
+    }
+    (change, jumps, pairs)
+}
+
+/// `popping-strip-{name}.png`: 6 of the `size x size` frames `imgs`, spread over the animation;
+/// returns which.
+fn write_strip(
+    dir: &Path,
+    name: &str,
+    imgs: &[crate::envmap::Image],
+    size: usize,
+) -> Result<Vec<usize>> {
+    let picks: Vec<usize> = (0..6).map(|k| k * (imgs.len() - 1) / 5).collect();
+    let mut strip = crate::envmap::Image::new(6 * size, size);
+    for (k, &t) in picks.iter().enumerate() {
+        for y in 0..size {
+            for x in 0..size {
+                strip.data[y * 6 * size + k * size + x] = imgs[t].get(x, y);
+            }
+        }
+    }
+    crate::render::output::write_png(&dir.join(format!("popping-strip-{name}.png")), &strip, 1.0)?;
+    Ok(picks)
 }

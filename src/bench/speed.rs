@@ -19,6 +19,30 @@ pub(super) fn speed(a: BenchArgs, dir: PathBuf) -> Result<()> {
         threads, a.size, a.light_samples, a.brdf_samples, a.env, a.face_size
     );
 
+    let shading = shading_rows(&a, &env.cube, &gbuf, repeat)?;
+    let scaling = build_scaling(&a, repeat);
+    let pool_scaling = pool_scaling(repeat);
+    let report = serde_json::json!({
+        "suite": "speed", "threads": threads, "env": a.env, "face_size": a.face_size, "size": a.size,
+        "light_samples": a.light_samples, "brdf_samples": a.brdf_samples, "repeat": repeat,
+        "shading": shading, "build_scaling": scaling, "pool_scaling": pool_scaling,
+    });
+    let path = dir.join("bench-speed.json");
+    crate::render::output::write_json(&path, &report)?;
+    let (svg, png) = scaling_plot(&scaling).write(&dir, "build-scaling")?;
+    let (psvg, ppng) = pool_chart(&pool_scaling).write(&dir, "pool-scaling")?;
+    eprintln!("wrote {}, {svg}, {png}, {psvg} and {ppng}", path.display());
+    Ok(())
+}
+
+/// Samples per second of each strategy shading the sphere (median of `repeat` seeds), and each
+/// one's ratio to BRDF sampling alone.
+fn shading_rows(
+    a: &BenchArgs,
+    map: &CubeMap,
+    gbuf: &[Option<render::GPixel>],
+    repeat: usize,
+) -> Result<Vec<serde_json::Value>> {
     let mut shading = Vec::new();
     let mut base_sps = 0.0;
     for strategy in [
@@ -39,8 +63,8 @@ pub(super) fn speed(a: BenchArgs, dir: PathBuf) -> Result<()> {
         let mut samples = 0;
         for r in 0..repeat {
             let out = render::render(
-                &env.cube,
-                &gbuf,
+                map,
+                gbuf,
                 a.size,
                 a.size,
                 &Settings {
@@ -72,6 +96,12 @@ pub(super) fn speed(a: BenchArgs, dir: PathBuf) -> Result<()> {
         shading.push(row);
     }
 
+    Ok(shading)
+}
+
+/// Per face size from 16² to `--max-face`: the CDF build fresh and per frame, the pool, and one
+/// plain streaming pass over the same texels (medians of `repeat`).
+fn build_scaling(a: &BenchArgs, repeat: usize) -> Vec<serde_json::Value> {
     let mut scaling = Vec::new();
     let mut n = 16;
     while n <= a.max_face {
@@ -111,8 +141,12 @@ pub(super) fn speed(a: BenchArgs, dir: PathBuf) -> Result<()> {
         }));
         n *= 2;
     }
-    // The pool against M (samples per face) on a fixed 64^2 map: linear in 6 M once M passes the
-    // per-face setup.
+    scaling
+}
+
+/// The pool against M (samples per face) on a fixed 64^2 map: linear in 6 M once M passes the
+/// per-face setup.
+fn pool_scaling(repeat: usize) -> Vec<serde_json::Value> {
     let map = crate::envmap::sky::sky_cube(64, 10.0);
     let dist = CubeDistribution::build(&map);
     let mut pool_scaling = Vec::new();
@@ -131,14 +165,11 @@ pub(super) fn speed(a: BenchArgs, dir: PathBuf) -> Result<()> {
         );
         pool_scaling.push(serde_json::json!({ "pool_per_face": m, "samples": 6 * m, "pool_ms": ms, "ns_per_sample": ms * 1e6 / (6 * m) as f64 }));
     }
-    let report = serde_json::json!({
-        "suite": "speed", "threads": threads, "env": a.env, "face_size": a.face_size, "size": a.size,
-        "light_samples": a.light_samples, "brdf_samples": a.brdf_samples, "repeat": repeat,
-        "shading": shading, "build_scaling": scaling, "pool_scaling": pool_scaling,
-    });
-    let path = dir.join("bench-speed.json");
-    crate::render::output::write_json(&path, &report)?;
-    let (svg, png) = scaling_plot(&scaling).write(&dir, "build-scaling")?;
+    pool_scaling
+}
+
+/// The pool's build time against its size (log-log), from [`pool_scaling`]'s rows.
+fn pool_chart(pool_scaling: &[serde_json::Value]) -> accuracy::Chart {
     let pool_points = pool_scaling
         .iter()
         .map(|r| {
@@ -148,7 +179,7 @@ pub(super) fn speed(a: BenchArgs, dir: PathBuf) -> Result<()> {
             )
         })
         .collect();
-    let pool_chart = accuracy::Chart {
+    accuracy::Chart {
         title: "Light-sample pool build vs pool size (CPU, 64^2 faces)".into(),
         xlabel: "pool samples (6 M)",
         ylabel: "ms (median)",
@@ -160,10 +191,7 @@ pub(super) fn speed(a: BenchArgs, dir: PathBuf) -> Result<()> {
             points: pool_points,
             dashed: false,
         }],
-    };
-    let (psvg, ppng) = pool_chart.write(&dir, "pool-scaling")?;
-    eprintln!("wrote {}, {svg}, {png}, {psvg} and {ppng}", path.display());
-    Ok(())
+    }
 }
 
 /// Build time against texel count (log-log): the CDF build (into fresh memory, and into the

@@ -45,6 +45,7 @@ pub fn render(r: RenderArgs) -> Result<()> {
             let extras = render::Extras {
                 shadows: shadows.then_some((&occluders as _, su.points.as_slice())),
                 fine: env.fine.is_some().then_some(&lookup as _),
+                sub_texels: env.fine.as_ref(),
             };
             (
                 render::render_with(&env.cube, extras, gbuf, size, size, &settings)?,

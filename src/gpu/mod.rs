@@ -13,6 +13,7 @@ pub mod resample;
 pub mod sampler;
 pub mod shaders;
 pub mod shading;
+pub mod subtexel;
 pub mod visibility;
 
 pub use context::GpuContext;
@@ -22,7 +23,7 @@ pub use shading::{GpuGPixel, Shader};
 
 use crate::envmap::CubeMap;
 use crate::error::Result;
-use crate::render::{GPixel, PixelStats, RenderStats, Rendered, Settings, Strategy};
+use crate::render::{GPixel, RenderStats, Rendered, Settings, Strategy};
 use glam::Vec3;
 
 /// A compute pipeline for entry point `entry` of `module` (labelled with the entry's name).
@@ -164,7 +165,9 @@ pub fn render_gpu(
 #[derive(Clone, Copy, Default)]
 pub struct GpuExtras<'a> {
     /// The map at its own resolution: light and BRDF samples read their radiance here, `map`
-    /// giving the densities (`envmap::load::LoadedEnv::fine`).
+    /// giving the densities (`envmap::load::LoadedEnv::fine`), and the pool is refined into its
+    /// texels where it is a whole multiple of `map` (the twin of [`crate::render::Extras`]'
+    /// `fine` and `sub_texels` both set, as `envis render` does).
     pub fine: Option<&'a CubeMap>,
     /// Shadow rays: the scene's flattened BVH, and each pixel's surface point.
     pub shadows: Option<(&'a crate::visibility::FlatBvh, &'a [Vec3])>,
@@ -175,7 +178,9 @@ pub struct GpuExtras<'a> {
 pub struct GpuRenderer<'c> {
     ctx: &'c GpuContext,
     shader: Shader,
-    samplers: std::collections::HashMap<(usize, usize, usize, bool), EnvSampler>,
+    samplers: std::collections::HashMap<SamplerKey, EnvSampler>,
+    /// The pool's sub-texel pass, made when a frame first has a finer map.
+    refine: Option<subtexel::PoolRefine>,
 }
 
 impl<'c> GpuRenderer<'c> {
@@ -184,6 +189,7 @@ impl<'c> GpuRenderer<'c> {
             ctx,
             shader: Shader::new(ctx),
             samplers: Default::default(),
+            refine: None,
         }
     }
 
@@ -232,40 +238,17 @@ impl<'c> GpuRenderer<'c> {
         s.validate()?;
         assert_eq!(gbuf.len(), width * height);
         let ctx = self.ctx;
-        let (m, blocks) = (s.pool_slots(), s.pool_block_count());
-        let global = s.strategy == Strategy::Global;
-        let key = (map.size, m, blocks, global);
         let pixels: Vec<GpuGPixel> = gbuf.iter().map(GpuGPixel::from).collect();
-        if !self.samplers.contains_key(&key) {
-            let mut sampler = EnvSampler::for_settings(ctx, map.size, s)?;
-            if global {
-                sampler.enable_global(&ctx.device, &ctx.queue)?;
-            }
-            // Some drivers (lavapipe among them) compile a pipeline at its first dispatch: run the
-            // new pipelines once, untimed, so that the timings below are steady-state frames.
-            sampler.upload(&ctx.queue, map);
-            ctx.wait(sampler.run(ctx, crate::render::pool_seed(s.seed)))?;
-            self.shader.shade(ctx, &sampler, &pixels, s)?;
-            self.samplers.insert(key, sampler);
-        }
+        let key = self.warm_sampler(map, s, &pixels)?;
+        let fine = extras
+            .fine
+            .map(|f| subtexel::FineRadiance::new(ctx, f, map.size))
+            .transpose()?;
+        let (mut timings, clamped) = self.build(key, map, s, fine.as_ref())?;
         let sampler = &self.samplers[&key];
-        sampler.upload(&ctx.queue, map);
-
-        let mut timings = GpuTimings::default();
-        let t0 = std::time::Instant::now();
-        let build_q = sampler.run(ctx, crate::render::pool_seed(s.seed));
-        ctx.wait(build_q)?;
-        timings.build_wall_ms = t0.elapsed().as_secs_f64() * 1e3;
-        let (build_gpu_ms, clamped) = sampler.read_report(ctx)?;
-        timings.build_gpu_ms = build_gpu_ms;
-
         let bvh = extras
             .shadows
             .map(|(flat, points)| (visibility::GpuBvh::new(ctx, flat), points));
-        let fine = extras
-            .fine
-            .map(|f| shading::FineRadiance::new(ctx, f))
-            .transpose()?;
         let t1 = std::time::Instant::now();
         let shade = shading::ShadeExtras {
             shadows: bvh.as_ref().map(|(b, p)| (b, *p)),
@@ -275,26 +258,10 @@ impl<'c> GpuRenderer<'c> {
         timings.shade_wall_ms = t1.elapsed().as_secs_f64() * 1e3;
         timings.shade_gpu_ms = job.gpu_ms;
 
-        let mut stats = RenderStats::for_settings(width, height, s, m);
+        let mut stats = RenderStats::for_settings(width, height, s, key.1);
         stats.build_ms = timings.build_wall_ms;
         stats.shade_ms = timings.shade_wall_ms;
-        let per_pixel: Vec<Option<PixelStats>> = job
-            .stats
-            .iter()
-            .zip(&job.rays)
-            .zip(gbuf)
-            .map(|((q, r), g)| {
-                g.as_ref().map(|_| PixelStats {
-                    available: q[0],
-                    green: q[1],
-                    yellow: q[2],
-                    brdf: q[3],
-                    shadow_rays: r[0],
-                    blocked: r[1],
-                })
-            })
-            .collect();
-        stats.accumulate(&per_pixel);
+        stats.accumulate(&job.pixel_stats(gbuf));
         stats.clamped_texels = clamped;
         let image = crate::envmap::Image {
             width,
@@ -307,4 +274,62 @@ impl<'c> GpuRenderer<'c> {
         };
         Ok((Rendered { image, stats }, timings))
     }
+
+    /// The cache key of the sampler settings `s` need on `map`, made (and its pipelines run
+    /// once over `pixels`) if it is new.
+    fn warm_sampler(
+        &mut self,
+        map: &CubeMap,
+        s: &Settings,
+        pixels: &[GpuGPixel],
+    ) -> Result<SamplerKey> {
+        let ctx = self.ctx;
+        let global = s.strategy == Strategy::Global;
+        let key = (map.size, s.pool_slots(), s.pool_block_count(), global);
+        if !self.samplers.contains_key(&key) {
+            let mut sampler = EnvSampler::for_settings(ctx, map.size, s)?;
+            if global {
+                sampler.enable_global(&ctx.device, &ctx.queue)?;
+            }
+            // Some drivers (lavapipe among them) compile a pipeline at its first dispatch: run the
+            // new pipelines once, untimed, so that the timings below are steady-state frames.
+            sampler.upload(&ctx.queue, map);
+            ctx.wait(sampler.run(ctx, crate::render::pool_seed(s.seed)))?;
+            self.shader.shade(ctx, &sampler, pixels, s)?;
+            self.samplers.insert(key, sampler);
+        }
+        Ok(key)
+    }
+
+    /// One frame's build on sampler `key`: upload, distribution and pool, the pool refined into
+    /// `fine`'s texels where it has a sub-texel level; its timings and clamped texels.
+    fn build(
+        &mut self,
+        key: SamplerKey,
+        map: &CubeMap,
+        s: &Settings,
+        fine: Option<&subtexel::FineRadiance>,
+    ) -> Result<(GpuTimings, crate::envmap::SanitizeReport)> {
+        let ctx = self.ctx;
+        let fine = fine.filter(|f| f.ratio > 0);
+        if fine.is_some() && self.refine.is_none() {
+            self.refine = Some(subtexel::PoolRefine::new(&ctx.device));
+        }
+        let sampler = &self.samplers[&key];
+        sampler.upload(&ctx.queue, map);
+        let mut timings = GpuTimings::default();
+        let t0 = std::time::Instant::now();
+        let mut build_q = sampler.run(ctx, crate::render::pool_seed(s.seed));
+        if let (Some(refine), Some(fine)) = (&self.refine, fine) {
+            build_q = refine.run(ctx, sampler, fine).unwrap_or(build_q);
+        }
+        ctx.wait(build_q)?;
+        timings.build_wall_ms = t0.elapsed().as_secs_f64() * 1e3;
+        let (build_gpu_ms, clamped) = sampler.read_report(ctx)?;
+        timings.build_gpu_ms = build_gpu_ms;
+        Ok((timings, clamped))
+    }
 }
+
+/// A cached sampler's face size, pool slots, pool blocks, and whether it builds `global`.
+type SamplerKey = (usize, usize, usize, bool);

@@ -16,11 +16,17 @@ pub const IMAGE_SOURCE: &str = include_str!("../../shaders/image_source.wgsl");
 pub const RESAMPLE: &str = include_str!("../../shaders/resample.wgsl");
 pub const VISIBILITY: &str = include_str!("../../shaders/visibility.wgsl");
 pub const TRACE_RAYS: &str = include_str!("../../shaders/trace_rays.wgsl");
+pub const SUBTEXEL: &str = include_str!("../../shaders/subtexel.wgsl");
 pub const SHADE_FUNCTIONS_TEST: &str = include_str!("../../shaders/shade_functions_test.wgsl");
 
 /// Distribution build + pool module.
 pub fn distribution_source() -> String {
     [COMMON, SCAN, CDF, DISTRIBUTION].concat()
+}
+
+/// The sub-texel refinement of the light pool (`refine_pool`).
+pub fn subtexel_source() -> String {
+    [COMMON, SUBTEXEL].concat()
 }
 
 /// The resample stage (an environment texture -> the cube texel table).

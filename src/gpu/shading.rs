@@ -4,7 +4,7 @@
 use super::sampler::{EnvSampler, check_binding};
 use super::{GpuContext, dispatch_size, shaders};
 use crate::error::Result;
-use crate::render::{GPixel, Settings};
+use crate::render::{GPixel, PixelStats, Settings};
 
 /// A G-buffer texel as the shader reads it: `n.w = 1` where there is geometry, `kd.w` = the lobe's
 /// [`crate::sampling::Lobe::gpu_code`], `ks.w` = its
@@ -60,8 +60,8 @@ pub struct ShadeParams {
     pub tiles: u32,
     /// [`crate::sampling::TileCounts::gpu_code`].
     pub tile_counts: u32,
-    /// Face size of the full-resolution radiance table ([`FineRadiance`]); 0: radiance from the
-    /// texel table.
+    /// Face size of the full-resolution radiance table ([`super::subtexel::FineRadiance`]); 0:
+    /// radiance from the texel table.
     pub fine_n: u32,
 }
 
@@ -156,35 +156,7 @@ pub struct ShadeExtras<'a> {
     pub shadows: Option<(&'a super::visibility::GpuBvh, &'a [glam::Vec3])>,
     /// Radiance from the map at its own resolution, the sampler's table giving only densities
     /// (the twin of [`crate::render::Extras::fine`] reading [`crate::envmap::CubeMap::lookup`]).
-    pub fine: Option<&'a FineRadiance>,
-}
-
-/// A cube map at its own resolution on the GPU: one rgb(a) per texel, read by direction.
-pub struct FineRadiance {
-    pub texels: wgpu::Buffer,
-    /// Face size.
-    pub size: u32,
-}
-
-impl FineRadiance {
-    /// Upload `map` (refused, with the reason, if it exceeds the device's storage binding).
-    pub fn new(ctx: &GpuContext, map: &crate::envmap::CubeMap) -> Result<Self> {
-        let bytes = map.data.len() as u64 * 16;
-        check_binding(&ctx.device.limits(), "the full-resolution map", bytes)?;
-        let data: Vec<[f32; 4]> = map.data.iter().map(|c| c.extend(0.0).to_array()).collect();
-        use wgpu::util::DeviceExt;
-        let texels = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("envis full-resolution radiance"),
-                contents: bytemuck::cast_slice(&data),
-                usage: wgpu::BufferUsages::STORAGE,
-            });
-        Ok(FineRadiance {
-            texels,
-            size: map.size as u32,
-        })
-    }
+    pub fine: Option<&'a super::subtexel::FineRadiance>,
 }
 
 /// What one shading job returns.
@@ -195,6 +167,25 @@ pub struct ShadeJob {
     /// Per pixel (shadow rays cast, light samples blocked).
     pub rays: Vec<[u32; 2]>,
     pub gpu_ms: Option<f64>,
+}
+
+impl ShadeJob {
+    /// Each pixel's statistics as the CPU twin reports them (`None` where `gbuf` has no
+    /// geometry).
+    pub fn pixel_stats(&self, gbuf: &[Option<GPixel>]) -> Vec<Option<PixelStats>> {
+        (self.stats.iter().zip(&self.rays).zip(gbuf))
+            .map(|((q, r), g)| {
+                g.as_ref().map(|_| PixelStats {
+                    available: q[0],
+                    green: q[1],
+                    yellow: q[2],
+                    brdf: q[3],
+                    shadow_rays: r[0],
+                    blocked: r[1],
+                })
+            })
+            .collect()
+    }
 }
 
 impl Shader {

@@ -4,6 +4,7 @@
 
 use super::{GPixel, PixelStats, PoolLayout, Settings, Strategy, pool_seed};
 use crate::envmap::CubeMap;
+use crate::sampling::SubTexels;
 use crate::sampling::rng::Rng;
 use crate::sampling::tiles::draw_tile;
 use crate::sampling::warp::Frame;
@@ -48,6 +49,10 @@ pub struct FrameData<'a> {
     /// positive density in `map` (a coarse texel built from its fine texels is positive wherever
     /// one of them is), or is reached by the BRDF samples. `None`: radiance is `map`'s.
     pub fine: Option<FineRadiance<'a>>,
+    /// The second level of the light density over the map at its own resolution
+    /// ([`crate::sampling::subtexel`]): the pool's samples refined to its texels, and BRDF
+    /// samples' light densities taking its factor. `None`: uniform inside the `map`'s texels.
+    pub sub: Option<SubTexels<'a>>,
     /// The scene's shadow rays: a light or BRDF sample it blocks contributes nothing. `None`:
     /// nothing occludes (no rays are cast).
     pub occluder: Option<&'a dyn crate::visibility::Occluder>,
@@ -95,6 +100,7 @@ impl<'a> FrameData<'a> {
         FrameData {
             map,
             fine: None,
+            sub: None,
             occluder: None,
             dist,
             tiles,
@@ -107,6 +113,17 @@ impl<'a> FrameData<'a> {
     /// Read radiance from `fine` instead of `map` (the Bevy pass reads the full-resolution image).
     pub fn with_fine(mut self, fine: FineRadiance<'a>) -> Self {
         self.fine = Some(fine);
+        self
+    }
+
+    /// Sample the light inside `map`'s texels by the luminance of `fine`'s
+    /// ([`crate::sampling::subtexel`]): refine the pool, and keep the factor for the BRDF
+    /// samples' MIS. No change where `fine` is not a whole multiple of `map`'s face size.
+    pub fn with_sub_texels(mut self, fine: &'a CubeMap) -> Self {
+        self.sub = SubTexels::new(fine, self.map.size);
+        if let Some(sub) = &self.sub {
+            sub.refine_pool(&self.dist, &mut self.pool);
+        }
         self
     }
 

@@ -56,6 +56,10 @@ pub struct Extras<'a> {
     /// Radiance from the full-resolution environment while `map` gives the sampling densities:
     /// the CPU twin of the Bevy pass ([`FrameData::fine`]).
     pub fine: Option<estimator::FineRadiance<'a>>,
+    /// The map at its own resolution, to sample the light inside the distribution's texels by
+    /// its luminance ([`FrameData::with_sub_texels`]); the CLI passes the map `fine` reads.
+    /// `None`: uniform inside them, as the Bevy pass samples.
+    pub sub_texels: Option<&'a CubeMap>,
     /// Shadow rays: the scene, and each pixel's surface point (laid out as the G-buffer).
     pub shadows: Option<(&'a dyn crate::visibility::Occluder, &'a [Vec3])>,
 }
@@ -80,6 +84,9 @@ pub fn render_with(
     }
     let t0 = std::time::Instant::now();
     let mut fd = FrameData::prepare(map, s);
+    if let Some(fine) = extras.sub_texels {
+        fd = fd.with_sub_texels(fine);
+    }
     fd.fine = extras.fine;
     fd.occluder = extras.shadows.map(|(o, _)| o);
     let points = extras.shadows.map(|(_, p)| p);

@@ -12,6 +12,7 @@ pub mod global;
 pub mod mis;
 pub mod pool;
 pub mod rng;
+pub mod subtexel;
 pub mod tiles;
 pub mod warp;
 
@@ -22,4 +23,5 @@ pub use faceweights::{FaceWeights, face_weights};
 pub use global::GlobalDistribution;
 pub use mis::Heuristic;
 pub use pool::{LightPool, PoolSample};
+pub use subtexel::SubTexels;
 pub use tiles::{MAX_REGIONS, MAX_TILES, TileCounts, TileGrid, TileWeights};

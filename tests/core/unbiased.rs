@@ -12,25 +12,8 @@ pub(crate) fn unbiased_checks(
     size: usize,
     reference: &[DVec3],
 ) -> Vec<MeanCheck> {
-    unbiased_checks_fine(map, None, mat, s, k, size, reference)
-}
-
-/// [`unbiased_checks`] with radiance read from `fine` and densities from `map`.
-fn unbiased_checks_fine(
-    map: &CubeMap,
-    fine: Option<envis::render::estimator::FineRadiance<'_>>,
-    mat: Material,
-    s: Settings,
-    k: u32,
-    size: usize,
-    reference: &[DVec3],
-) -> Vec<MeanCheck> {
     let gbuf = sphere_gbuffer(size, size, mat);
-    let extras = envis::render::Extras {
-        fine,
-        ..Default::default()
-    };
-    unbiased_checks_with(map, extras, &gbuf, s, k, size, reference)
+    unbiased_checks_with(map, Default::default(), &gbuf, s, k, size, reference)
 }
 
 /// The unbiasedness checks of `k` seeds of any `size x size` G-buffer, with [`Extras`]: the mean
@@ -121,10 +104,12 @@ pub(crate) fn unbiased_checks_with(
 }
 
 /// Radiance from the full-resolution map, densities from a coarse copy (what the Bevy pass
-/// does): still unbiased against the fine map's reference, light-only sampling included, since
-/// each coarse texel (the mean of its fine texels) is positive wherever one of them is. The
-/// same estimator reading the coarse map's radiance misses the fine map's integral on a glossy
-/// lobe (the check that this test can fail).
+/// does), and the same with the light sampled inside the coarse texels by the fine luminance
+/// (sub-texel sampling, what `envis render` does): still unbiased against the fine map's
+/// reference, light-only sampling included, since each coarse texel (the mean of its fine
+/// texels) is positive wherever one of them is. The same estimator reading the coarse map's
+/// radiance misses the fine map's integral on a glossy lobe (the check that this test can
+/// fail).
 #[test]
 fn fine_radiance_with_coarse_densities_is_unbiased() {
     let (size, k) = (16usize, 40u32);
@@ -139,12 +124,24 @@ fn fine_radiance_with_coarse_densities_is_unbiased() {
     ] {
         let gbuf = sphere_gbuffer(size, size, mat);
         let (_, reference) = reference_image(&fine, &gbuf, size, size, 1.0);
-        for (cname, s) in configs {
-            for c in unbiased_checks_fine(&coarse, Some(&lookup), mat, s, k, size, &reference) {
-                test.push(MeanCheck {
-                    label: format!("{mname} / {cname} / {}", c.label),
-                    ..c
-                });
+        for (sname, sub) in [("", None), (" sub-texels", Some(&fine))] {
+            let extras = envis::render::Extras {
+                fine: Some(&lookup),
+                sub_texels: sub,
+                ..Default::default()
+            };
+            for (cname, s) in configs {
+                // `global` draws from its own table: sub-texels change nothing there.
+                if sub.is_some() && s.strategy == Strategy::Global {
+                    continue;
+                }
+                let checks = unbiased_checks_with(&coarse, extras, &gbuf, s, k, size, &reference);
+                for c in checks {
+                    test.push(MeanCheck {
+                        label: format!("{mname} / {cname}{sname} / {}", c.label),
+                        ..c
+                    });
+                }
             }
         }
     }
@@ -154,7 +151,15 @@ fn fine_radiance_with_coarse_densities_is_unbiased() {
     let mat = Material::ggx(0.8, 0.3);
     let gbuf = sphere_gbuffer(size, size, mat);
     let (_, reference) = reference_image(&fine, &gbuf, size, size, 1.0);
-    let coarse_only = unbiased_checks_fine(&coarse, None, mat, base, k, size, &reference);
+    let coarse_only = unbiased_checks_with(
+        &coarse,
+        Default::default(),
+        &gbuf,
+        base,
+        k,
+        size,
+        &reference,
+    );
     assert!(
         coarse_only.iter().any(|c| c.z() > 5.0),
         "reading the coarse radiance should be detectably biased here"
@@ -191,7 +196,7 @@ pub(crate) fn few_sample_configs() -> (Settings, [(&'static str, Settings); 3]) 
 }
 
 /// Each texel of the result is the mean of the `k x k` texels it covers.
-fn box_downsample(map: &CubeMap, k: usize) -> CubeMap {
+pub(crate) fn box_downsample(map: &CubeMap, k: usize) -> CubeMap {
     let n = map.size / k;
     let mut out = CubeMap::new(n);
     for (i, t) in out.data.iter_mut().enumerate() {

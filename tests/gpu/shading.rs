@@ -349,6 +349,7 @@ fn gpu_full_resolution_radiance_matches_cpu() {
         };
         let extras = envis::render::Extras {
             fine: Some(&lookup),
+            sub_texels: Some(fine),
             ..Default::default()
         };
         let cpu = envis::render::render_with(&env.cube, extras, &gbuf, size, size, &s).unwrap();

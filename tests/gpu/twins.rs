@@ -1,5 +1,6 @@
 //! Each WGSL build stage against its CPU twin on a real Vulkan device: the resample of an
-//! environment image, the per-face distributions (with tiles), the global distribution, the pool.
+//! environment image, the per-face distributions (with tiles), the global distribution, the pool,
+//! its sub-texel refinement.
 
 use super::*;
 
@@ -325,5 +326,58 @@ fn gpu_pool_matches_cpu_twin() {
                 g.pool.len()
             );
         }
+    }
+}
+
+/// The sub-texel pass alone (`shaders/subtexel.wgsl`, `refine_pool`): the GPU's pool refined on
+/// the GPU into the texels of the sky at 32², against the same pool refined by the CPU twin
+/// (`SubTexels::refine`) from the GPU's own tables. Per face and per tile.
+#[test]
+fn gpu_sub_texel_refine_matches_cpu_twin() {
+    use envis::gpu::subtexel::{FineRadiance, PoolRefine};
+    let Some(ctx) = gpu() else { return };
+    let fine = envis::envmap::sky::sky_cube(32, 15.0);
+    let coarse = envis::envmap::sky::sky_cube(8, 15.0);
+    let sub = SubTexels::new(&fine, 8).unwrap();
+    let refine = PoolRefine::new(&ctx.device);
+    let gpu_fine = FineRadiance::new(ctx, &fine, 8).unwrap();
+    assert_eq!(gpu_fine.ratio, 4);
+    for (m, tiles) in [(64usize, 1usize), (9, 2)] {
+        let s = Settings {
+            light_samples: m,
+            tiles,
+            ..Default::default()
+        };
+        let sampler = EnvSampler::for_settings(ctx, 8, &s).unwrap();
+        sampler.upload(&ctx.queue, &coarse);
+        ctx.wait(sampler.run(ctx, pool_seed(3))).unwrap();
+        let drawn = sampler.read_tables(ctx).unwrap();
+        ctx.wait(refine.run(ctx, &sampler, &gpu_fine).unwrap())
+            .unwrap();
+        let g = sampler.read_tables(ctx).unwrap();
+        let dist = drawn.to_distribution();
+        let mut moved = 0;
+        for (k, (a, before)) in g.pool.iter().zip(&drawn.pool).enumerate() {
+            let b = sub.refine(&dist, before);
+            let what = format!("M={m} K={tiles} sample {k}");
+            assert!(
+                (a.dir - b.dir).length() < 2e-6,
+                "{what}: {} vs {}",
+                a.dir,
+                b.dir
+            );
+            assert!(
+                rel(a.pdf as f64, b.pdf as f64) < 1e-5,
+                "{what}: pdf {} vs {}",
+                a.pdf,
+                b.pdf
+            );
+            assert_eq!(a.radiance, b.radiance, "{what}: radiance");
+            moved += ((a.dir - before.dir).length() > 1e-4) as usize;
+        }
+        assert!(
+            moved * 2 > g.pool.len(),
+            "M={m}: only {moved} samples moved"
+        );
     }
 }

@@ -48,6 +48,13 @@ const SCRIPT: &[Step] = &[
     Step::Exit,
 ];
 
+// A screenshot is taken by the frame after it is asked for; three frames a step leave room for it
+// to be written before the next change.
+const WARMUP: u32 = 6;
+const STEP: u32 = 3;
+/// How long a wait may last before the run fails, saying what it waited for.
+const MAX_WAIT: u32 = 600;
+
 /// The scripted CI sequence: one step every few frames, a screenshot after each.
 #[allow(
     clippy::too_many_arguments,
@@ -65,12 +72,6 @@ pub(super) fn run_script(
     mut commands: Commands,
     mut exit: MessageWriter<AppExit>,
 ) {
-    // A screenshot is taken by the frame after it is asked for; three frames a step leave room
-    // for it to be written before the next change.
-    const WARMUP: u32 = 6;
-    const STEP: u32 = 3;
-    // How long a wait may last before the run fails, saying what it waited for.
-    const MAX_WAIT: u32 = 600;
     let Some(dir) = state.script.clone() else {
         return;
     };
@@ -84,30 +85,10 @@ pub(super) fn run_script(
     if f < state.script_next {
         return;
     }
-    // Bevy compiles the lighting pipeline in the background: the steps start once envis has
-    // lit a frame.
-    if counters.get(|c| &c.lighting_passes) == 0 {
-        state.script_compile_wait += 1;
-        if state.script_compile_wait > 20 * MAX_WAIT {
-            eprintln!(
-                "envis: error: the lighting pass did not run in {} frames",
-                20 * MAX_WAIT
-            );
-            exit.write(AppExit::error());
-        }
+    if script_waits(&mut state, &counters, &mut exit) {
         return;
     }
     let step = state.script_step;
-    if let Some(Step::AwaitProbe) = SCRIPT.get(step)
-        && state.pixel.is_none()
-    {
-        state.script_waited += 1;
-        if state.script_waited > MAX_WAIT {
-            eprintln!("envis: error: the probed pixel did not come back in {MAX_WAIT} frames");
-            exit.write(AppExit::error());
-        }
-        return;
-    }
     state.script_step += 1;
     state.script_next = f + STEP;
     let Ok((camera, cam_transform, mut settings)) = cams.single_mut() else {
@@ -129,50 +110,15 @@ pub(super) fn run_script(
         Some(Step::Probe) => {
             settings.overlay = Overlay::None;
             settings.counts = Counts::Fractional;
-            // Probe a pixel on the sphere: its centre, projected (physical pixels).
             let scale = windows.single().map(|w| w.scale_factor()).unwrap_or(1.0);
-            let p = camera
-                .world_to_viewport(cam_transform, Vec3::new(-2.3, 1.0, 0.0))
-                .ok()
-                .unwrap_or(Vec2::new(w as f32 * 0.3, h as f32 * 0.5));
-            settings.probe = Some((p * scale).as_uvec2());
+            settings.probe = Some(sphere_pixel(camera, cam_transform, (w, h), scale));
             state.debug = true;
         }
         Some(Step::AwaitProbe) => {}
         Some(Step::Debug(on)) => state.debug = *on,
-        Some(Step::GlossySphere) => {
-            for mut o in &mut objects {
-                if o.name == "sphere" {
-                    o.material = EnvisBrdf::Ggx {
-                        albedo: Vec3::splat(0.8),
-                        alpha: 0.05,
-                    };
-                    if let Some(mut m) = materials.get_mut(&o.handle) {
-                        m.brdf = o.material;
-                    }
-                }
-            }
-        }
+        Some(Step::GlossySphere) => make_sphere_glossy(&mut objects, &mut materials),
         Some(Step::Report) => {
-            let report = serde_json::json!({
-                "window": [w, h],
-                "frames": f,
-                "probe_wait_frames": state.script_waited,
-                "lighting_wait_frames": state.script_compile_wait,
-                "fps": state.fps,
-                "timings_ms": timings.get(),
-                "builds": counters.get(|c| &c.builds),
-                "image_bytes_uploaded": counters.get(|c| &c.image_bytes_uploaded),
-                "lighting_passes": counters.get(|c| &c.lighting_passes),
-                "overlay_passes": counters.get(|c| &c.overlay_passes),
-                "probe": state.pixel.as_ref().map(|(d, g, gpu)| serde_json::json!({
-                    "normal": g.n, "gpu_estimate": gpu, "cpu_estimate": d.estimate,
-                    "red": d.samples.iter().filter(|s| s.kind == SampleKind::Discarded).count(),
-                    "green": d.samples.iter().filter(|s| s.kind == SampleKind::Used).count(),
-                    "yellow": d.samples.iter().filter(|s| s.kind == SampleKind::Wasted).count(),
-                    "blue": d.samples.iter().filter(|s| s.kind == SampleKind::Blocked).count(),
-                })),
-            });
+            let report = script_report(&state, &timings, &counters, (w, h), f);
             // A report that cannot be written fails the scripted run, saying why.
             if let Err(e) = crate::render::output::write_json(&dir.join("report.json"), &report) {
                 error!("{e}");
@@ -185,4 +131,93 @@ pub(super) fn run_script(
         }
         None => {}
     }
+}
+
+/// Whether the script must wait this frame: for the lighting pipeline, which Bevy compiles in
+/// the background (the steps start once envis has lit a frame), or, at an
+/// [`Step::AwaitProbe`], for the probed pixel. A wait past its limit ends the run with an error.
+fn script_waits(
+    state: &mut DemoState,
+    counters: &EnvisCounters,
+    exit: &mut MessageWriter<AppExit>,
+) -> bool {
+    if counters.get(|c| &c.lighting_passes) == 0 {
+        state.script_compile_wait += 1;
+        if state.script_compile_wait > 20 * MAX_WAIT {
+            eprintln!(
+                "envis: error: the lighting pass did not run in {} frames",
+                20 * MAX_WAIT
+            );
+            exit.write(AppExit::error());
+        }
+        return true;
+    }
+    if let Some(Step::AwaitProbe) = SCRIPT.get(state.script_step)
+        && state.pixel.is_none()
+    {
+        state.script_waited += 1;
+        if state.script_waited > MAX_WAIT {
+            eprintln!("envis: error: the probed pixel did not come back in {MAX_WAIT} frames");
+            exit.write(AppExit::error());
+        }
+        return true;
+    }
+    false
+}
+
+/// A pixel on the sphere to probe: its centre, projected (physical pixels of a window `w x h`
+/// at `scale`), or a point left of the window's centre if it does not project.
+fn sphere_pixel(camera: &Camera, at: &GlobalTransform, (w, h): (u32, u32), scale: f32) -> UVec2 {
+    let p = camera
+        .world_to_viewport(at, Vec3::new(-2.3, 1.0, 0.0))
+        .ok()
+        .unwrap_or(Vec2::new(w as f32 * 0.3, h as f32 * 0.5));
+    (p * scale).as_uvec2()
+}
+
+/// The sphere made a near-mirror GGX.
+fn make_sphere_glossy(
+    objects: &mut Query<&mut SceneObject>,
+    materials: &mut Assets<EnvisMaterial>,
+) {
+    for mut o in objects.iter_mut() {
+        if o.name == "sphere" {
+            o.material = EnvisBrdf::Ggx {
+                albedo: Vec3::splat(0.8),
+                alpha: 0.05,
+            };
+            if let Some(mut m) = materials.get_mut(&o.handle) {
+                m.brdf = o.material;
+            }
+        }
+    }
+}
+
+/// `report.json`: the window, frames and waits, timings, counters and the probed pixel's samples.
+fn script_report(
+    state: &DemoState,
+    timings: &EnvisTimings,
+    counters: &EnvisCounters,
+    (w, h): (u32, u32),
+    f: u32,
+) -> serde_json::Value {
+    serde_json::json!({
+        "window": [w, h],
+        "frames": f,
+        "probe_wait_frames": state.script_waited,
+        "lighting_wait_frames": state.script_compile_wait,
+        "fps": state.fps,
+        "timings_ms": timings.get(),
+        "builds": counters.get(|c| &c.builds),
+        "image_bytes_uploaded": counters.get(|c| &c.image_bytes_uploaded),
+        "lighting_passes": counters.get(|c| &c.lighting_passes),
+        "overlay_passes": counters.get(|c| &c.overlay_passes),
+        "probe": state.pixel.as_ref().map(|(d, g, gpu)| serde_json::json!({
+            "normal": g.n, "gpu_estimate": gpu, "cpu_estimate": d.estimate,
+            "red": d.samples.iter().filter(|s| s.kind == SampleKind::Discarded).count(),
+            "green": d.samples.iter().filter(|s| s.kind == SampleKind::Used).count(),
+            "yellow": d.samples.iter().filter(|s| s.kind == SampleKind::Wasted).count(),
+            "blue": d.samples.iter().filter(|s| s.kind == SampleKind::Blocked).count(),
+        })),
+    })
 }

@@ -45,23 +45,7 @@ pub(super) fn brdf_samples<B: LocalBsdf>(
             }
             // One texel gives both the radiance and the light density of the direction.
             let t = fd.texels[hit.texel[k] as usize];
-            let n_l = match s.strategy {
-                Strategy::Paper => {
-                    // With one tile per face the region is the face (no divisions).
-                    let r = match tiles_k {
-                        1 => hit.face[k],
-                        _ => region_of_texel(hit.texel[k], n_size, tiles_k),
-                    };
-                    density[r as usize] * t.w * hit.jac[k]
-                }
-                Strategy::Global => {
-                    px.nl as f32
-                        * fd.global
-                            .as_ref()
-                            .map_or(0.0, |g| g.pdf(Vec3::new(hit.x[k], hit.y[k], hit.z[k])))
-                }
-                _ => 0.0,
-            };
+            let n_l = light_density(px, density, &hit, k, t.w, tiles_k);
             let il = smp.dir(k);
             let d = Vec3::new(hit.x[k], hit.y[k], hit.z[k]);
             if px.blocked(d, st) {
@@ -71,6 +55,38 @@ pub(super) fn brdf_samples<B: LocalBsdf>(
             let scale = il.z * mis::weight_over_density(s.heuristic, nb_f * p, n_l);
             sum.add(d, smp.value(k) * fd.radiance(d, t.truncate()), il.z, scale);
         }
+    }
+}
+
+/// The light technique's density `n_L` in the direction of BRDF sample `k` of `hit`, whose
+/// texel's `pdf_area` is `pdf_area`: the pixel's region density times the light pdf there (with
+/// the sub-texel factor when the pool was refined), or the `global` baseline's.
+#[inline(always)]
+fn light_density<B: LocalBsdf>(
+    px: &Pixel<B>,
+    density: &[f32; MAX_REGIONS],
+    hit: &HitLanes,
+    k: usize,
+    pdf_area: f32,
+    tiles_k: u32,
+) -> f32 {
+    let fd = px.fd;
+    let d = || Vec3::new(hit.x[k], hit.y[k], hit.z[k]);
+    match px.s.strategy {
+        Strategy::Paper => {
+            // With one tile per face the region is the face (no divisions).
+            let r = match tiles_k {
+                1 => hit.face[k],
+                _ => region_of_texel(hit.texel[k], fd.map.size as u32, tiles_k),
+            };
+            let n_l = density[r as usize] * pdf_area * hit.jac[k];
+            match &fd.sub {
+                Some(sub) => n_l * sub.factor(d()),
+                None => n_l,
+            }
+        }
+        Strategy::Global => px.nl as f32 * fd.global.as_ref().map_or(0.0, |g| g.pdf(d())),
+        _ => 0.0,
     }
 }
 
