@@ -6,6 +6,7 @@ use crate::{BackendArg, CrossArgs, ReferenceArgs, RenderArgs};
 use envis::envmap::load::load_env;
 use envis::error::{Error, Result};
 use envis::render::{self, PoolLayout, Settings, output, reference};
+use envis::sampling::SubTexels;
 
 /// `envis render`.
 pub fn render(r: RenderArgs) -> Result<()> {
@@ -261,7 +262,14 @@ fn radiance_note(env: &envis::envmap::load::LoadedEnv, backend: Option<BackendAr
     let n = env.radiance_map().size;
     match (backend, &env.fine) {
         (Some(BackendArg::Gpu), _) => "the image itself (the Bevy pass)".into(),
-        (_, Some(_)) => format!("the map at its own resolution ({n}^2 faces)"),
+        (Some(_), Some(_)) => match SubTexels::ratio_of(n, env.cube.size) {
+            Some(r) => format!(
+                "the map at its own resolution ({n}^2 faces); light samples placed inside each \
+                 distribution texel by the luminance of its {r}x{r} texels"
+            ),
+            None => format!("the map at its own resolution ({n}^2 faces)"),
+        },
+        (None, Some(_)) => format!("the map at its own resolution ({n}^2 faces)"),
         (_, None) => format!("the distribution's map ({n}^2 faces)"),
     }
 }

@@ -258,8 +258,10 @@ fn render_reads_the_map_at_its_own_resolution() {
         ..Default::default()
     };
     let lookup = |d: Vec3| fine.lookup(d);
+    // The CLI samples inside the distribution's texels by the fine luminance (sub-texels).
     let extras = envis::render::Extras {
         fine: Some(&lookup),
+        sub_texels: Some(fine),
         ..Default::default()
     };
     let want_full = envis::render::render_with(&env.cube, extras, &gbuf, 12, 12, &s).unwrap();
