@@ -282,19 +282,7 @@ fn gpu_pool_matches_cpu_twin() {
             let mut worst_dir = 0.0f32;
             for (k, (a, b)) in g.pool.iter().zip(&cpu.samples).enumerate() {
                 worst_dir = worst_dir.max((a.dir - b.dir).length());
-                assert!(
-                    (a.dir - b.dir).length() < 2e-6,
-                    "{name} M={m}: sample {k} dir gpu {} cpu {}",
-                    a.dir,
-                    b.dir
-                );
-                assert!(
-                    rel(a.pdf as f64, b.pdf as f64) < 1e-5,
-                    "{name} M={m}: sample {k} pdf gpu {} cpu {}",
-                    a.pdf,
-                    b.pdf
-                );
-                assert_eq!(a.radiance, b.radiance, "{name} M={m}: sample {k} radiance");
+                assert_same_sample(&format!("{name} M={m}: sample {k}"), a, b);
                 assert!(
                     a.pdf > 0.0 || g.energies[k / (m * blocks)] == 0.0,
                     "{name}: a sample with pdf 0 on a lit face"
@@ -359,20 +347,7 @@ fn gpu_sub_texel_refine_matches_cpu_twin() {
         let mut moved = 0;
         for (k, (a, before)) in g.pool.iter().zip(&drawn.pool).enumerate() {
             let b = sub.refine(&dist, before);
-            let what = format!("M={m} K={tiles} sample {k}");
-            assert!(
-                (a.dir - b.dir).length() < 2e-6,
-                "{what}: {} vs {}",
-                a.dir,
-                b.dir
-            );
-            assert!(
-                rel(a.pdf as f64, b.pdf as f64) < 1e-5,
-                "{what}: pdf {} vs {}",
-                a.pdf,
-                b.pdf
-            );
-            assert_eq!(a.radiance, b.radiance, "{what}: radiance");
+            assert_same_sample(&format!("M={m} K={tiles} sample {k}"), a, &b);
             moved += ((a.dir - before.dir).length() > 1e-4) as usize;
         }
         assert!(
@@ -380,4 +355,14 @@ fn gpu_sub_texel_refine_matches_cpu_twin() {
             "M={m}: only {moved} samples moved"
         );
     }
+}
+
+/// A GPU pool sample `a` equals its CPU twin's `b` but for float rounding: direction within
+/// 2e-6, pdf within 1e-5 relative, radiance exact.
+fn assert_same_sample(what: &str, a: &PoolSample, b: &PoolSample) {
+    let d = (a.dir - b.dir).length();
+    assert!(d < 2e-6, "{what}: dir gpu {} cpu {}", a.dir, b.dir);
+    let p = rel(a.pdf as f64, b.pdf as f64);
+    assert!(p < 1e-5, "{what}: pdf gpu {} cpu {}", a.pdf, b.pdf);
+    assert_eq!(a.radiance, b.radiance, "{what}: radiance");
 }
