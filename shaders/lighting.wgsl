@@ -80,10 +80,11 @@ fn env_radiance(d: vec3<f32>, coarse: vec3<f32>) -> vec3<f32> {
     return source_nearest(source, lv.source_layout, d);
 }
 
-// The pass samples uniformly inside the distribution's texels (no sub-texel level, unlike the
-// headless backend's refined pool: subtexel.wgsl), so a direction's density is the texel's.
-fn sub_texel_factor(d: vec3<f32>) -> f32 {
-    return 1.0;
+// The radiance and, in w, the sub-texel factor of direction d. The pass samples uniformly
+// inside the distribution's texels (no sub-texel level, unlike the headless backend's refined
+// pool: subtexel.wgsl), so a direction's density is the texel's: the factor is 1.
+fn env_radiance_factor(d: vec3<f32>, coarse: vec3<f32>) -> vec4<f32> {
+    return vec4(env_radiance(d, coarse), 1.0);
 }
 
 // The shading point in world space and the map's rotation back to world space, set by the

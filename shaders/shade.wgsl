@@ -2,7 +2,8 @@
 // sampling.wgsl before it, and a module that declares the resources `shade` reads (the frame's
 // texel table `texels`, the light `pool`, the `regions`' corners and energies, and the uniform `sp`) and
 // `env_radiance(d, coarse)`, the radiance in direction d given the texel table's value there
-// (render::FrameData::radiance), and `sample_blocked(px, pixel_index, d)`, whether a shadow ray
+// (render::FrameData::radiance), `env_radiance_factor(d, coarse)`, the same with the sub-texel
+// factor of the light density in w (sampling::SubTexels::radiance_and_factor), and `sample_blocked(px, pixel_index, d)`, whether a shadow ray
 // from the pixel's surface point is blocked (render::estimator's `Pixel::blocked`):
 // shade_compute.wgsl (headless backend, tests: the table's value; shadow rays through a BVH) or
 // lighting.wgsl (the Bevy lighting pass: the full-resolution image; shadow rays through the
@@ -422,6 +423,7 @@ fn brdf_samples(p: Pixel, rng: ptr<function, Rng>, dens: LightDensities, res: pt
         let hit = dir_to_texel(d, size);
         let t = texels[(hit.face * size + hit.row) * size + hit.col];
         let q = 1.0 + hit.a * hit.a + hit.b * hit.b;
+        let env = env_radiance_factor(d, t.xyz);
         var n_l = 0.0;
         if (sp.strategy == STRATEGY_PAPER) {
             var density = dens.face[hit.face];
@@ -429,10 +431,10 @@ fn brdf_samples(p: Pixel, rng: ptr<function, Rng>, dens: LightDensities, res: pt
                 let r = tile_region(hit.face, hit.col, hit.row, size, sp.tiles);
                 density = region_density(p.n, r, dens.total, p.nl, dens.window_len, p.counts, p.use_cosine);
             }
-            n_l = density * t.w * (q * sqrt(q)) * sub_texel_factor(d);
+            n_l = density * t.w * (q * sqrt(q)) * env.w;
         } else if (sp.strategy == STRATEGY_GLOBAL) {
             n_l = f32(p.nl) * global_pdf(size, d);
         }
-        (*res).color += brdf_eval(p.mat, p.ol, il) * env_radiance(d, t.xyz) * (il.z * mis_weight_over_density(sp.mis, nb_f * bs.w, n_l));
+        (*res).color += brdf_eval(p.mat, p.ol, il) * env.xyz * (il.z * mis_weight_over_density(sp.mis, nb_f * bs.w, n_l));
     }
 }

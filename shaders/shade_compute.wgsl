@@ -67,14 +67,15 @@ fn env_radiance(d: vec3<f32>, coarse: vec3<f32>) -> vec3<f32> {
     return fine[(hit.face * n + hit.row) * n + hit.col].xyz;
 }
 
-// The factor the coarse texel's density takes in the fine texel d falls in (sub-texel sampling,
-// subtexel.wgsl; 1 where the pool was not refined), kept in the fine table's w (CPU twin:
-// SubTexels::factor).
-fn sub_texel_factor(d: vec3<f32>) -> f32 {
+// The radiance (xyz) and the factor the coarse texel's density takes (w) in the fine texel d
+// falls in, from one lookup (sub-texel sampling, subtexel.wgsl: the factor is kept in the fine
+// table's w and is 1 where the pool was not refined); without a fine table, `coarse` and 1
+// (CPU twin: SubTexels::radiance_and_factor).
+fn env_radiance_factor(d: vec3<f32>, coarse: vec3<f32>) -> vec4<f32> {
     if (sp.fine_n == 0u) {
-        return 1.0;
+        return vec4(coarse, 1.0);
     }
     let n = sp.fine_n;
     let hit = dir_to_texel(d, n);
-    return fine[(hit.face * n + hit.row) * n + hit.col].w;
+    return fine[(hit.face * n + hit.row) * n + hit.col];
 }

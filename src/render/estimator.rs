@@ -51,7 +51,9 @@ pub struct FrameData<'a> {
     pub fine: Option<FineRadiance<'a>>,
     /// The second level of the light density over the map at its own resolution
     /// ([`crate::sampling::subtexel`]): the pool's samples refined to its texels, and BRDF
-    /// samples' light densities taking its factor. `None`: uniform inside the `map`'s texels.
+    /// samples' light densities taking its factor; every sample's radiance is read from its map
+    /// (a BRDF sample's in the same lookup as its factor). `None`: uniform inside the `map`'s
+    /// texels.
     pub sub: Option<SubTexels<'a>>,
     /// The scene's shadow rays: a light or BRDF sample it blocks contributes nothing. `None`:
     /// nothing occludes (no rays are cast).
@@ -118,7 +120,9 @@ impl<'a> FrameData<'a> {
 
     /// Sample the light inside `map`'s texels by the luminance of `fine`'s
     /// ([`crate::sampling::subtexel`]): refine the pool, and keep the factor for the BRDF
-    /// samples' MIS. No change where `fine` is not a whole multiple of `map`'s face size.
+    /// samples' MIS. Every sample's radiance is then read from `fine` ([`Self::radiance`]), so
+    /// densities and radiance come from the same map. No change where `fine` is not a whole
+    /// multiple of `map`'s face size.
     pub fn with_sub_texels(mut self, fine: &'a CubeMap) -> Self {
         self.sub = SubTexels::new(fine, self.map.size);
         if let Some(sub) = &self.sub {
@@ -127,12 +131,14 @@ impl<'a> FrameData<'a> {
         self
     }
 
-    /// The radiance in direction `d`, given `map`'s value there.
+    /// The radiance in direction `d`, given `map`'s value there: from the sub-texels' map when
+    /// the pool was refined, else from `fine`, else `coarse`.
     #[inline(always)]
     pub fn radiance(&self, d: Vec3, coarse: Vec3) -> Vec3 {
-        match self.fine {
-            Some(f) => f(d),
-            None => coarse,
+        match (&self.sub, self.fine) {
+            (Some(sub), _) => sub.fine.lookup(d),
+            (None, Some(f)) => f(d),
+            (None, None) => coarse,
         }
     }
 }

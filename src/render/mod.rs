@@ -58,6 +58,8 @@ pub struct Extras<'a> {
     pub fine: Option<estimator::FineRadiance<'a>>,
     /// The map at its own resolution, to sample the light inside the distribution's texels by
     /// its luminance ([`FrameData::with_sub_texels`]); the CLI passes the map `fine` reads.
+    /// Every sample then reads its radiance from it (`fine` is not needed; a BRDF sample's
+    /// radiance and its light density's factor come from one lookup).
     /// `None`: uniform inside them, as the Bevy pass samples.
     pub sub_texels: Option<&'a CubeMap>,
     /// Shadow rays: the scene, and each pixel's surface point (laid out as the G-buffer).

@@ -84,6 +84,15 @@ impl<'a> SubTexels<'a> {
         self.factors[dir_to_texel(d, n).index(n)]
     }
 
+    /// The radiance and the factor at direction `d`, from one lookup of its fine texel: what a
+    /// BRDF sample needs (its radiance, and the light density's factor for its MIS weight).
+    #[inline]
+    pub fn radiance_and_factor(&self, d: Vec3) -> (Vec3, f32) {
+        let n = self.fine.size;
+        let i = dir_to_texel(d, n).index(n);
+        (self.fine.data[i], self.factors[i])
+    }
+
     /// Luminance of fine texel `i` (an index into the map's data), negatives as 0.
     #[inline]
     fn y(&self, i: usize) -> f32 {

@@ -43,35 +43,43 @@ pub(super) fn brdf_samples<B: LocalBsdf>(
             if p <= 0.0 {
                 continue;
             }
-            // One texel gives both the radiance and the light density of the direction.
+            // One texel gives both the radiance and the light density of the direction; with
+            // sub-texels one fine texel gives both radiance and the density's factor.
             let t = fd.texels[hit.texel[k] as usize];
-            let n_l = light_density(px, density, &hit, k, t.w, tiles_k);
-            let il = smp.dir(k);
             let d = Vec3::new(hit.x[k], hit.y[k], hit.z[k]);
+            let (fine, factor) = match &fd.sub {
+                Some(sub) => {
+                    let (l, f) = sub.radiance_and_factor(d);
+                    (Some(l), f)
+                }
+                None => (None, 1.0),
+            };
+            let n_l = light_density(px, density, &hit, k, (t.w, factor), tiles_k);
+            let il = smp.dir(k);
             if px.blocked(d, st) {
                 continue;
             }
             // The value the sampler computed with the sample (`LocalBsdf::sample_lanes`).
             let scale = il.z * mis::weight_over_density(s.heuristic, nb_f * p, n_l);
-            sum.add(d, smp.value(k) * fd.radiance(d, t.truncate()), il.z, scale);
+            let l = fine.unwrap_or_else(|| fd.radiance(d, t.truncate()));
+            sum.add(d, smp.value(k) * l, il.z, scale);
         }
     }
 }
 
 /// The light technique's density `n_L` in the direction of BRDF sample `k` of `hit`, whose
-/// texel's `pdf_area` is `pdf_area`: the pixel's region density times the light pdf there (with
-/// the sub-texel factor when the pool was refined), or the `global` baseline's.
+/// texel's `pdf_area` and sub-texel factor (1 when the pool was not refined) are `(pdf_area,
+/// factor)`: the pixel's region density times the light pdf there, or the `global` baseline's.
 #[inline(always)]
 fn light_density<B: LocalBsdf>(
     px: &Pixel<B>,
     density: &[f32; MAX_REGIONS],
     hit: &HitLanes,
     k: usize,
-    pdf_area: f32,
+    (pdf_area, factor): (f32, f32),
     tiles_k: u32,
 ) -> f32 {
     let fd = px.fd;
-    let d = || Vec3::new(hit.x[k], hit.y[k], hit.z[k]);
     match px.s.strategy {
         Strategy::Paper => {
             // With one tile per face the region is the face (no divisions).
@@ -79,13 +87,13 @@ fn light_density<B: LocalBsdf>(
                 1 => hit.face[k],
                 _ => region_of_texel(hit.texel[k], fd.map.size as u32, tiles_k),
             };
-            let n_l = density[r as usize] * pdf_area * hit.jac[k];
-            match &fd.sub {
-                Some(sub) => n_l * sub.factor(d()),
-                None => n_l,
-            }
+            // Multiplying by a factor of 1 is exact: unrefined renders are unchanged.
+            density[r as usize] * pdf_area * hit.jac[k] * factor
         }
-        Strategy::Global => px.nl as f32 * fd.global.as_ref().map_or(0.0, |g| g.pdf(d())),
+        Strategy::Global => {
+            let d = Vec3::new(hit.x[k], hit.y[k], hit.z[k]);
+            px.nl as f32 * fd.global.as_ref().map_or(0.0, |g| g.pdf(d))
+        }
         _ => 0.0,
     }
 }
