@@ -163,60 +163,72 @@ impl EnvStream {
         };
         match &source {
             StreamSource::Sky { .. } => s.make_sky(),
-            StreamSource::File(p) => {
-                let l = load_env(&EnvSource::File(p.clone()), face_size)?;
-                s.report = l.report;
-                if l.report.total() > 0 {
-                    s.messages.push(format!("{}: {}", p.display(), l.report));
-                }
-                s.set_frame(Arc::new(l.cube));
-            }
-            StreamSource::Sequence { dir, fps } => {
-                if !(fps.is_finite() && *fps > 0.0) {
-                    return Err(Error::invalid(format!(
-                        "sequence rate {fps} fps must be > 0"
-                    )));
-                }
-                let d = SequenceDecoder::start(dir, face_size)?;
-                // The first frame is worth waiting for (there is nothing to show before it); any
-                // unreadable frames before the first good one are reported and skipped.
-                loop {
-                    let (i, r) =
-                        d.rx.lock()
-                            .expect("decoder channel")
-                            .recv()
-                            .map_err(|_| Error::file(dir, "frame decoder stopped"))?;
-                    match r {
-                        Ok(m) => {
-                            s.set_frame(m);
-                            break;
-                        }
-                        Err(e) => {
-                            s.bad_frame(&d.files[i], &e);
-                            if s.stats.bad_frames as usize >= d.files.len() {
-                                return Err(Error::file(
-                                    dir,
-                                    format!("no frame of the sequence could be read (last: {e})"),
-                                ));
-                            }
-                        }
-                    }
-                }
-                s.next_due = 1.0 / *fps as f64;
-                s.decoder = Some(d);
-            }
-            StreamSource::Carousel { paths, .. } => {
-                if paths.is_empty() {
-                    return Err(Error::invalid("carousel: no maps given"));
-                }
-                for p in paths {
-                    s.carousel
-                        .push(load_env(&EnvSource::File(p.clone()), face_size)?.cube);
-                }
-                s.make_carousel();
-            }
+            StreamSource::File(p) => s.open_file(p)?,
+            StreamSource::Sequence { dir, fps } => s.open_sequence(dir, *fps)?,
+            StreamSource::Carousel { paths, .. } => s.open_carousel(paths)?,
         }
         Ok(s)
+    }
+
+    /// A still map: its sanitising report is the stream's.
+    fn open_file(&mut self, p: &Path) -> Result<()> {
+        let l = load_env(&EnvSource::File(p.to_path_buf()), self.face_size)?;
+        self.report = l.report;
+        if l.report.total() > 0 {
+            self.messages.push(format!("{}: {}", p.display(), l.report));
+        }
+        self.set_frame(Arc::new(l.cube));
+        Ok(())
+    }
+
+    /// Start the sequence's decoder and wait for its first good frame.
+    fn open_sequence(&mut self, dir: &Path, fps: f32) -> Result<()> {
+        if !(fps.is_finite() && fps > 0.0) {
+            return Err(Error::invalid(format!(
+                "sequence rate {fps} fps must be > 0"
+            )));
+        }
+        let d = SequenceDecoder::start(dir, self.face_size)?;
+        // The first frame is worth waiting for (there is nothing to show before it); any
+        // unreadable frames before the first good one are reported and skipped.
+        loop {
+            let (i, r) =
+                d.rx.lock()
+                    .expect("decoder channel")
+                    .recv()
+                    .map_err(|_| Error::file(dir, "frame decoder stopped"))?;
+            match r {
+                Ok(m) => {
+                    self.set_frame(m);
+                    break;
+                }
+                Err(e) => {
+                    self.bad_frame(&d.files[i], &e);
+                    if self.stats.bad_frames as usize >= d.files.len() {
+                        return Err(Error::file(
+                            dir,
+                            format!("no frame of the sequence could be read (last: {e})"),
+                        ));
+                    }
+                }
+            }
+        }
+        self.next_due = 1.0 / fps as f64;
+        self.decoder = Some(d);
+        Ok(())
+    }
+
+    /// Load every map of the carousel up front (a bad one is an error before anything plays).
+    fn open_carousel(&mut self, paths: &[PathBuf]) -> Result<()> {
+        if paths.is_empty() {
+            return Err(Error::invalid("carousel: no maps given"));
+        }
+        for p in paths {
+            self.carousel
+                .push(load_env(&EnvSource::File(p.clone()), self.face_size)?.cube);
+        }
+        self.make_carousel();
+        Ok(())
     }
 
     pub fn source(&self) -> &StreamSource {

@@ -6,7 +6,7 @@
 //! as the headless backend (`shaders/shade.wgsl`), limited to the camera's viewport.
 
 use super::components::{EnvironmentSampling, EnvisEnvironment};
-use super::lighting_uniforms::{ViewParts, decode_probe, lighting_view};
+use super::lighting_uniforms::{LightingView, ViewParts, decode_probe, lighting_view};
 use super::sampling::{EnvSamplers, SamplerSlot, ViewSampling};
 use super::timing::EnvisTimings;
 use super::{EnvisCounters, EnvisProbe, Overlay};
@@ -130,6 +130,13 @@ type ViewExtras = (
     Option<&'static Skybox>,
 );
 
+/// [`ViewExtras`] as the view query reads them.
+type ViewExtrasItem<'a> = (
+    Option<&'a RenderLayers>,
+    Option<&'a TemporalJitter>,
+    Option<&'a Skybox>,
+);
+
 /// A lit view's components: Bevy's target, prepass and extracted view, envis's settings.
 type LightingViewData = (
     &'static ViewTarget,
@@ -164,8 +171,7 @@ fn mis_lighting(
 ) {
     let t0 = std::time::Instant::now();
     let view_entity = view.entity();
-    let (target, prepass, ev, cam, sampling, env, vs, vp_id, (render_layers, jitter, skybox)) =
-        view.into_inner();
+    let (target, prepass, ev, cam, sampling, env, vs, vp_id, extras) = view.into_inner();
     let (Some(layout), Some(res), Some(slot)) = (pipeline, res, samplers.slots.get(&vs.key)) else {
         return;
     };
@@ -173,27 +179,15 @@ fn mis_lighting(
     let Some(render_pipeline) = cache.get_render_pipeline(vp_id.0) else {
         return;
     };
-    let (Some(depth), Some(deferred), Some(ids)) = (
-        prepass.depth_view(),
-        prepass.deferred_view(),
-        prepass.deferred_lighting_pass_id.as_ref(),
-    ) else {
+    let Some(prepass_views) = prepass_views(prepass) else {
         return;
     };
     let vp = ev.viewport;
-    let Some(mut params) = shade_params(sampling, vs.seed, &slot.sampler, vp) else {
+    let Some((params, lv, geometry)) =
+        view_uniforms((ev, cam, extras), (sampling, env, vs), slot, &shadows)
+    else {
         return;
     };
-    let parts = ViewParts {
-        ev,
-        cam,
-        jitter,
-        render_layers,
-        skybox: skybox.is_some_and(|s| s.image.is_some()),
-    };
-    let lv = lighting_view(parts, sampling, env, slot.layout);
-    let (geometry, bvh_nodes) = shadow_geometry(&shadows, sampling);
-    params.bvh_nodes = bvh_nodes;
     let (bvh_nodes, bvh_triangles) = geometry.map_or((&res.no_shadows, &res.no_shadows), |g| {
         (&g.nodes, &g.triangles)
     });
@@ -207,10 +201,72 @@ fn mis_lighting(
     let bind = lighting_bind_group(
         (&device, &cache, &layout),
         (slot, &res),
-        (deferred, depth, &ids.texture.default_view),
+        prepass_views,
         [&pbuf, &vbuf, &accum],
         (bvh_nodes, bvh_triangles),
     );
+    encode_lighting(
+        &mut ctx,
+        (&res, &accum),
+        (sampling, vs),
+        (target, vp, render_pipeline, &bind),
+    );
+    count_lighting_pass((&counters, &timings), sampling, t0);
+}
+
+/// The prepass views the pass reads: the deferred G-buffer, depth and the lighting-pass ids;
+/// `None` while the prepass has not made them.
+fn prepass_views(
+    prepass: &ViewPrepassTextures,
+) -> Option<(&TextureView, &TextureView, &TextureView)> {
+    let (Some(depth), Some(deferred), Some(ids)) = (
+        prepass.depth_view(),
+        prepass.deferred_view(),
+        prepass.deferred_lighting_pass_id.as_ref(),
+    ) else {
+        return None;
+    };
+    Some((deferred, depth, &ids.texture.default_view))
+}
+
+/// The view's shading parameters (with the BVH's node count), its view uniforms and the shadow
+/// geometry its rays traverse; `None` while the global strategy's distribution is not built (see
+/// [`shade_params`]).
+fn view_uniforms<'a>(
+    (ev, cam, (render_layers, jitter, skybox)): (&ExtractedView, &ExtractedCamera, ViewExtrasItem),
+    (sampling, env, vs): (&EnvironmentSampling, &EnvisEnvironment, &ViewSampling),
+    slot: &SamplerSlot,
+    shadows: &'a (
+        Option<Res<super::shadows::ShadowGeometry>>,
+        Option<Res<super::shadows::GpuShadowGeometry>>,
+    ),
+) -> Option<(
+    ShadeParams,
+    LightingView,
+    Option<&'a super::shadows::GpuShadowGeometry>,
+)> {
+    let mut params = shade_params(sampling, vs.seed, &slot.sampler, ev.viewport)?;
+    let parts = ViewParts {
+        ev,
+        cam,
+        jitter,
+        render_layers,
+        skybox: skybox.is_some_and(|s| s.image.is_some()),
+    };
+    let lv = lighting_view(parts, sampling, env, slot.layout);
+    let (geometry, bvh_nodes) = shadow_geometry(shadows, sampling);
+    params.bvh_nodes = bvh_nodes;
+    Some((params, lv, geometry))
+}
+
+/// Record the view's pass into the frame's encoder: the probe cleared when a pixel is probed,
+/// the accumulation on a restart, the pass itself, then the probe copied for readback.
+fn encode_lighting(
+    ctx: &mut RenderContext,
+    (res, accum): (&LightingResources, &wgpu::Buffer),
+    (sampling, vs): (&EnvironmentSampling, &ViewSampling),
+    (target, vp, pipeline, bind): (&ViewTarget, UVec4, &RenderPipeline, &BindGroup),
+) {
     let probing = sampling.probe.is_some() && res.probe_read.ready();
     let diagnostics = ctx.diagnostic_recorder();
     let diagnostics = diagnostics.as_deref();
@@ -221,13 +277,22 @@ fn mis_lighting(
     if sampling.accumulate && vs.frame == 0 {
         // A restart: every pixel's mean and count start again, also those this frame does not
         // shade (no geometry yet: a mesh is drawn from the frame after it was spawned).
-        enc.clear_buffer(&accum, 0, None);
+        enc.clear_buffer(accum, 0, None);
     }
-    record_lighting_pass(enc, &diagnostics, target, vp, render_pipeline, &bind);
+    record_lighting_pass(enc, &diagnostics, target, vp, pipeline, bind);
     if probing {
         res.probe_read.copy_from(enc, &res.probe);
         *res.probe_seed.lock().expect("probe seed") = vs.seed;
     }
+}
+
+/// Count the lighting pass (and its overlay, which runs inside it) and keep its CPU time since
+/// `t0`.
+fn count_lighting_pass(
+    (counters, timings): (&EnvisCounters, &EnvisTimings),
+    sampling: &EnvironmentSampling,
+    t0: std::time::Instant,
+) {
     counters.bump(|c| &c.lighting_passes);
     if sampling.overlay != Overlay::None {
         counters.bump(|c| &c.overlay_passes);

@@ -211,10 +211,7 @@ pub fn prepare_samplers(
     let samplers = &mut *samplers;
     let mut used = HashSet::new();
     let mut live_views = HashSet::new();
-    let mut frames = accumulated.0.lock().ok();
-    if let Some(f) = frames.as_mut() {
-        f.clear();
-    }
+    let mut frames = cleared_frames(&accumulated);
     for (entity, main, view, sampling, env, (layers, jittered)) in &views {
         let Some(gpu) = images.get(env.image.id()) else {
             continue; // not loaded yet: Bevy's lighting alone until it is
@@ -222,20 +219,18 @@ pub fn prepare_samplers(
         let Some(layout) = usable_layout(samplers, gpu, env) else {
             continue;
         };
-        let version = versions
-            .as_ref()
-            .and_then(|v| v.0.get(&env.image.id()).copied())
-            .unwrap_or(0);
-        // Accumulation: restart the mean whenever anything the image depends on changed.
+        let version = image_version(versions.as_deref(), env.image.id());
         let scene = scene.as_ref().map_or(0, |s| s.0);
-        let layers = super::shadows::layers_of(layers);
-        let acc_key = accumulation_key(sampling, env, (view, layers), (version, scene));
-        let (frame, tick) = next_frame(samplers, entity, (sampling, env), acc_key, jittered);
+        let (frame, seed, key) = view_frame(
+            samplers,
+            entity,
+            (view, sampling, env),
+            (layers, jittered),
+            (version, scene),
+        );
         if let Some(f) = frames.as_mut() {
             f.insert(main.id(), frame);
         }
-        let seed = frame_seed(sampling.seed, frame, tick);
-        let key = sampler_key(sampling, env, entity, tick.is_some());
         let Some(slot) = slot_for(samplers, key, gpu, layout, &device, &queue, &counters) else {
             continue;
         };
@@ -252,6 +247,51 @@ pub fn prepare_samplers(
             .entity(entity)
             .insert(ViewSampling { key, frame, seed });
     }
+    drop_unused(samplers, (&used, &live_views), &counters);
+}
+
+/// The frames each view has averaged (shared with the main world), emptied for this frame's
+/// views; `None` when its lock is poisoned (the counts are then not kept).
+fn cleared_frames(
+    accumulated: &super::AccumulatedFrames,
+) -> Option<std::sync::MutexGuard<'_, HashMap<Entity, u32>>> {
+    let mut frames = accumulated.0.lock().ok();
+    if let Some(f) = frames.as_mut() {
+        f.clear();
+    }
+    frames
+}
+
+/// How often the main world changed an environment image (0 before its first change is seen).
+fn image_version(versions: Option<&EnvImageVersions>, image: AssetId<Image>) -> u64 {
+    versions.and_then(|v| v.0.get(&image).copied()).unwrap_or(0)
+}
+
+/// A view's frame: how many frames its mean averaged before it, its seed and its distribution's
+/// key.
+fn view_frame(
+    samplers: &mut EnvSamplers,
+    entity: Entity,
+    (view, sampling, env): (&ExtractedView, &EnvironmentSampling, &EnvisEnvironment),
+    (layers, jittered): (Option<&RenderLayers>, bool),
+    (version, scene): (u64, u64),
+) -> (u32, u32, SamplerKey) {
+    // Accumulation: restart the mean whenever anything the image depends on changed.
+    let layers = super::shadows::layers_of(layers);
+    let acc_key = accumulation_key(sampling, env, (view, layers), (version, scene));
+    let (frame, tick) = next_frame(samplers, entity, (sampling, env), acc_key, jittered);
+    let seed = frame_seed(sampling.seed, frame, tick);
+    let key = sampler_key(sampling, env, entity, tick.is_some());
+    (frame, seed, key)
+}
+
+/// Drop the distributions no view used this frame and the state of views that are gone, and
+/// count the distributions left.
+fn drop_unused(
+    samplers: &mut EnvSamplers,
+    (used, live_views): (&HashSet<SamplerKey>, &HashSet<Entity>),
+    counters: &EnvisCounters,
+) {
     samplers.slots.retain(|k, _| used.contains(k));
     counters.0.live_distributions.store(
         samplers.slots.len() as u64,

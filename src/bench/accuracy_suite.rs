@@ -77,13 +77,11 @@ pub(super) fn accuracy_suite(a: BenchArgs, dir: PathBuf) -> Result<()> {
         .map_err(|e| Error::invalid(format!("accuracy: {e}")))?;
     let partial = dir.join("accuracy.partial.jsonl");
     let resume = resumed_points(&partial, &fingerprint, total);
-    let mut journal = open_journal(&partial, &fingerprint, &resume)?;
-    let mut journal_error = None;
+    let mut journal = Journal::open(&partial, &fingerprint, &resume)?;
     let mut progress: Option<Progress> = None;
     let report_progress = |done: usize, total: usize, p: &accuracy::Point, was_resumed: bool| {
-        use std::io::Write as _;
-        if !was_resumed && let Err(e) = writeln!(journal, "{}", serde_json::to_string(p).unwrap()) {
-            journal_error.get_or_insert(e);
+        if !was_resumed {
+            journal.append(p);
         }
         // Made on the first point: the sweep knows the total only then.
         let bar = progress.get_or_insert_with(|| Progress::new(total));
@@ -96,12 +94,7 @@ pub(super) fn accuracy_suite(a: BenchArgs, dir: PathBuf) -> Result<()> {
     let points = sweep_on(&cfg, &resume, gpu_ctx.as_ref(), report_progress)?;
     #[cfg(not(feature = "gpu"))]
     let points = accuracy::sweep(&cfg, &resume, None, report_progress)?;
-    if let Some(e) = journal_error {
-        eprintln!(
-            "accuracy: could not append to {} ({e}); this run is not resumable",
-            partial.display()
-        );
-    }
+    journal.warn_if_failed();
     let out = Outputs {
         dir: &dir,
         command: suite_command(&a),
@@ -175,22 +168,51 @@ fn resumed_points(partial: &Path, fingerprint: &str, total: usize) -> Vec<accura
     pts
 }
 
-/// `partial` rewritten with `fingerprint` and the `resume`d points, open for appending.
-fn open_journal(
-    partial: &Path,
-    fingerprint: &str,
-    resume: &[accuracy::Point],
-) -> Result<std::fs::File> {
-    let mut text = format!("{fingerprint}\n");
-    for p in resume {
-        text += &(serde_json::to_string(p).unwrap() + "\n");
+/// The resume journal: each measured point appended as a JSON line. A failed append is kept
+/// (the first one) and only makes the run not resumable.
+struct Journal<'a> {
+    path: &'a Path,
+    file: std::fs::File,
+    error: Option<std::io::Error>,
+}
+
+impl<'a> Journal<'a> {
+    /// `partial` rewritten with `fingerprint` and the `resume`d points, open for appending.
+    fn open(partial: &'a Path, fingerprint: &str, resume: &[accuracy::Point]) -> Result<Self> {
+        let mut text = format!("{fingerprint}\n");
+        for p in resume {
+            text += &(serde_json::to_string(p).unwrap() + "\n");
+        }
+        std::fs::write(partial, text)
+            .map_err(|e| Error::file(partial, format!("cannot write: {e}")))?;
+        let file = std::fs::OpenOptions::new()
+            .append(true)
+            .open(partial)
+            .map_err(|e| Error::file(partial, format!("cannot append: {e}")))?;
+        Ok(Journal {
+            path: partial,
+            file,
+            error: None,
+        })
     }
-    std::fs::write(partial, text)
-        .map_err(|e| Error::file(partial, format!("cannot write: {e}")))?;
-    std::fs::OpenOptions::new()
-        .append(true)
-        .open(partial)
-        .map_err(|e| Error::file(partial, format!("cannot append: {e}")))
+
+    /// Appends point `p`, keeping the error if that fails.
+    fn append(&mut self, p: &accuracy::Point) {
+        use std::io::Write as _;
+        if let Err(e) = writeln!(self.file, "{}", serde_json::to_string(p).unwrap()) {
+            self.error.get_or_insert(e);
+        }
+    }
+
+    /// Says on stderr that the run is not resumable, if an append failed.
+    fn warn_if_failed(&self) {
+        if let Some(e) = &self.error {
+            eprintln!(
+                "accuracy: could not append to {} ({e}); this run is not resumable",
+                self.path.display()
+            );
+        }
+    }
 }
 
 /// The command line that reproduces this run, for the report.

@@ -17,7 +17,7 @@ use crate::visibility::ShadowRays;
 use bevy::core_pipeline::prepass::{DeferredPrepass, DepthPrepass};
 use bevy::light::GeneratedEnvironmentMapLight;
 use bevy::prelude::*;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// Who lights the scene.
@@ -79,54 +79,7 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
             h,
             map: &map,
         };
-        let reference = shot.render(Light::Envis {
-            light: 32,
-            brdf: 32,
-            frames: reference_frames,
-        })?;
-        let png = |name: &str, img: &EnvImage| {
-            let path = dir.join(format!("bevy-ibl-{scene:?}-{name}.png").to_lowercase());
-            crate::render::output::write_png(&path, img, 1.0)
-        };
-        png("reference", &reference)?;
-        for light in [
-            Light::Envis {
-                light: 4,
-                brdf: 4,
-                frames: 1,
-            },
-            Light::Envis {
-                light: 32,
-                brdf: 32,
-                frames: 1,
-            },
-            Light::Bevy,
-        ] {
-            let (img, frame_ms) = shot.render_timed(light, timed)?;
-            png(&light.name().replace([' ', '+'], "-"), &img)?;
-            let (_, mean_flip) =
-                super::flip::hdr_flip(&reference.data, &img.data, w as usize, h as usize);
-            let row = Row {
-                scene,
-                light: light.name(),
-                relmse: relmse(&img, &reference),
-                mean_flip: mean_flip as f64,
-                mean: mean_luminance(&img),
-                reference_mean: mean_luminance(&reference),
-                frame_ms,
-            };
-            eprintln!(
-                "  {:?} / {}: relMSE {:.3e}, HDR-FLIP {:.4}, mean {:.4} (converged {:.4}), {:.1} ms a frame",
-                scene,
-                row.light,
-                row.relmse,
-                row.mean_flip,
-                row.mean,
-                row.reference_mean,
-                row.frame_ms
-            );
-            rows.push(row);
-        }
+        rows.extend(shot.compare(&dir, reference_frames, timed)?);
     }
     let out = serde_json::json!({
         "env": a.env, "face_size": face, "reference_frames": reference_frames,
@@ -138,6 +91,22 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
     eprintln!("wrote {}", path.display());
     Ok(())
 }
+
+/// The lights measured against the converged image: envis with few and with many samples (a
+/// single frame each), and Bevy's.
+const LIGHTS: [Light; 3] = [
+    Light::Envis {
+        light: 4,
+        brdf: 4,
+        frames: 1,
+    },
+    Light::Envis {
+        light: 32,
+        brdf: 32,
+        frames: 1,
+    },
+    Light::Bevy,
+];
 
 fn mean_luminance(img: &EnvImage) -> f64 {
     let sum: f64 = img
@@ -157,6 +126,58 @@ struct Shot<'a> {
 }
 
 impl Shot<'_> {
+    /// The converged image (envis 32+32 accumulating `reference_frames` frames), then a row per
+    /// light of [`LIGHTS`] against it, each timed over `timed` frames; every image written to
+    /// `dir`.
+    fn compare(&self, dir: &Path, reference_frames: u32, timed: usize) -> Result<Vec<Row>> {
+        let reference = self.render(Light::Envis {
+            light: 32,
+            brdf: 32,
+            frames: reference_frames,
+        })?;
+        self.write_png(dir, "reference", &reference)?;
+        let mut rows = Vec::new();
+        for light in LIGHTS {
+            rows.push(self.row(dir, light, &reference, timed)?);
+        }
+        Ok(rows)
+    }
+
+    /// The image under `light` against the converged `reference`: written to `dir`, measured
+    /// and printed.
+    fn row(&self, dir: &Path, light: Light, reference: &EnvImage, timed: usize) -> Result<Row> {
+        let (img, frame_ms) = self.render_timed(light, timed)?;
+        self.write_png(dir, &light.name().replace([' ', '+'], "-"), &img)?;
+        let (_, mean_flip) =
+            super::flip::hdr_flip(&reference.data, &img.data, self.w as usize, self.h as usize);
+        let row = Row {
+            scene: self.scene,
+            light: light.name(),
+            relmse: relmse(&img, reference),
+            mean_flip: mean_flip as f64,
+            mean: mean_luminance(&img),
+            reference_mean: mean_luminance(reference),
+            frame_ms,
+        };
+        eprintln!(
+            "  {:?} / {}: relMSE {:.3e}, HDR-FLIP {:.4}, mean {:.4} (converged {:.4}), {:.1} ms a frame",
+            self.scene,
+            row.light,
+            row.relmse,
+            row.mean_flip,
+            row.mean,
+            row.reference_mean,
+            row.frame_ms
+        );
+        Ok(row)
+    }
+
+    /// `img` as `bevy-ibl-SCENE-NAME.png` (lower case) in `dir`.
+    fn write_png(&self, dir: &Path, name: &str, img: &EnvImage) -> Result<()> {
+        let path = dir.join(format!("bevy-ibl-{:?}-{name}.png", self.scene).to_lowercase());
+        crate::render::output::write_png(&path, img, 1.0)
+    }
+
     /// The image under `light` (after `frames` accumulated frames for envis), and the median
     /// frame time of `timed` more frames (0: not timed).
     fn render_timed(&self, light: Light, timed: usize) -> Result<(EnvImage, f64)> {

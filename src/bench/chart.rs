@@ -3,6 +3,7 @@
 
 use crate::error::{Error, Result};
 use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -38,6 +39,31 @@ fn register_font() {
     });
 }
 
+/// The plotting area: plain f64 coordinates (log axes are plotted as log10 of the data).
+type Plot<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// Tick label on a log axis (plot coordinate = log10): `1eN` at whole decades, none between.
+fn decade(v: &f64) -> String {
+    if (v - v.round()).abs() < 1e-6 {
+        format!("1e{}", v.round() as i64)
+    } else {
+        String::new()
+    }
+}
+
+/// Tick label on a linear axis: up to 3 decimals, trailing zeros dropped.
+fn plain(v: &f64) -> String {
+    format!("{v:.3}")
+        .trim_end_matches('0')
+        .trim_end_matches('.')
+        .to_string()
+}
+
+/// The tick label format for a log or linear axis.
+fn tick_format(log: bool) -> fn(&f64) -> String {
+    if log { decade } else { plain }
+}
+
 fn rgb(hex: &str) -> RGBColor {
     let v = u32::from_str_radix(hex.trim_start_matches('#'), 16).unwrap_or(0);
     RGBColor((v >> 16) as u8, (v >> 8) as u8, v as u8)
@@ -67,6 +93,7 @@ impl Chart {
         }
     }
 
+    /// The whole chart on `root`: axes, every series, the legend.
     fn draw<DB: DrawingBackend>(
         &self,
         root: DrawingArea<DB, Shift>,
@@ -75,7 +102,6 @@ impl Chart {
         root.fill(&WHITE).map_err(e)?;
         let (x0, x1) = self.range(|p| p.0, self.xlog);
         let (y0, y1) = self.range(|p| p.1, self.ylog);
-        let to = |log: bool, v: f64| if log { v.max(1e-300).log10() } else { v };
         let mut cc = ChartBuilder::on(&root)
             .caption(self.title.as_str(), ("sans-serif", 18))
             .margin(12)
@@ -83,27 +109,29 @@ impl Chart {
             .y_label_area_size(64)
             .build_cartesian_2d(x0..x1, y0..y1)
             .map_err(e)?;
-        fn decade(v: &f64) -> String {
-            if (v - v.round()).abs() < 1e-6 {
-                format!("1e{}", v.round() as i64)
-            } else {
-                String::new()
-            }
+        self.draw_mesh(&mut cc, (x0, x1), (y0, y1)).map_err(e)?;
+        for s in &self.series {
+            self.draw_line(&mut cc, s).map_err(e)?;
         }
-        fn plain(v: &f64) -> String {
-            format!("{v:.3}")
-                .trim_end_matches('0')
-                .trim_end_matches('.')
-                .to_string()
-        }
-        let pick = |log: bool| {
-            if log {
-                decade as fn(&f64) -> String
-            } else {
-                plain
-            }
-        };
-        let (xf, yf) = (pick(self.xlog), pick(self.ylog));
+        cc.configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .background_style(WHITE.mix(0.85))
+            .border_style(RGBColor(180, 180, 180))
+            .label_font(("sans-serif", 13))
+            .draw()
+            .map_err(e)?;
+        root.present().map_err(e)
+    }
+
+    /// The grid, axis labels and ticks over the plot ranges `(x0, x1)` and `(y0, y1)`: one tick
+    /// per decade on a log axis, 8 on a linear one.
+    fn draw_mesh<DB: DrawingBackend>(
+        &self,
+        cc: &mut Plot<'_, DB>,
+        (x0, x1): (f64, f64),
+        (y0, y1): (f64, f64),
+    ) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+        let (xf, yf) = (tick_format(self.xlog), tick_format(self.ylog));
         cc.configure_mesh()
             .x_desc(self.xlabel)
             .y_desc(self.ylabel)
@@ -115,44 +143,40 @@ impl Chart {
             .bold_line_style(RGBColor(221, 221, 221))
             .label_style(("sans-serif", 13))
             .draw()
-            .map_err(e)?;
-        for s in &self.series {
-            let color = rgb(s.color);
-            let pts: Vec<(f64, f64)> = s
-                .points
-                .iter()
-                .filter(|p| p.0.is_finite() && p.1.is_finite())
-                .map(|p| (to(self.xlog, p.0), to(self.ylog, p.1)))
-                .collect();
-            let style = ShapeStyle {
-                color: color.to_rgba(),
-                filled: false,
-                stroke_width: if s.dashed { 1 } else { 2 },
-            };
-            let legend =
-                move |(x, y): (i32, i32)| PathElement::new(vec![(x, y), (x + 20, y)], style);
-            if s.dashed {
-                cc.draw_series(DashedLineSeries::new(pts, 5, 4, style))
-                    .map_err(e)?
-                    .label(s.name.as_str())
-                    .legend(legend);
-            } else {
-                cc.draw_series(LineSeries::new(pts.iter().copied(), style))
-                    .map_err(e)?
-                    .label(s.name.as_str())
-                    .legend(legend);
-                cc.draw_series(pts.iter().map(|p| Circle::new(*p, 3, color.filled())))
-                    .map_err(e)?;
-            }
+    }
+
+    /// One series: its finite points as a line (dashed, or solid with point markers) and its
+    /// legend entry.
+    fn draw_line<DB: DrawingBackend>(
+        &self,
+        cc: &mut Plot<'_, DB>,
+        s: &Series,
+    ) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+        let to = |log: bool, v: f64| if log { v.max(1e-300).log10() } else { v };
+        let color = rgb(s.color);
+        let pts: Vec<(f64, f64)> = s
+            .points
+            .iter()
+            .filter(|p| p.0.is_finite() && p.1.is_finite())
+            .map(|p| (to(self.xlog, p.0), to(self.ylog, p.1)))
+            .collect();
+        let style = ShapeStyle {
+            color: color.to_rgba(),
+            filled: false,
+            stroke_width: if s.dashed { 1 } else { 2 },
+        };
+        let legend = move |(x, y): (i32, i32)| PathElement::new(vec![(x, y), (x + 20, y)], style);
+        if s.dashed {
+            cc.draw_series(DashedLineSeries::new(pts, 5, 4, style))?
+                .label(s.name.as_str())
+                .legend(legend);
+        } else {
+            cc.draw_series(LineSeries::new(pts.iter().copied(), style))?
+                .label(s.name.as_str())
+                .legend(legend);
+            cc.draw_series(pts.iter().map(|p| Circle::new(*p, 3, color.filled())))?;
         }
-        cc.configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(RGBColor(180, 180, 180))
-            .label_font(("sans-serif", 13))
-            .draw()
-            .map_err(e)?;
-        root.present().map_err(e)
+        Ok(())
     }
 
     /// The chart as a standalone SVG document.

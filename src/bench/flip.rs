@@ -219,33 +219,70 @@ fn feature_filter(ppd: f32, point: bool) -> Separable {
     }
 }
 
-/// Per-pixel LDR-FLIP of two sRGB-encoded images (values in `[0, 1]`, row-major `w x h`).
-pub fn ldr_flip(reference: &[Vec3], test: &[Vec3], w: usize, h: usize, ppd: f32) -> Vec<f32> {
-    assert_eq!(reference.len(), w * h);
-    assert_eq!(test.len(), w * h);
-    let filters = [
-        csf_filter(ppd, (1.0, 0.0047, 0.0, 1e-5)),
-        csf_filter(ppd, (1.0, 0.0053, 0.0, 1e-5)),
-        csf_filter(ppd, (34.1, 0.04, 13.5, 0.025)),
-    ];
-    let (edge, point) = (feature_filter(ppd, false), feature_filter(ppd, true));
-    let transpose = |s: &Separable| Separable {
-        kx: s.ky.clone(),
-        ky: s.kx.clone(),
-    };
-    let (edge_t, point_t) = (transpose(&edge), transpose(&point));
+/// LDR-FLIP's kernels at one viewing distance: the contrast-sensitivity filters of the three
+/// opponent channels, and the edge and point detectors along x and (transposed) along y.
+struct Kernels {
+    csf: [Vec<Separable>; 3],
+    edge: Separable,
+    point: Separable,
+    edge_t: Separable,
+    point_t: Separable,
+}
 
-    // Per image: filtered Hunt-adjusted Lab, edge magnitude and point magnitude.
-    let prepare = |img: &[Vec3]| {
+/// One image as LDR-FLIP compares it: per pixel, the filtered Hunt-adjusted Lab colour and the
+/// edge and point feature magnitudes.
+struct Prepared {
+    lab: Vec<Vec3>,
+    edges: Vec<f32>,
+    points: Vec<f32>,
+}
+
+impl Kernels {
+    /// The kernels for `ppd` pixels per degree.
+    fn new(ppd: f32) -> Self {
+        let csf = [
+            csf_filter(ppd, (1.0, 0.0047, 0.0, 1e-5)),
+            csf_filter(ppd, (1.0, 0.0053, 0.0, 1e-5)),
+            csf_filter(ppd, (34.1, 0.04, 13.5, 0.025)),
+        ];
+        let (edge, point) = (feature_filter(ppd, false), feature_filter(ppd, true));
+        let transpose = |s: &Separable| Separable {
+            kx: s.ky.clone(),
+            ky: s.kx.clone(),
+        };
+        let (edge_t, point_t) = (transpose(&edge), transpose(&point));
+        Self {
+            csf,
+            edge,
+            point,
+            edge_t,
+            point_t,
+        }
+    }
+
+    /// An sRGB image (`w x h`) in opponent space, filtered for the colour comparison and the
+    /// feature detectors.
+    fn prepare(&self, img: &[Vec3], w: usize, h: usize) -> Prepared {
         let opp: Vec<Vec3> = img
             .iter()
             .map(|c| xyz_to_ycxcz(rgb_to_xyz(c.to_array().map(srgb_to_linear).into())))
             .collect();
+        let lab = self.filtered_lab(&opp, w, h);
+        let y: Vec<f32> = opp.iter().map(|c| (c.x + 16.0) / 116.0).collect();
+        let along = |k: &Separable| filter(&y, w, h, std::slice::from_ref(k));
+        let edges = magnitude(&along(&self.edge), &along(&self.edge_t));
+        let points = magnitude(&along(&self.point), &along(&self.point_t));
+        Prepared { lab, edges, points }
+    }
+
+    /// Each opponent channel filtered by its contrast sensitivity, then clamped to the RGB cube
+    /// and converted to Hunt-adjusted Lab.
+    fn filtered_lab(&self, opp: &[Vec3], w: usize, h: usize) -> Vec<Vec3> {
         let channel = |k: usize| -> Vec<f32> { opp.iter().map(|c| c[k]).collect() };
         let filtered: Vec<Vec<f32>> = (0..3)
-            .map(|k| filter(&channel(k), w, h, &filters[k]))
+            .map(|k| filter(&channel(k), w, h, &self.csf[k]))
             .collect();
-        let lab: Vec<Vec3> = (0..w * h)
+        (0..w * h)
             .map(|i| {
                 let rgb = xyz_to_rgb(ycxcz_to_xyz(Vec3::new(
                     filtered[0][i],
@@ -255,27 +292,31 @@ pub fn ldr_flip(reference: &[Vec3], test: &[Vec3], w: usize, h: usize, ppd: f32)
                 .clamp(Vec3::ZERO, Vec3::ONE);
                 xyz_to_hunt_lab(rgb_to_xyz(rgb))
             })
-            .collect();
-        let y: Vec<f32> = opp.iter().map(|c| (c.x + 16.0) / 116.0).collect();
-        let mag = |a: Vec<f32>, b: Vec<f32>| -> Vec<f32> {
-            a.iter()
-                .zip(&b)
-                .map(|(a, b)| (a * a + b * b).sqrt())
-                .collect()
-        };
-        let edges = mag(
-            filter(&y, w, h, std::slice::from_ref(&edge)),
-            filter(&y, w, h, std::slice::from_ref(&edge_t)),
-        );
-        let points = mag(
-            filter(&y, w, h, std::slice::from_ref(&point)),
-            filter(&y, w, h, std::slice::from_ref(&point_t)),
-        );
-        (lab, edges, points)
-    };
-    let (lr, er, pr) = prepare(reference);
-    let (lt, et, pt) = prepare(test);
+            .collect()
+    }
+}
 
+/// Per-pixel length of the 2D vector `(a, b)`.
+fn magnitude(a: &[f32], b: &[f32]) -> Vec<f32> {
+    a.iter()
+        .zip(b)
+        .map(|(a, b)| (a * a + b * b).sqrt())
+        .collect()
+}
+
+/// Per-pixel LDR-FLIP of two sRGB-encoded images (values in `[0, 1]`, row-major `w x h`).
+pub fn ldr_flip(reference: &[Vec3], test: &[Vec3], w: usize, h: usize, ppd: f32) -> Vec<f32> {
+    assert_eq!(reference.len(), w * h);
+    assert_eq!(test.len(), w * h);
+    let kernels = Kernels::new(ppd);
+    let r = kernels.prepare(reference, w, h);
+    let t = kernels.prepare(test, w, h);
+    flip_error(&r, &t)
+}
+
+/// Per pixel, `dE = dC^(1 - dF)`: the remapped HyAB colour difference and the feature difference
+/// of the prepared reference `r` and test `t`.
+fn flip_error(r: &Prepared, t: &Prepared) -> Vec<f32> {
     const QC: f32 = 0.7;
     const PC: f32 = 0.4;
     const PT: f32 = 0.95;
@@ -285,15 +326,18 @@ pub fn ldr_flip(reference: &[Vec3], test: &[Vec3], w: usize, h: usize, ppd: f32)
     )
     .powf(QC);
     let pccmax = PC * cmax;
-    (0..w * h)
+    (0..r.lab.len())
         .map(|i| {
-            let e = hyab(lr[i], lt[i]).powf(QC);
+            let e = hyab(r.lab[i], t.lab[i]).powf(QC);
             let dc = if e < pccmax {
                 (PT / pccmax) * e
             } else {
                 PT + ((e - pccmax) / (cmax - pccmax)) * (1.0 - PT)
             };
-            let df = ((er[i] - et[i]).abs().max((pr[i] - pt[i]).abs()) / std::f32::consts::SQRT_2)
+            let df = ((r.edges[i] - t.edges[i])
+                .abs()
+                .max((r.points[i] - t.points[i]).abs())
+                / std::f32::consts::SQRT_2)
                 .sqrt();
             dc.powf(1.0 - df)
         })

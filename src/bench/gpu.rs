@@ -13,6 +13,7 @@ use crate::error::Result;
 use crate::gpu::{EnvSampler, GpuContext, GpuGPixel, Shader};
 use crate::render::{self, Settings, pool_seed};
 use crate::sampling::{CubeDistribution, LightPool, Material};
+use crate::stream::{EnvStream, StreamSource};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -49,6 +50,25 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
         "gpu bench on {} ({:?}), timestamps: {}",
         ctx.info.name, ctx.info.backend, ctx.timestamps
     );
+    let builds = build_rows(&ctx, &a, repeat)?;
+    let frames = frame_rows(&ctx, &a, repeat)?;
+    let out = serde_json::json!({
+        "device": ctx.info.name,
+        "backend": format!("{:?}", ctx.info.backend),
+        "driver": ctx.info.driver_info,
+        "timestamps": ctx.timestamps,
+        "repeat": repeat,
+        "build": builds,
+        "frame": frames,
+    });
+    let path = dir.join("bench-gpu.json");
+    crate::render::output::write_json(&path, &out)?;
+    eprintln!("wrote {}", path.display());
+    Ok(())
+}
+
+/// The build rows over the face sizes (those the device cannot bind left out).
+fn build_rows(ctx: &GpuContext, a: &BenchArgs, repeat: usize) -> Result<Vec<BuildRow>> {
     let m = a.light_samples.max(1);
     let faces: Vec<usize> = if a.quick {
         vec![16, 64, 256]
@@ -57,10 +77,13 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
     };
     let mut builds = Vec::new();
     for &n in &faces {
-        builds.extend(build_row(&ctx, n, m, repeat)?);
+        builds.extend(build_row(ctx, n, m, repeat)?);
     }
+    Ok(builds)
+}
 
-    // A full frame.
+/// A full frame of the sphere, diffuse and glossy, under `--env`.
+fn frame_rows(ctx: &GpuContext, a: &BenchArgs, repeat: usize) -> Result<Vec<FrameRow>> {
     let (width, height) = if a.quick {
         (480, 270)
     } else {
@@ -80,7 +103,7 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
     ] {
         let gbuf = render::sphere_gbuffer(width, height, mat);
         frames.push(frame_row(
-            &ctx,
+            ctx,
             &map,
             &gbuf,
             (width, height),
@@ -89,19 +112,7 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
             repeat,
         )?);
     }
-    let out = serde_json::json!({
-        "device": ctx.info.name,
-        "backend": format!("{:?}", ctx.info.backend),
-        "driver": ctx.info.driver_info,
-        "timestamps": ctx.timestamps,
-        "repeat": repeat,
-        "build": builds,
-        "frame": frames,
-    });
-    let path = dir.join("bench-gpu.json");
-    crate::render::output::write_json(&path, &out)?;
-    eprintln!("wrote {}", path.display());
-    Ok(())
+    Ok(frames)
 }
 
 /// The distribution build + pool of `M = m` per face on 6 x `n`^2 faces on the GPU and on the
@@ -291,7 +302,29 @@ fn play(
     shadows: Option<(&crate::gpu::visibility::GpuBvh, &[glam::Vec3])>,
     frames: usize,
 ) -> Result<SceneRow> {
-    use crate::stream::{EnvStream, StreamSource};
+    let mut stream = scene_stream(sc)?;
+    let pixels: Vec<GpuGPixel> = gbuf.iter().map(GpuGPixel::from).collect();
+    let s = sc.settings;
+    let sampler = EnvSampler::for_settings(ctx, stream.face_size(), &s)?;
+    let shader = Shader::new(ctx);
+    let player = Player {
+        ctx,
+        pixels,
+        s,
+        sampler,
+        shader,
+        shadows,
+    };
+    // Some drivers (lavapipe among them) compile a pipeline at its first dispatch: one untimed
+    // frame first, so that the timings are steady-state frames.
+    player.rebuild(&stream)?;
+    player.shade()?;
+    let played = player.time_frames(&mut stream, frames)?;
+    Ok(played.row(name, frames, shadows.is_some()))
+}
+
+/// The scene's environment stream (a sky moving at the scene's speed).
+fn scene_stream(sc: &crate::scene::Scene) -> Result<EnvStream> {
     let source = match StreamSource::parse(&sc.environment)? {
         StreamSource::Sky { hours, .. } => StreamSource::Sky {
             hours,
@@ -299,61 +332,101 @@ fn play(
         },
         o => o,
     };
-    let mut stream = EnvStream::open(source, sc.file.environment.face_size)?;
-    let pixels: Vec<GpuGPixel> = gbuf.iter().map(GpuGPixel::from).collect();
-    let s = sc.settings;
-    let sampler = EnvSampler::for_settings(ctx, stream.face_size(), &s)?;
-    let shader = Shader::new(ctx);
-    let (mut builds, mut frame_ms, mut build_ms, mut shade_ms, mut gpu) =
-        (0, Vec::new(), Vec::new(), Vec::new(), Vec::new());
-    // Some drivers (lavapipe among them) compile a pipeline at its first dispatch: one untimed
-    // frame first, so that the timings are steady-state frames.
-    sampler.upload(&ctx.queue, stream.frame());
-    ctx.wait(sampler.run(ctx, pool_seed(s.seed)))?;
-    shader.shade_with_shadows(ctx, &sampler, &pixels, &s, shadows)?;
-    let mut uploaded = None;
-    let (mut brdf, mut light, mut rays) = (0u64, 0.0f64, 0u64);
-    for f in 0..frames {
-        let t0 = Instant::now();
-        if f > 0 {
-            stream.advance(1.0 / 30.0);
-        }
-        if uploaded != Some(stream.generation()) {
-            sampler.upload(&ctx.queue, stream.frame());
-            ctx.wait(sampler.run(ctx, pool_seed(s.seed)))?;
-            uploaded = Some(stream.generation());
-            builds += 1;
-        }
-        let t1 = Instant::now();
-        let job = shader.shade_with_shadows(ctx, &sampler, &pixels, &s, shadows)?;
-        let t2 = Instant::now();
-        frame_ms.push((t2 - t0).as_secs_f64() * 1e3);
-        build_ms.push((t1 - t0).as_secs_f64() * 1e3);
-        shade_ms.push((t2 - t1).as_secs_f64() * 1e3);
-        if let Some(g) = job.gpu_ms {
-            gpu.push(g);
-        }
-        brdf = job.stats.iter().map(|q| q[3] as u64).sum();
-        light = job.stats.iter().map(|q| (q[1] + q[2]) as f64).sum();
-        rays = job.rays.iter().map(|r| r[0] as u64).sum();
+    EnvStream::open(source, sc.file.environment.face_size)
+}
+
+/// What one scene is played with: its G-buffer on the GPU, settings, sampler, shader and shadow
+/// geometry.
+struct Player<'a> {
+    ctx: &'a GpuContext,
+    pixels: Vec<GpuGPixel>,
+    s: Settings,
+    sampler: EnvSampler,
+    shader: Shader,
+    shadows: Option<(&'a crate::gpu::visibility::GpuBvh, &'a [glam::Vec3])>,
+}
+
+/// What playing a scene measured: the builds, each frame's times, and the last frame's counts.
+#[derive(Default)]
+struct Played {
+    builds: usize,
+    frame_ms: Vec<f64>,
+    build_ms: Vec<f64>,
+    shade_ms: Vec<f64>,
+    gpu: Vec<f64>,
+    brdf: u64,
+    light: f64,
+    rays: u64,
+}
+
+impl Player<'_> {
+    /// Upload the stream's current frame and rebuild the distribution and pool from it.
+    fn rebuild(&self, stream: &EnvStream) -> Result<()> {
+        self.sampler.upload(&self.ctx.queue, stream.frame());
+        self.ctx
+            .wait(self.sampler.run(self.ctx, pool_seed(self.s.seed)))
     }
-    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
-    let row = SceneRow {
-        scene: name.into(),
-        visibility: if shadows.is_some() { "on" } else { "off" },
-        frames,
-        builds,
-        mean_frame_ms: mean(&frame_ms),
-        mean_build_ms: mean(&build_ms),
-        mean_shade_ms: mean(&shade_ms),
-        shade_gpu_ms: (!gpu.is_empty()).then(|| mean(&gpu)),
-        brdf_samples_per_frame: brdf,
-        light_samples_per_frame: light,
-        shadow_rays_per_frame: rays,
-    };
-    eprintln!(
-        "  {name} (shadows {}): {frames} frames, {builds} builds, frame {:.2} ms (build {:.2} + shade {:.2}), BRDF samples/frame {brdf}, light samples/frame {light:.0}, shadow rays/frame {rays}",
-        row.visibility, row.mean_frame_ms, row.mean_build_ms, row.mean_shade_ms
-    );
-    Ok(row)
+
+    /// Shade the G-buffer once (with shadow rays if any).
+    fn shade(&self) -> Result<crate::gpu::shading::ShadeJob> {
+        self.shader
+            .shade_with_shadows(self.ctx, &self.sampler, &self.pixels, &self.s, self.shadows)
+    }
+
+    /// `frames` frames at 30 fps: the stream advances, the distribution is rebuilt only when
+    /// its frame changed, and the G-buffer is shaded.
+    fn time_frames(&self, stream: &mut EnvStream, frames: usize) -> Result<Played> {
+        let mut p = Played::default();
+        let mut uploaded = None;
+        for f in 0..frames {
+            let t0 = Instant::now();
+            if f > 0 {
+                stream.advance(1.0 / 30.0);
+            }
+            if uploaded != Some(stream.generation()) {
+                self.rebuild(stream)?;
+                uploaded = Some(stream.generation());
+                p.builds += 1;
+            }
+            let t1 = Instant::now();
+            let job = self.shade()?;
+            let t2 = Instant::now();
+            p.frame_ms.push((t2 - t0).as_secs_f64() * 1e3);
+            p.build_ms.push((t1 - t0).as_secs_f64() * 1e3);
+            p.shade_ms.push((t2 - t1).as_secs_f64() * 1e3);
+            if let Some(g) = job.gpu_ms {
+                p.gpu.push(g);
+            }
+            p.brdf = job.stats.iter().map(|q| q[3] as u64).sum();
+            p.light = job.stats.iter().map(|q| (q[1] + q[2]) as f64).sum();
+            p.rays = job.rays.iter().map(|r| r[0] as u64).sum();
+        }
+        Ok(p)
+    }
+}
+
+impl Played {
+    /// The scene's row (means over the frames), printed.
+    fn row(self, name: &str, frames: usize, shadows: bool) -> SceneRow {
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+        let (builds, brdf, light, rays) = (self.builds, self.brdf, self.light, self.rays);
+        let row = SceneRow {
+            scene: name.into(),
+            visibility: if shadows { "on" } else { "off" },
+            frames,
+            builds,
+            mean_frame_ms: mean(&self.frame_ms),
+            mean_build_ms: mean(&self.build_ms),
+            mean_shade_ms: mean(&self.shade_ms),
+            shade_gpu_ms: (!self.gpu.is_empty()).then(|| mean(&self.gpu)),
+            brdf_samples_per_frame: brdf,
+            light_samples_per_frame: light,
+            shadow_rays_per_frame: rays,
+        };
+        eprintln!(
+            "  {name} (shadows {}): {frames} frames, {builds} builds, frame {:.2} ms (build {:.2} + shade {:.2}), BRDF samples/frame {brdf}, light samples/frame {light:.0}, shadow rays/frame {rays}",
+            row.visibility, row.mean_frame_ms, row.mean_build_ms, row.mean_shade_ms
+        );
+        row
+    }
 }

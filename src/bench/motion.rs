@@ -63,88 +63,10 @@ pub(super) fn relmse(img: &Image, rf: &Image) -> f64 {
 }
 
 pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
-    let default = Path::new(env!("CARGO_MANIFEST_DIR")).join(DEFAULT_SCENE);
-    let path = a.scene.clone().unwrap_or(default);
-    let scene = Scene::load(&path)?;
-    let (size, frames, first) = if a.quick {
-        (48, 6, 3)
-    } else {
-        (a.size, 32, 16)
-    };
-    eprintln!("motion: {size}^2, frames {first}..{frames}, reference {REF_SAMPLES}+{REF_SAMPLES}");
-    let refs = references(&scene, size, first, frames)?;
-    let shadowed = Resampling {
-        candidate_visibility: true,
-        ..Default::default()
-    };
-    let unsplit = Resampling {
-        split_bright: false,
-        ..Default::default()
-    };
-    let configs: [(&str, Option<Resampling>, usize); 7] = [
-        ("single 32+32", None, 32),
-        ("single 4+4", None, 4),
-        (
-            "restir 4+4",
-            Resampling::for_mode(ResamplingMode::Spatiotemporal, true),
-            4,
-        ),
-        (
-            "restir 4+4 biased",
-            Resampling::for_mode(ResamplingMode::Spatiotemporal, false),
-            4,
-        ),
-        (
-            "temporal 4+4",
-            Resampling::for_mode(ResamplingMode::Temporal, true),
-            4,
-        ),
-        ("restir 4+4 shadowed candidates", Some(shadowed), 4),
-        ("restir 4+4 unsplit", Some(unsplit), 4),
-    ];
+    let m = Motion::new(&a)?;
     let mut rows: Vec<MotionRow> = Vec::new();
-    for (name, r, n) in configs {
-        let o = SequenceOptions {
-            size,
-            frames,
-            settings: Settings {
-                light_samples: n,
-                brdf_samples: n,
-                ..scene.settings
-            },
-            resampling: r,
-            visibility: None,
-        };
-        let mut row = MotionRow {
-            name: name.into(),
-            relmse: 0.0,
-            flip: 0.0,
-            frame_ms: 0.0,
-            shadow_rays_per_pixel: 0.0,
-            relmse_ratio: 1.0,
-            flip_ratio: 1.0,
-            cost_ratio: 1.0,
-            per_frame: Vec::new(),
-        };
-        sequence::run(&scene, &o, |f| {
-            let k = f.stats.frame;
-            if k < first {
-                return Ok(());
-            }
-            let rf = &refs[(k - first) as usize];
-            let e = relmse(&f.image, rf);
-            row.per_frame.push((k, e));
-            row.relmse += e;
-            row.flip += super::flip::hdr_flip(&rf.data, &f.image.data, size, size).1 as f64;
-            row.frame_ms += f.stats.build_ms + f.stats.shade_ms;
-            row.shadow_rays_per_pixel += f.stats.shadow_rays_per_pixel;
-            Ok(())
-        })?;
-        let m = (frames - first) as f64;
-        row.relmse /= m;
-        row.flip /= m;
-        row.frame_ms /= m;
-        row.shadow_rays_per_pixel /= m;
+    for (name, r, n) in configs() {
+        let mut row = m.measure(name, r, n)?;
         if let Some(base) = rows.first() {
             row.relmse_ratio = row.relmse / base.relmse;
             row.flip_ratio = row.flip / base.flip;
@@ -166,8 +88,8 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
     let v = serde_json::json!({
         "suite": "motion",
         "scene": a.scene.as_ref().map_or(DEFAULT_SCENE.into(), |p| p.display().to_string()),
-        "size": size,
-        "frames": [first, frames],
+        "size": m.size,
+        "frames": [m.first, m.frames],
         "reference_samples": REF_SAMPLES,
         "threads": rayon::current_num_threads(),
         "rows": rows,
@@ -175,6 +97,123 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
     crate::render::output::write_json(&out, &v)?;
     eprintln!("wrote {}", out.display());
     Ok(())
+}
+
+/// The configurations compared, as (name, resampling, samples of each kind per pixel); the
+/// first is the baseline of the ratios.
+fn configs() -> [(&'static str, Option<Resampling>, usize); 7] {
+    let shadowed = Resampling {
+        candidate_visibility: true,
+        ..Default::default()
+    };
+    let unsplit = Resampling {
+        split_bright: false,
+        ..Default::default()
+    };
+    [
+        ("single 32+32", None, 32),
+        ("single 4+4", None, 4),
+        (
+            "restir 4+4",
+            Resampling::for_mode(ResamplingMode::Spatiotemporal, true),
+            4,
+        ),
+        (
+            "restir 4+4 biased",
+            Resampling::for_mode(ResamplingMode::Spatiotemporal, false),
+            4,
+        ),
+        (
+            "temporal 4+4",
+            Resampling::for_mode(ResamplingMode::Temporal, true),
+            4,
+        ),
+        ("restir 4+4 shadowed candidates", Some(shadowed), 4),
+        ("restir 4+4 unsplit", Some(unsplit), 4),
+    ]
+}
+
+/// The animated scene, the image size, and the measured frames `first..frames` with their
+/// references.
+struct Motion {
+    scene: Scene,
+    size: usize,
+    first: u32,
+    frames: u32,
+    refs: Vec<Image>,
+}
+
+impl Motion {
+    /// Loads the scene (`--scene` or [`DEFAULT_SCENE`]) and renders the references.
+    fn new(a: &BenchArgs) -> Result<Self> {
+        let default = Path::new(env!("CARGO_MANIFEST_DIR")).join(DEFAULT_SCENE);
+        let path = a.scene.clone().unwrap_or(default);
+        let scene = Scene::load(&path)?;
+        let (size, frames, first) = if a.quick {
+            (48, 6, 3)
+        } else {
+            (a.size, 32, 16)
+        };
+        eprintln!(
+            "motion: {size}^2, frames {first}..{frames}, reference {REF_SAMPLES}+{REF_SAMPLES}"
+        );
+        let refs = references(&scene, size, first, frames)?;
+        Ok(Motion {
+            scene,
+            size,
+            first,
+            frames,
+            refs,
+        })
+    }
+
+    /// Configuration `name` (resampling `r`, `n` + `n` samples) over the sequence: its means
+    /// over the measured frames, ratios still 1.
+    fn measure(&self, name: &str, r: Option<Resampling>, n: usize) -> Result<MotionRow> {
+        let o = SequenceOptions {
+            size: self.size,
+            frames: self.frames,
+            settings: Settings {
+                light_samples: n,
+                brdf_samples: n,
+                ..self.scene.settings
+            },
+            resampling: r,
+            visibility: None,
+        };
+        let mut row = MotionRow {
+            name: name.into(),
+            relmse: 0.0,
+            flip: 0.0,
+            frame_ms: 0.0,
+            shadow_rays_per_pixel: 0.0,
+            relmse_ratio: 1.0,
+            flip_ratio: 1.0,
+            cost_ratio: 1.0,
+            per_frame: Vec::new(),
+        };
+        sequence::run(&self.scene, &o, |f| {
+            let k = f.stats.frame;
+            if k < self.first {
+                return Ok(());
+            }
+            let rf = &self.refs[(k - self.first) as usize];
+            let e = relmse(&f.image, rf);
+            row.per_frame.push((k, e));
+            row.relmse += e;
+            row.flip +=
+                super::flip::hdr_flip(&rf.data, &f.image.data, self.size, self.size).1 as f64;
+            row.frame_ms += f.stats.build_ms + f.stats.shade_ms;
+            row.shadow_rays_per_pixel += f.stats.shadow_rays_per_pixel;
+            Ok(())
+        })?;
+        let m = (self.frames - self.first) as f64;
+        row.relmse /= m;
+        row.flip /= m;
+        row.frame_ms /= m;
+        row.shadow_rays_per_pixel /= m;
+        Ok(row)
+    }
 }
 
 /// The converged reference of frames `first..frames`.

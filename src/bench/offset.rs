@@ -15,12 +15,7 @@ pub(super) fn offset(a: BenchArgs, dir: PathBuf) -> Result<()> {
         ("diffuse", Material::diffuse(0.8)),
         ("ggx 0.2", Material::ggx(0.8, 0.2)),
     ] {
-        let gbuf = render::sphere_gbuffer(size, size, mat);
-        let (_, reference) =
-            crate::render::reference::reference_image(&env.cube, &gbuf, size, size, 1.0);
-        let lum = crate::envmap::luminance_f64;
-        let idx: Vec<usize> = (0..gbuf.len()).filter(|&i| gbuf[i].is_some()).collect();
-        let ref_mean = idx.iter().map(|&i| lum(reference[i])).sum::<f64>() / idx.len() as f64;
+        let sphere = Sphere::new(&env.cube, size, mat);
         for pool_mult in [1usize, 4] {
             for pool_layout in crate::render::PoolLayout::ALL {
                 let s = Settings {
@@ -30,29 +25,7 @@ pub(super) fn offset(a: BenchArgs, dir: PathBuf) -> Result<()> {
                     pool_layout,
                     ..Default::default()
                 };
-                let (mut relmse, mut means) = (0.0, Vec::new());
-                for seed in 0..k {
-                    let out = render::render(
-                        &env.cube,
-                        &gbuf,
-                        size,
-                        size,
-                        &Settings {
-                            seed: seed as u32,
-                            ..s
-                        },
-                    )?;
-                    let mut m = 0.0;
-                    for &i in &idx {
-                        let (x, r) = (lum(out.image.data[i].as_dvec3()), lum(reference[i]));
-                        relmse += (x - r) * (x - r) / (r * r + 1e-2);
-                        m += x;
-                    }
-                    means.push(m / idx.len() as f64);
-                }
-                relmse /= (k * idx.len()) as f64;
-                let (_, se) = crate::stats::mean_se(&means);
-                let mean_sd = se * (k as f64).sqrt() / ref_mean;
+                let (relmse, mean_sd) = sphere.spread(&env.cube, size, k, s)?;
                 eprintln!(
                     "  {mname:8} pool {:>3}/face {:6}: per-pixel relMSE {relmse:.4e}  image-mean rel. SD {mean_sd:.4e}",
                     s.pool_size, pool_layout
@@ -66,4 +39,60 @@ pub(super) fn offset(a: BenchArgs, dir: PathBuf) -> Result<()> {
     crate::render::output::write_json(&path, &report)?;
     eprintln!("wrote {}", path.display());
     Ok(())
+}
+
+/// The sphere of one material, with its reference and the reference's mean luminance.
+struct Sphere {
+    gbuf: Vec<Option<render::GPixel>>,
+    reference: Vec<glam::DVec3>,
+    /// The pixels the sphere covers.
+    idx: Vec<usize>,
+    ref_mean: f64,
+}
+
+impl Sphere {
+    /// The `size` x `size` sphere of material `mat` and its reference in `cube`.
+    fn new(cube: &CubeMap, size: usize, mat: Material) -> Self {
+        let gbuf = render::sphere_gbuffer(size, size, mat);
+        let (_, reference) =
+            crate::render::reference::reference_image(cube, &gbuf, size, size, 1.0);
+        let lum = crate::envmap::luminance_f64;
+        let idx: Vec<usize> = (0..gbuf.len()).filter(|&i| gbuf[i].is_some()).collect();
+        let ref_mean = idx.iter().map(|&i| lum(reference[i])).sum::<f64>() / idx.len() as f64;
+        Sphere {
+            gbuf,
+            reference,
+            idx,
+            ref_mean,
+        }
+    }
+
+    /// Renders settings `s` with seeds `0..k`: the per-pixel relMSE, and the relative SD across
+    /// seeds of the image mean.
+    fn spread(&self, cube: &CubeMap, size: usize, k: usize, s: Settings) -> Result<(f64, f64)> {
+        let lum = crate::envmap::luminance_f64;
+        let (mut relmse, mut means) = (0.0, Vec::new());
+        for seed in 0..k {
+            let out = render::render(
+                cube,
+                &self.gbuf,
+                size,
+                size,
+                &Settings {
+                    seed: seed as u32,
+                    ..s
+                },
+            )?;
+            let mut m = 0.0;
+            for &i in &self.idx {
+                let (x, r) = (lum(out.image.data[i].as_dvec3()), lum(self.reference[i]));
+                relmse += (x - r) * (x - r) / (r * r + 1e-2);
+                m += x;
+            }
+            means.push(m / self.idx.len() as f64);
+        }
+        relmse /= (k * self.idx.len()) as f64;
+        let (_, se) = crate::stats::mean_se(&means);
+        Ok((relmse, se * (k as f64).sqrt() / self.ref_mean))
+    }
 }

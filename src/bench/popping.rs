@@ -13,34 +13,11 @@ use std::path::Path;
 pub(super) fn popping(a: BenchArgs, dir: PathBuf) -> Result<()> {
     let frames = if a.quick { 8 } else { 48 };
     let (size, face) = (a.size.min(64), a.face_size.min(32));
-    let mat = Material::diffuse(0.8);
-    let gbuf = render::sphere_gbuffer(size, size, mat);
-    let idx: Vec<usize> = (0..gbuf.len()).filter(|&i| gbuf[i].is_some()).collect();
-    let lum = |c: glam::Vec3| crate::envmap::luminance(c) as f64;
-    let hours = |t: usize| 9.0 + 2.0 * t as f32 / (frames - 1) as f32;
-    let maps: Vec<crate::envmap::CubeMap> = (0..frames)
-        .map(|t| crate::envmap::sky::sky_cube(face, hours(t)))
-        .collect();
-    let refs = reference_luminances(&maps, &gbuf, size);
-    let ref_change: f64 = (1..frames)
-        .map(|t| {
-            idx.iter()
-                .map(|&i| (refs[t][i] - refs[t - 1][i]).abs())
-                .sum::<f64>()
-        })
-        .sum::<f64>();
-    let np = idx.len().max(1) as f64;
-    let per_frame = |f: &dyn Fn(usize) -> f64| -> Vec<(f64, f64)> {
-        (1..frames).map(|t| (t as f64, f(t) / np)).collect()
-    };
+    let anim = Animation::new(frames, size, face);
     let mut series = vec![accuracy::Series {
         name: "reference".into(),
         color: "#000000",
-        points: per_frame(&|t| {
-            idx.iter()
-                .map(|&i| (refs[t][i] - refs[t - 1][i]).abs())
-                .sum()
-        }),
+        points: anim.per_frame(&|t| anim.reference_change(t)),
         dashed: true,
     }];
     let mut rows = Vec::new();
@@ -48,36 +25,9 @@ pub(super) fn popping(a: BenchArgs, dir: PathBuf) -> Result<()> {
         ("fractional", crate::sampling::Counts::Fractional, "#d62728"),
         ("integer", crate::sampling::Counts::Integer, "#ff7f0e"),
     ] {
-        let s = Settings {
-            light_samples: a.light_samples,
-            brdf_samples: a.brdf_samples,
-            counts,
-            seed: 1,
-            ..Default::default()
-        };
-        let imgs: Vec<crate::envmap::Image> = maps
-            .iter()
-            .map(|m| render::render(m, &gbuf, size, size, &s).map(|o| o.image))
-            .collect::<Result<_>>()?;
-        let (change, jumps, pairs) = frame_changes(&imgs, &refs, &idx);
-        series.push(accuracy::Series {
-            name: format!("{name} counts"),
-            color,
-            points: per_frame(&|t| {
-                idx.iter()
-                    .map(|&i| (lum(imgs[t].data[i]) - lum(imgs[t - 1].data[i])).abs())
-                    .sum()
-            }),
-            dashed: false,
-        });
-        let ratio = change / ref_change.max(1e-12);
-        let jump_frac = jumps as f64 / pairs.max(1) as f64;
-        eprintln!(
-            "  {name:10}: mean |frame change| = {ratio:.2} x the reference's; discontinuities {:.3}% of pixel-frames",
-            100.0 * jump_frac
-        );
-        let picks = write_strip(&dir, name, &imgs, size)?;
-        rows.push(serde_json::json!({ "counts": name, "change_over_reference": ratio, "discontinuity_fraction": jump_frac, "strip_frames": picks }));
+        let (s, row) = anim.mode(&a, &dir, name, counts, color)?;
+        series.push(s);
+        rows.push(row);
     }
     let report = serde_json::json!({ "suite": "popping", "frames": frames, "hours": [9.0, 11.0], "size": size, "face_size": face, "light_samples": a.light_samples, "brdf_samples": a.brdf_samples, "seed": "1 for every frame", "rows": rows });
     let path = dir.join("popping.json");
@@ -96,6 +46,105 @@ pub(super) fn popping(a: BenchArgs, dir: PathBuf) -> Result<()> {
         path.display()
     );
     Ok(())
+}
+
+/// What every counts mode is compared against: the sky of each frame, the sphere's G-buffer and
+/// covered pixels, and the reference's luminances and total change.
+struct Animation {
+    size: usize,
+    maps: Vec<crate::envmap::CubeMap>,
+    gbuf: Vec<Option<render::GPixel>>,
+    idx: Vec<usize>,
+    refs: Vec<Vec<f64>>,
+    /// The reference's summed |luminance change| over all frames and covered pixels.
+    ref_change: f64,
+}
+
+impl Animation {
+    /// The sun from 9h to 11h over `frames` skies (faces of `face`) on a diffuse `size x size`
+    /// sphere.
+    fn new(frames: usize, size: usize, face: usize) -> Self {
+        let mat = Material::diffuse(0.8);
+        let gbuf = render::sphere_gbuffer(size, size, mat);
+        let idx: Vec<usize> = (0..gbuf.len()).filter(|&i| gbuf[i].is_some()).collect();
+        let hours = |t: usize| 9.0 + 2.0 * t as f32 / (frames - 1) as f32;
+        let maps: Vec<crate::envmap::CubeMap> = (0..frames)
+            .map(|t| crate::envmap::sky::sky_cube(face, hours(t)))
+            .collect();
+        let refs = reference_luminances(&maps, &gbuf, size);
+        let mut anim = Self {
+            size,
+            maps,
+            gbuf,
+            idx,
+            refs,
+            ref_change: 0.0,
+        };
+        anim.ref_change = (1..frames).map(|t| anim.reference_change(t)).sum::<f64>();
+        anim
+    }
+
+    /// The reference's summed |luminance change| over the covered pixels from frame `t - 1` to `t`.
+    fn reference_change(&self, t: usize) -> f64 {
+        self.idx
+            .iter()
+            .map(|&i| (self.refs[t][i] - self.refs[t - 1][i]).abs())
+            .sum::<f64>()
+    }
+
+    /// `(t, f(t) per covered pixel)` for every frame `t` after the first: a chart series' points.
+    fn per_frame(&self, f: &dyn Fn(usize) -> f64) -> Vec<(f64, f64)> {
+        let np = self.idx.len().max(1) as f64;
+        (1..self.maps.len())
+            .map(|t| (t as f64, f(t) / np))
+            .collect()
+    }
+
+    /// Every frame rendered with `counts` (same seed throughout): its chart series and JSON row,
+    /// printing its summary and writing its strip.
+    fn mode(
+        &self,
+        a: &BenchArgs,
+        dir: &Path,
+        name: &str,
+        counts: crate::sampling::Counts,
+        color: &'static str,
+    ) -> Result<(accuracy::Series, serde_json::Value)> {
+        let (size, idx) = (self.size, &self.idx);
+        let lum = |c: glam::Vec3| crate::envmap::luminance(c) as f64;
+        let s = Settings {
+            light_samples: a.light_samples,
+            brdf_samples: a.brdf_samples,
+            counts,
+            seed: 1,
+            ..Default::default()
+        };
+        let imgs: Vec<crate::envmap::Image> = self
+            .maps
+            .iter()
+            .map(|m| render::render(m, &self.gbuf, size, size, &s).map(|o| o.image))
+            .collect::<Result<_>>()?;
+        let (change, jumps, pairs) = frame_changes(&imgs, &self.refs, idx);
+        let series = accuracy::Series {
+            name: format!("{name} counts"),
+            color,
+            points: self.per_frame(&|t| {
+                idx.iter()
+                    .map(|&i| (lum(imgs[t].data[i]) - lum(imgs[t - 1].data[i])).abs())
+                    .sum()
+            }),
+            dashed: false,
+        };
+        let ratio = change / self.ref_change.max(1e-12);
+        let jump_frac = jumps as f64 / pairs.max(1) as f64;
+        eprintln!(
+            "  {name:10}: mean |frame change| = {ratio:.2} x the reference's; discontinuities {:.3}% of pixel-frames",
+            100.0 * jump_frac
+        );
+        let picks = write_strip(dir, name, &imgs, size)?;
+        let row = serde_json::json!({ "counts": name, "change_over_reference": ratio, "discontinuity_fraction": jump_frac, "strip_frames": picks });
+        Ok((series, row))
+    }
 }
 
 /// Per frame, the reference's luminance of every pixel of `gbuf` (`size x size`).

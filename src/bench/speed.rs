@@ -57,33 +57,14 @@ fn shading_rows(
             strategy,
             ..Default::default()
         };
-        let mut sps = Vec::new();
-        let mut build = Vec::new();
-        let mut shade = Vec::new();
-        let mut samples = 0;
-        for r in 0..repeat {
-            let out = render::render(
-                map,
-                gbuf,
-                a.size,
-                a.size,
-                &Settings {
-                    seed: r as u32,
-                    ..s
-                },
-            )?;
-            sps.push(out.stats.samples_per_second);
-            build.push(out.stats.build_ms);
-            shade.push(out.stats.shade_ms);
-            samples = out.stats.samples_evaluated;
-        }
-        let m = median(sps);
+        let runs = ShadingRuns::measure(a, map, gbuf, repeat, s)?;
+        let m = median(runs.sps);
         if strategy == Strategy::Brdf {
             base_sps = m;
         }
         let row = serde_json::json!({
             "strategy": strategy.to_string(), "samples_per_second": m, "ratio_to_brdf": m / base_sps,
-            "build_ms": median(build), "shade_ms": median(shade), "samples_evaluated": samples,
+            "build_ms": median(runs.build), "shade_ms": median(runs.shade), "samples_evaluated": runs.samples,
         });
         eprintln!(
             "  shade {:>6}: {:>12.0} samples/s  ({:.2}x brdf)  build {:.2} ms  shade {:.1} ms",
@@ -97,6 +78,50 @@ fn shading_rows(
     }
 
     Ok(shading)
+}
+
+/// One strategy's figures from each of `repeat` seeds shading the sphere.
+struct ShadingRuns {
+    sps: Vec<f64>,
+    build: Vec<f64>,
+    shade: Vec<f64>,
+    /// Samples evaluated by the last run.
+    samples: u64,
+}
+
+impl ShadingRuns {
+    /// Renders the sphere `gbuf` in `map` with settings `s` and seeds `0..repeat`.
+    fn measure(
+        a: &BenchArgs,
+        map: &CubeMap,
+        gbuf: &[Option<render::GPixel>],
+        repeat: usize,
+        s: Settings,
+    ) -> Result<Self> {
+        let mut runs = ShadingRuns {
+            sps: Vec::new(),
+            build: Vec::new(),
+            shade: Vec::new(),
+            samples: 0,
+        };
+        for r in 0..repeat {
+            let out = render::render(
+                map,
+                gbuf,
+                a.size,
+                a.size,
+                &Settings {
+                    seed: r as u32,
+                    ..s
+                },
+            )?;
+            runs.sps.push(out.stats.samples_per_second);
+            runs.build.push(out.stats.build_ms);
+            runs.shade.push(out.stats.shade_ms);
+            runs.samples = out.stats.samples_evaluated;
+        }
+        Ok(runs)
+    }
 }
 
 /// Per face size from 16² to `--max-face`: the CDF build fresh and per frame, the pool, and one

@@ -51,49 +51,9 @@ pub fn report(md: &mut String, cfg: &Config, pts: &[Point]) {
         md,
         "## Sub-face tiles (`--tiles K`) against whole faces\n\nEach K on the default pool layout (16 blocks). Per material and budget N: relMSE (time in ms), geometric mean over environments, and for K > 1 the ratio of its relMSE to K = 1's at the same time (K = 1's error-vs-time curve interpolated log-log at K's time; below 1: K is better per unit time).\n"
     );
-    let time = |p: &Point| p.build_ms + p.shade_ms;
     let mut verdict = vec![(0usize, 0usize, 1.0f64); ks.len()];
     for (mname, _) in &cfg.materials {
-        let pool = pooled(pts, mname);
-        let get = |k: usize, n: usize| {
-            pool.iter()
-                .find(|p| p.strategy == strategy(k) && p.budget == n)
-        };
-        let base: Vec<(f64, f64)> = cfg
-            .budgets
-            .iter()
-            .filter_map(|&n| get(1, n).map(|p| (time(p), p.relmse)))
-            .collect();
-        let _ = writeln!(
-            md,
-            "**{mname}**\n\n| N | {} |\n|---:|{}",
-            ks.iter()
-                .map(|k| format!("K = {k}"))
-                .collect::<Vec<_>>()
-                .join(" | "),
-            "---:|".repeat(ks.len())
-        );
-        for &n in &cfg.budgets {
-            let _ = write!(md, "| {n} |");
-            for (i, &k) in ks.iter().enumerate() {
-                let Some(p) = get(k, n) else {
-                    md.push_str(" — |");
-                    continue;
-                };
-                let _ = write!(md, " {:.3e} ({:.2})", p.relmse, time(p));
-                if k > 1 {
-                    let r = p.relmse / error_at_time(&base, time(p));
-                    let _ = write!(md, " ×{r:.2}");
-                    let v = &mut verdict[i];
-                    v.0 += (r <= 1.0) as usize;
-                    v.1 += 1;
-                    v.2 = v.2.max(r);
-                }
-                md.push_str(" |");
-            }
-            md.push('\n');
-        }
-        md.push('\n');
+        material_table(md, cfg, &pooled(pts, mname), mname, &ks, &mut verdict);
     }
     for (i, &k) in ks.iter().enumerate().skip(1) {
         let (met, cases, worst) = verdict[i];
@@ -102,7 +62,72 @@ pub fn report(md: &mut String, cfg: &Config, pts: &[Point]) {
             "K = {k}: on or below K = 1's error-vs-time curve in **{met} of {cases}** (material, N) cases; worst ratio ×{worst:.2}."
         );
     }
-    // Wasted light samples over the real maps (the files; the built-in skies excluded).
+    wasted_line(md, cfg, pts, &ks);
+}
+
+/// Per K: the (material, N) cases on or below K = 1's error-vs-time curve, the cases compared,
+/// and the worst ratio.
+type Verdict = (usize, usize, f64);
+
+/// A point's time, ms: the build and the shading.
+fn time(p: &Point) -> f64 {
+    p.build_ms + p.shade_ms
+}
+
+/// One material's table (`pool`: its points pooled over environments): a row per budget, a
+/// column per K; each K > 1 is compared with K = 1 at equal time and tallied into `verdict`.
+fn material_table(
+    md: &mut String,
+    cfg: &Config,
+    pool: &[Point],
+    mname: &str,
+    ks: &[usize],
+    verdict: &mut [Verdict],
+) {
+    let get = |k: usize, n: usize| {
+        pool.iter()
+            .find(|p| p.strategy == strategy(k) && p.budget == n)
+    };
+    let base: Vec<(f64, f64)> = cfg
+        .budgets
+        .iter()
+        .filter_map(|&n| get(1, n).map(|p| (time(p), p.relmse)))
+        .collect();
+    let _ = writeln!(
+        md,
+        "**{mname}**\n\n| N | {} |\n|---:|{}",
+        ks.iter()
+            .map(|k| format!("K = {k}"))
+            .collect::<Vec<_>>()
+            .join(" | "),
+        "---:|".repeat(ks.len())
+    );
+    for &n in &cfg.budgets {
+        let _ = write!(md, "| {n} |");
+        for (i, &k) in ks.iter().enumerate() {
+            let Some(p) = get(k, n) else {
+                md.push_str(" — |");
+                continue;
+            };
+            let _ = write!(md, " {:.3e} ({:.2})", p.relmse, time(p));
+            if k > 1 {
+                let r = p.relmse / error_at_time(&base, time(p));
+                let _ = write!(md, " ×{r:.2}");
+                let v = &mut verdict[i];
+                v.0 += (r <= 1.0) as usize;
+                v.1 += 1;
+                v.2 = v.2.max(r);
+            }
+            md.push_str(" |");
+        }
+        md.push('\n');
+    }
+    md.push('\n');
+}
+
+/// The mean wasted light-sample fraction per K, over the real maps (the files; the built-in
+/// skies excluded).
+fn wasted_line(md: &mut String, cfg: &Config, pts: &[Point], ks: &[usize]) {
     let files: Vec<&String> = cfg
         .envs
         .iter()

@@ -214,28 +214,10 @@ pub(super) fn bunny_grid_scene(dir: &Path) -> Result<PathBuf> {
 
 /// Time each level of the bunny grid's shadow geometry (`repeat` times, medians).
 fn instanced_row(sc: &Scene, repeat: usize) -> Result<InstancedRow> {
-    use crate::visibility::{FlatBvh, FlatInstance, Layers, ObjectFromWorld, Tlas, world_bounds};
-    let bunnies: Vec<&crate::scene::MeshInstance> = sc
-        .objects
-        .iter()
-        .filter_map(|o| match &o.shape {
-            Shape::Mesh(m) => Some(m),
-            _ => None,
-        })
-        .collect();
+    use crate::visibility::Tlas;
+    let bunnies = mesh_instances(sc);
     let mesh = &bunnies[0].mesh;
-    let time = |f: &mut dyn FnMut()| {
-        median(
-            (0..repeat)
-                .map(|_| {
-                    let t0 = Instant::now();
-                    f();
-                    t0.elapsed().as_secs_f64() * 1e3
-                })
-                .collect(),
-        )
-    };
-    let mesh_bvh_ms = time(&mut || {
+    let mesh_bvh_ms = median_ms(repeat, &mut || {
         let _ = MeshBvh::build(&mesh.positions, &mesh.indices);
     });
     let blas = mesh
@@ -244,48 +226,16 @@ fn instanced_row(sc: &Scene, repeat: usize) -> Result<InstancedRow> {
         .map_err(crate::error::Error::invalid)?;
     let local = blas.bounds.unwrap_or_default();
     // The placements, and the same placements each moved a little (what a frame's refit sees).
-    let place = |shift: f32| -> (Vec<FlatInstance>, Vec<crate::visibility::Bounds>) {
-        bunnies
-            .iter()
-            .map(|b| {
-                let world =
-                    glam::Affine3A::from_translation(glam::Vec3::X * shift) * b.world_from_object;
-                let to_object = ObjectFromWorld::new(world).unwrap_or(b.to_object);
-                (
-                    FlatInstance {
-                        blas: 0,
-                        to_object,
-                        layers: Layers::ALL,
-                    },
-                    world_bounds(local, &world),
-                )
-            })
-            .unzip()
-    };
-    let (placed, bounds) = place(0.0);
-    let (moved, moved_bounds) = place(0.05);
-    let tlas_build_ms = time(&mut || {
+    let (placed, bounds) = placements(&bunnies, local, 0.0);
+    let (moved, moved_bounds) = placements(&bunnies, local, 0.05);
+    let tlas_build_ms = median_ms(repeat, &mut || {
         let _ = Tlas::build(&bounds);
     });
     let mut tlas = Tlas::build(&bounds);
-    let tlas_refit_ms = time(&mut || {
+    let tlas_refit_ms = median_ms(repeat, &mut || {
         tlas.refit(&moved_bounds);
     });
-    let blases = [blas];
-    let mut flat = FlatBvh::default();
-    let mut err = None;
-    let flat_build_ms = time(&mut || match FlatBvh::build(&blases, &placed, &tlas) {
-        Ok(f) => flat = f,
-        Err(e) => err = Some(e),
-    });
-    let flat_place_ms = time(&mut || {
-        if let Err(e) = flat.place(&moved, &tlas) {
-            err = Some(e);
-        }
-    });
-    if let Some(e) = err {
-        return Err(crate::error::Error::invalid(e));
-    }
+    let (flat_build_ms, flat_place_ms) = flat_layout_ms(blas, &placed, &moved, &tlas, repeat)?;
     let row = InstancedRow {
         instances: bunnies.len(),
         triangles_placed: bunnies.len() * mesh.indices.len(),
@@ -300,6 +250,90 @@ fn instanced_row(sc: &Scene, repeat: usize) -> Result<InstancedRow> {
         row.instances, mesh_bvh_ms, tlas_build_ms, tlas_refit_ms, flat_build_ms, flat_place_ms
     );
     Ok(row)
+}
+
+/// Median wall time of `repeat` calls of `f`, ms.
+fn median_ms(repeat: usize, f: &mut dyn FnMut()) -> f64 {
+    median(
+        (0..repeat)
+            .map(|_| {
+                let t0 = Instant::now();
+                f();
+                t0.elapsed().as_secs_f64() * 1e3
+            })
+            .collect(),
+    )
+}
+
+/// The scene's mesh objects, in scene order.
+fn mesh_instances(sc: &Scene) -> Vec<&crate::scene::MeshInstance> {
+    sc.objects
+        .iter()
+        .filter_map(|o| match &o.shape {
+            Shape::Mesh(m) => Some(m),
+            _ => None,
+        })
+        .collect()
+}
+
+/// Each mesh placed (as instance 0 of one BLAS with object bounds `local`), shifted `shift`
+/// along x, with its world bounds.
+fn placements(
+    bunnies: &[&crate::scene::MeshInstance],
+    local: crate::visibility::Bounds,
+    shift: f32,
+) -> (
+    Vec<crate::visibility::FlatInstance>,
+    Vec<crate::visibility::Bounds>,
+) {
+    use crate::visibility::{FlatInstance, Layers, ObjectFromWorld, world_bounds};
+    bunnies
+        .iter()
+        .map(|b| {
+            let world =
+                glam::Affine3A::from_translation(glam::Vec3::X * shift) * b.world_from_object;
+            let to_object = ObjectFromWorld::new(world).unwrap_or(b.to_object);
+            (
+                FlatInstance {
+                    blas: 0,
+                    to_object,
+                    layers: Layers::ALL,
+                },
+                world_bounds(local, &world),
+            )
+        })
+        .unzip()
+}
+
+/// The GPU layout over `placed`: median ms to build both levels, then to rewrite only the top
+/// part for `moved`. An error from either is reported after both are timed.
+fn flat_layout_ms(
+    blas: crate::visibility::FlatBlas,
+    placed: &[crate::visibility::FlatInstance],
+    moved: &[crate::visibility::FlatInstance],
+    tlas: &crate::visibility::Tlas,
+    repeat: usize,
+) -> Result<(f64, f64)> {
+    use crate::visibility::FlatBvh;
+    let blases = [blas];
+    let mut flat = FlatBvh::default();
+    let mut err = None;
+    let flat_build_ms = median_ms(
+        repeat,
+        &mut || match FlatBvh::build(&blases, placed, tlas) {
+            Ok(f) => flat = f,
+            Err(e) => err = Some(e),
+        },
+    );
+    let flat_place_ms = median_ms(repeat, &mut || {
+        if let Err(e) = flat.place(moved, tlas) {
+            err = Some(e);
+        }
+    });
+    if let Some(e) = err {
+        return Err(crate::error::Error::invalid(e));
+    }
+    Ok((flat_build_ms, flat_place_ms))
 }
 
 /// A sphere of `2 nu nv` triangles skinned to two joints (weights by height, the upper joint

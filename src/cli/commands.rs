@@ -11,7 +11,41 @@ use envis::sampling::SubTexels;
 /// `envis render`.
 pub fn render(r: RenderArgs) -> Result<()> {
     check_exr_path(&r.out)?;
-    let settings = Settings {
+    let settings = render_settings(&r);
+    settings.validate()?;
+    let su = setup(&r.scene)?;
+    let (env, gbuf) = (&su.env, &su.gbuf);
+    // A scene file supplies the sampling settings too.
+    let settings = su.scene.as_ref().map_or(settings, |sc| sc.settings);
+    let size = r.scene.size;
+    let (shadows, why) = su.shadows(r.scene.visibility);
+    let (mut out, mut extra) = match r.backend {
+        BackendArg::Cpu => (
+            render_cpu(&su, shadows, size, &settings)?,
+            serde_json::json!({ "backend": "cpu" }),
+        ),
+        BackendArg::Wgpu => {
+            // The GPU traces triangles: the scene's meshes, and a tessellated sphere and a
+            // square for each analytic one (`Scene::shadow_bvh`).
+            let bvh = match shadows {
+                true => Some(su.shadow_bvh().map_err(Error::invalid)?),
+                false => None,
+            };
+            let shadows = bvh.as_ref().map(|b| (b, su.points.as_slice()));
+            render_wgpu(&env.cube, env.fine.as_ref(), gbuf, size, &settings, shadows)?
+        }
+        BackendArg::Gpu => render_bevy(&r.scene, &settings, su.scene.as_ref(), shadows)?,
+    };
+    out.stats.visibility = why;
+    extra["radiance"] = radiance_note(env, Some(r.backend)).into();
+    // What the loader clamped, plus anything the GPU's own sanitise pass found.
+    out.stats.clamped_texels.add(env.report);
+    write_render(&r, &out, &extra)
+}
+
+/// `envis render`'s sampling settings from its flags (a scene file's replace them).
+fn render_settings(r: &RenderArgs) -> Settings {
+    Settings {
         light_samples: r.light_samples,
         brdf_samples: r.brdf_samples,
         pool_size: r.pool,
@@ -31,44 +65,29 @@ pub fn render(r: RenderArgs) -> Result<()> {
         face_size: r.scene.face_size,
         shadows: r.scene.visibility.unwrap_or_default(),
         ..Default::default()
-    };
-    settings.validate()?;
-    let su = setup(&r.scene)?;
-    let (env, gbuf) = (&su.env, &su.gbuf);
-    // A scene file supplies the sampling settings too.
-    let settings = su.scene.as_ref().map_or(settings, |sc| sc.settings);
-    let size = r.scene.size;
-    let (shadows, why) = su.shadows(r.scene.visibility);
+    }
+}
+
+/// `--backend cpu`: radiance (and sub-texel placement) from the map at its own resolution.
+fn render_cpu(
+    su: &super::scene::Setup,
+    shadows: bool,
+    size: usize,
+    settings: &Settings,
+) -> Result<render::Rendered> {
+    let env = &su.env;
     let occluders = su.occluders();
-    let (mut out, mut extra) = match r.backend {
-        BackendArg::Cpu => {
-            let lookup = |d: glam::Vec3| env.radiance_map().lookup(d);
-            let extras = render::Extras {
-                shadows: shadows.then_some((&occluders as _, su.points.as_slice())),
-                fine: env.fine.is_some().then_some(&lookup as _),
-                sub_texels: env.fine.as_ref(),
-            };
-            (
-                render::render_with(&env.cube, extras, gbuf, size, size, &settings)?,
-                serde_json::json!({ "backend": "cpu" }),
-            )
-        }
-        BackendArg::Wgpu => {
-            // The GPU traces triangles: the scene's meshes, and a tessellated sphere and a
-            // square for each analytic one (`Scene::shadow_bvh`).
-            let bvh = match shadows {
-                true => Some(su.shadow_bvh().map_err(Error::invalid)?),
-                false => None,
-            };
-            let shadows = bvh.as_ref().map(|b| (b, su.points.as_slice()));
-            render_wgpu(&env.cube, env.fine.as_ref(), gbuf, size, &settings, shadows)?
-        }
-        BackendArg::Gpu => render_bevy(&r.scene, &settings, su.scene.as_ref(), shadows)?,
+    let lookup = |d: glam::Vec3| env.radiance_map().lookup(d);
+    let extras = render::Extras {
+        shadows: shadows.then_some((&occluders as _, su.points.as_slice())),
+        fine: env.fine.is_some().then_some(&lookup as _),
+        sub_texels: env.fine.as_ref(),
     };
-    out.stats.visibility = why;
-    extra["radiance"] = radiance_note(env, Some(r.backend)).into();
-    // What the loader clamped, plus anything the GPU's own sanitise pass found.
-    out.stats.clamped_texels.add(env.report);
+    render::render_with(&env.cube, extras, &su.gbuf, size, size, settings)
+}
+
+/// The render's EXR, and the PNG and stats JSON (with the backend's `extra` fields) if asked.
+fn write_render(r: &RenderArgs, out: &render::Rendered, extra: &serde_json::Value) -> Result<()> {
     output::write_exr(&r.out, &out.image)?;
     if let Some(p) = &r.png {
         output::write_png(p, &out.image, 1.0)?;
@@ -192,23 +211,7 @@ fn render_bevy(
         ShadowRays::Off
     };
     if let Some(sc) = scene {
-        let t0 = std::time::Instant::now();
-        let mut app = HeadlessSphere::from_scene(sc, settings, a.size as u32)?;
-        let data = app.capture()?;
-        let mut stats = render::RenderStats::for_settings(a.size, a.size, s, s.pool_per_face());
-        stats.shade_ms = t0.elapsed().as_secs_f64() * 1e3;
-        let extra = serde_json::json!({ "backend": "gpu", "pipeline": "bevy (offscreen)", "scene": sc.path });
-        return Ok((
-            render::Rendered {
-                image: envis::envmap::Image {
-                    width: a.size,
-                    height: a.size,
-                    data,
-                },
-                stats,
-            },
-            extra,
-        ));
+        return render_bevy_scene(sc, settings, a.size, s);
     }
     let mat = super::scene::material(a)?;
     let em = EnvisBrdf::from_material(&mat);
@@ -240,6 +243,30 @@ fn render_bevy(
     let image = envis::envmap::Image {
         width: a.size,
         height: a.size,
+        data,
+    };
+    Ok((render::Rendered { image, stats }, extra))
+}
+
+/// `--backend gpu` with `--scene`: the scene's objects and camera in the headless app.
+#[cfg(feature = "app")]
+fn render_bevy_scene(
+    sc: &envis::scene::Scene,
+    settings: Settings,
+    size: usize,
+    s: &Settings,
+) -> Result<(render::Rendered, serde_json::Value)> {
+    use envis::app::headless::HeadlessSphere;
+    let t0 = std::time::Instant::now();
+    let mut app = HeadlessSphere::from_scene(sc, settings, size as u32)?;
+    let data = app.capture()?;
+    let mut stats = render::RenderStats::for_settings(size, size, s, s.pool_per_face());
+    stats.shade_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let extra =
+        serde_json::json!({ "backend": "gpu", "pipeline": "bevy (offscreen)", "scene": sc.path });
+    let image = envis::envmap::Image {
+        width: size,
+        height: size,
         data,
     };
     Ok((render::Rendered { image, stats }, extra))

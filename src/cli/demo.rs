@@ -7,53 +7,21 @@ use envis::error::{Error, Result};
 use envis::render::Settings;
 
 #[cfg(feature = "demo")]
-pub fn run_demo(a: DemoArgs) -> Result<()> {
-    use envis::stream::StreamSource;
+pub fn run_demo(mut a: DemoArgs) -> Result<()> {
     let scene = a
         .scene
         .as_deref()
         .map(envis::scene::Scene::load)
         .transpose()?;
-    let source = if let Some(sc) = &scene {
-        match StreamSource::parse(&sc.environment)? {
-            StreamSource::Sky { hours, .. } => StreamSource::Sky {
-                hours,
-                speed: sc.file.environment.speed,
-            },
-            other => other,
-        }
-    } else if let Some(dir) = a.sequence {
-        StreamSource::Sequence { dir, fps: a.fps }
-    } else if !a.carousel.is_empty() {
-        StreamSource::Carousel {
-            paths: a.carousel,
-            period: 8.0,
-            fade: 2.0,
-            spin: 0.05,
-        }
-    } else {
-        StreamSource::parse(&a.env)?
-    };
+    let source = demo_source(&mut a, scene.as_ref())?;
     check_display()?;
     envis::gpu::context::check_adapter()?;
+    let face_size = scene
+        .as_ref()
+        .map_or(a.face_size, |s| s.file.environment.face_size);
     // Refuse a bad source before opening a window, with its error.
-    envis::stream::EnvStream::open(
-        source.clone(),
-        scene
-            .as_ref()
-            .map_or(a.face_size, |s| s.file.environment.face_size),
-    )?;
-    let (w, h) = a
-        .window
-        .split_once('x')
-        .and_then(|(w, h)| Some((w.parse::<u32>().ok()?, h.parse::<u32>().ok()?)))
-        .filter(|(w, h)| (64..=8192).contains(w) && (64..=8192).contains(h))
-        .ok_or_else(|| {
-            Error::invalid(format!(
-                "--window {}: expected WIDTHxHEIGHT, e.g. 1280x720",
-                a.window
-            ))
-        })?;
+    envis::stream::EnvStream::open(source.clone(), face_size)?;
+    let window = parse_window(&a.window)?;
     let sampling = scene.as_ref().map_or(
         Settings {
             light_samples: a.light_samples,
@@ -63,9 +31,6 @@ pub fn run_demo(a: DemoArgs) -> Result<()> {
         |s| s.settings,
     );
     sampling.validate()?;
-    let face_size = scene
-        .as_ref()
-        .map_or(a.face_size, |s| s.file.environment.face_size);
     if !(a.ui_scale.is_finite() && (0.25..=4.0).contains(&a.ui_scale)) {
         return Err(Error::invalid(format!(
             "--ui-scale {} out of range 0.25..=4",
@@ -79,7 +44,7 @@ pub fn run_demo(a: DemoArgs) -> Result<()> {
         source,
         face_size,
         script: a.script,
-        window: (w, h),
+        window,
         ui_scale: a.ui_scale,
         sampling,
         scene,
@@ -90,6 +55,50 @@ pub fn run_demo(a: DemoArgs) -> Result<()> {
             Err(Error::invalid(format!("the demo exited with code {c}")))
         }
     }
+}
+
+/// The environment the demo streams: the scene's (its sky moving at the scene's speed), else
+/// `--sequence`, `--carousel`, then `--env`, in that order.
+#[cfg(feature = "demo")]
+fn demo_source(
+    a: &mut DemoArgs,
+    scene: Option<&envis::scene::Scene>,
+) -> Result<envis::stream::StreamSource> {
+    use envis::stream::StreamSource;
+    Ok(if let Some(sc) = scene {
+        match StreamSource::parse(&sc.environment)? {
+            StreamSource::Sky { hours, .. } => StreamSource::Sky {
+                hours,
+                speed: sc.file.environment.speed,
+            },
+            other => other,
+        }
+    } else if let Some(dir) = a.sequence.take() {
+        StreamSource::Sequence { dir, fps: a.fps }
+    } else if !a.carousel.is_empty() {
+        StreamSource::Carousel {
+            paths: std::mem::take(&mut a.carousel),
+            period: 8.0,
+            fade: 2.0,
+            spin: 0.05,
+        }
+    } else {
+        StreamSource::parse(&a.env)?
+    })
+}
+
+/// `--window WIDTHxHEIGHT`, each side in 64..=8192.
+#[cfg(feature = "demo")]
+fn parse_window(window: &str) -> Result<(u32, u32)> {
+    window
+        .split_once('x')
+        .and_then(|(w, h)| Some((w.parse::<u32>().ok()?, h.parse::<u32>().ok()?)))
+        .filter(|(w, h)| (64..=8192).contains(w) && (64..=8192).contains(h))
+        .ok_or_else(|| {
+            Error::invalid(format!(
+                "--window {window}: expected WIDTHxHEIGHT, e.g. 1280x720"
+            ))
+        })
 }
 
 /// The demo opens an X11 window (this build's only windowing backend): without a display, say

@@ -8,23 +8,7 @@ use envis::scene::Scene;
 use envis::sequence::{self, SequenceOptions};
 
 pub fn sequence(a: SequenceArgs) -> Result<()> {
-    if !matches!(a.backend, BackendArg::Cpu) {
-        return Err(Error::invalid(
-            "--backend: sequences run on the cpu backend only so far (the WGSL and Bevy passes of resampling are not built yet)",
-        ));
-    }
-    if a.frames == 0 || a.frames > 100_000 {
-        return Err(Error::invalid(format!(
-            "--frames {} out of range 1..=100000",
-            a.frames
-        )));
-    }
-    if a.size == 0 || a.size > 16384 {
-        return Err(Error::invalid(format!(
-            "--size {} out of range 1..=16384",
-            a.size
-        )));
-    }
+    check_args(&a)?;
     let scene = Scene::load(&a.scene)?;
     let mut settings = scene.settings;
     settings.light_samples = a.light_samples.unwrap_or(settings.light_samples);
@@ -52,23 +36,56 @@ pub fn sequence(a: SequenceArgs) -> Result<()> {
         Ok(())
     })?;
     if let Some(p) = &a.stats {
-        let (shadows, why) = scene.shadows(vis);
-        output::write_json(
-            p,
-            &serde_json::json!({
-                "scene": a.scene.display().to_string(),
-                "size": a.size,
-                "backend": "cpu",
-                "resampling": a.resampling.to_string(),
-                "unbiased": !a.biased,
-                "reuse": o.resampling,
-                "settings": settings,
-                "shadows": shadows,
-                "visibility": why,
-                "fps": scene.file.animation.fps,
-                "frames": frames,
-            }),
-        )?;
+        write_stats(p, &a, &scene, &o, frames)?;
     }
     Ok(())
+}
+
+/// The flags `sequence` checks before loading anything.
+fn check_args(a: &SequenceArgs) -> Result<()> {
+    if !matches!(a.backend, BackendArg::Cpu) {
+        return Err(Error::invalid(
+            "--backend: sequences run on the cpu backend only so far (the WGSL and Bevy passes of resampling are not built yet)",
+        ));
+    }
+    if a.frames == 0 || a.frames > 100_000 {
+        return Err(Error::invalid(format!(
+            "--frames {} out of range 1..=100000",
+            a.frames
+        )));
+    }
+    if a.size == 0 || a.size > 16384 {
+        return Err(Error::invalid(format!(
+            "--size {} out of range 1..=16384",
+            a.size
+        )));
+    }
+    Ok(())
+}
+
+/// The stats JSON: the settings, then one object per frame.
+fn write_stats(
+    p: &std::path::Path,
+    a: &SequenceArgs,
+    scene: &Scene,
+    o: &SequenceOptions,
+    frames: Vec<envis::sequence::FrameStats>,
+) -> Result<()> {
+    let (shadows, why) = scene.shadows(o.visibility);
+    output::write_json(
+        p,
+        &serde_json::json!({
+            "scene": a.scene.display().to_string(),
+            "size": a.size,
+            "backend": "cpu",
+            "resampling": a.resampling.to_string(),
+            "unbiased": !a.biased,
+            "reuse": o.resampling,
+            "settings": o.settings,
+            "shadows": shadows,
+            "visibility": why,
+            "fps": scene.file.animation.fps,
+            "frames": frames,
+        }),
+    )
 }

@@ -73,6 +73,16 @@ pub fn buffer_layout(
     })
 }
 
+/// A uniform buffer sized for one `T`, which the host writes.
+pub(crate) fn uniform_buffer<T>(device: &wgpu::Device, label: &str) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: std::mem::size_of::<T>() as u64,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
 /// A bind group for `layout` binding each of `buffers` whole, binding `i` to `buffers[i]`.
 pub fn whole_buffers(
     device: &wgpu::Device,

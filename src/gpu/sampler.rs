@@ -174,51 +174,24 @@ impl EnvSampler {
         );
         let pool = storage(device, "envis pool", sizes.pool);
         let problems = storage(device, "envis sanitise counters", 16);
-        let params = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("envis build params"),
-            size: std::mem::size_of::<Params>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        queue.write_buffer(
-            &solid_angle,
-            0,
-            bytemuck::cast_slice(face_solid_angles(n).as_slice()),
-        );
-        // Bindings 0..=7 as in `shaders/distribution.wgsl`: storage (the solid angles read
-        // only), then the parameters.
-        let bufs = [
-            &texels,
-            &solid_angle,
-            &weights,
-            &cdfs,
-            &totals,
-            &pool,
-            &problems,
-            &params,
-        ];
-        let ro = wgpu::BufferBindingType::Storage { read_only: true };
-        let rw = wgpu::BufferBindingType::Storage { read_only: false };
-        let kinds = [rw, ro, rw, rw, rw, rw, rw, wgpu::BufferBindingType::Uniform];
-        let layout = super::buffer_layout(device, "envis build layout", &kinds);
-        let bind_group = super::whole_buffers(device, "envis build bind group", &layout, &bufs);
-        let pl = super::one_group_layout(device, "envis build", &layout);
-        let module = shaders::module(
+        let params = super::uniform_buffer::<Params>(device, "envis build params");
+        let angles = face_solid_angles(n);
+        queue.write_buffer(&solid_angle, 0, bytemuck::cast_slice(angles.as_slice()));
+        let (bind_group, pipelines) = build_pipelines(
             device,
-            "envis distribution.wgsl",
-            &shaders::distribution_source(),
+            [
+                &texels,
+                &solid_angle,
+                &weights,
+                &cdfs,
+                &totals,
+                &pool,
+                &problems,
+                &params,
+            ],
         );
-        let pipe = |entry: &str| super::compute_pipeline(device, &pl, &module, entry);
-        let pipelines = [
-            pipe("texel_weights"),
-            pipe("column_cdfs"),
-            pipe("marginal_cdfs"),
-            pipe("pdf_table"),
-            pipe("build_pool"),
-        ];
-        let timer = timestamps.then(|| super::shading::PassTimer::new(device, "envis build timer"));
-        let pool_timer =
-            timestamps.then(|| super::shading::PassTimer::new(device, "envis pool timer"));
+        let timer = |label| timestamps.then(|| super::shading::PassTimer::new(device, label));
+        let (timer, pool_timer) = (timer("envis build timer"), timer("envis pool timer"));
         let gdist = storage(device, "envis global placeholder", 16);
         Ok(EnvSampler {
             n,
@@ -387,4 +360,32 @@ impl EnvSampler {
 fn grid(pass: &mut wgpu::ComputePass, p: &wgpu::ComputePipeline, (x, y): (u32, u32)) {
     pass.set_pipeline(p);
     pass.dispatch_workgroups(x, y, 1);
+}
+
+/// The build's bind group and its five passes' pipelines, over `bufs` bound 0..=7 as in
+/// `shaders/distribution.wgsl`: storage (the solid angles, 1, read only), then the parameters.
+fn build_pipelines(
+    device: &wgpu::Device,
+    bufs: [&wgpu::Buffer; 8],
+) -> (wgpu::BindGroup, [wgpu::ComputePipeline; 5]) {
+    let ro = wgpu::BufferBindingType::Storage { read_only: true };
+    let rw = wgpu::BufferBindingType::Storage { read_only: false };
+    let kinds = [rw, ro, rw, rw, rw, rw, rw, wgpu::BufferBindingType::Uniform];
+    let layout = super::buffer_layout(device, "envis build layout", &kinds);
+    let bind_group = super::whole_buffers(device, "envis build bind group", &layout, &bufs);
+    let pl = super::one_group_layout(device, "envis build", &layout);
+    let module = shaders::module(
+        device,
+        "envis distribution.wgsl",
+        &shaders::distribution_source(),
+    );
+    let pipe = |entry: &str| super::compute_pipeline(device, &pl, &module, entry);
+    let pipelines = [
+        pipe("texel_weights"),
+        pipe("column_cdfs"),
+        pipe("marginal_cdfs"),
+        pipe("pdf_table"),
+        pipe("build_pool"),
+    ];
+    (bind_group, pipelines)
 }

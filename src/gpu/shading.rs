@@ -203,12 +203,7 @@ impl Shader {
         let pl = super::one_group_layout(device, "envis shade", &layout);
         let module = shaders::module(device, "envis shade.wgsl", &shaders::shade_source());
         let pipeline = super::compute_pipeline(device, &pl, &module, "shade_gbuffer");
-        let params = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("envis shade params"),
-            size: std::mem::size_of::<ShadeParams>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let params = super::uniform_buffer::<ShadeParams>(device, "envis shade params");
         // Bound in place of the shadow-ray BVH and points when there are none (a binding may not
         // be shorter than one element: 48 bytes for a triangle).
         let placeholder = device.create_buffer(&wgpu::BufferDescriptor {

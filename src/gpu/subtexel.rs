@@ -93,12 +93,7 @@ impl PoolRefine {
             count,
             _pad: 0,
         };
-        let params_uniform = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("envis sub-texel params"),
-            size: std::mem::size_of::<Params>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let params_uniform = super::uniform_buffer::<Params>(&ctx.device, "envis sub-texel params");
         ctx.queue
             .write_buffer(&params_uniform, 0, bytemuck::bytes_of(&p));
         let bufs = [

@@ -77,9 +77,6 @@ pub fn debug_pixel_at(
         .collect();
     let mut rng = Rng::new(s.seed, pixel_index);
     let window = super::estimator::pool_window(&mut rng, s, &fd.pool);
-    // The pixel's own part of the pool (one block with `PoolLayout::Blocks`): the slots it can
-    // take, as the paper's view shows them.
-    let mut samples = Vec::with_capacity(regions * window.len);
     let live = matches!(s.strategy, Strategy::Paper | Strategy::Light)
         && super::estimator::shading_directions(px).is_some();
     let k2 = fd.dist.grid.per_face();
@@ -88,6 +85,31 @@ pub fn debug_pixel_at(
     } else {
         vec![false; regions * window.len]
     };
+    let samples = pool_debug_samples(fd, &window, &taken, n, shadow);
+    let per_face = |f: usize| mu[f * k2..(f + 1) * k2].iter().sum::<f32>();
+    PixelDebug {
+        mu: std::array::from_fn(per_face),
+        n_f: std::array::from_fn(|f| per_face(f) * nl as f32),
+        tiles: fd.dist.grid.k,
+        face_size: fd.dist.size,
+        n_t: mu.iter().map(|m| m * nl as f32).collect(),
+        samples,
+        estimate,
+    }
+}
+
+/// The pixel's own part of the pool (one block with `PoolLayout::Blocks`): the slots it can
+/// take, as the paper's view shows them, each classified. `taken` as [`taken_positions`] gives
+/// it; with `shadow` (occluder, point) taken samples are shadow-tested.
+fn pool_debug_samples(
+    fd: &FrameData,
+    window: &super::estimator::PoolWindow,
+    taken: &[bool],
+    n: Vec3,
+    shadow: Option<(&dyn crate::visibility::Occluder, Vec3)>,
+) -> Vec<DebugSample> {
+    let (regions, k2) = (fd.tiles.len(), fd.dist.grid.per_face());
+    let mut samples = Vec::with_capacity(regions * window.len);
     for r in 0..regions {
         for j in window.base..window.base + window.len {
             let ls = fd.pool.get(r, j);
@@ -112,16 +134,7 @@ pub fn debug_pixel_at(
             });
         }
     }
-    let per_face = |f: usize| mu[f * k2..(f + 1) * k2].iter().sum::<f32>();
-    PixelDebug {
-        mu: std::array::from_fn(per_face),
-        n_f: std::array::from_fn(|f| per_face(f) * nl as f32),
-        tiles: fd.dist.grid.k,
-        face_size: fd.dist.size,
-        n_t: mu.iter().map(|m| m * nl as f32).collect(),
-        samples,
-        estimate,
-    }
+    samples
 }
 
 /// Which positions of each region's window (`region * len + position`) the estimator's light

@@ -21,21 +21,7 @@ fn specialised_paths_are_bit_identical() {
         Lobe::Phong { exponent: 3.0 },
     ];
     for lobe in lobes {
-        let mut gbuf = sphere_gbuffer(w, w, Material::diffuse(0.7));
-        for (i, px) in gbuf.iter_mut().flatten().enumerate() {
-            let c = Vec3::new(0.2 + 0.01 * (i % 50) as f32, 0.5, 0.9);
-            px.material = match lobe {
-                Lobe::None => Material {
-                    kd: c,
-                    ..Material::diffuse(1.0)
-                },
-                _ => Material {
-                    kd: Vec3::ZERO,
-                    ks: c,
-                    lobe,
-                },
-            };
-        }
+        let gbuf = lobe_gbuffer(w, lobe);
         for strategy in [
             Strategy::Paper,
             Strategy::Global,
@@ -53,28 +39,52 @@ fn specialised_paths_are_bit_identical() {
                     pool_blocks: 3,
                     ..Default::default()
                 };
-                let fd = FrameData::prepare(&map, &s);
-                let lit = gbuf
-                    .iter()
-                    .enumerate()
-                    .filter_map(|(i, px)| Some((i, px.as_ref()?)))
-                    .filter(|&(i, px)| {
-                        let m = &px.material;
-                        if let Some(l) = m.as_lambert() {
-                            same_as_material(&fd, &s, px, &l, i)
-                        } else if let Some(g) = m.as_ggx() {
-                            same_as_material(&fd, &s, px, &g, i)
-                        } else if let Some(p) = m.as_phong() {
-                            same_as_material(&fd, &s, px, &p, i)
-                        } else {
-                            panic!("{m:?} has no specialised path")
-                        }
-                    })
-                    .count();
+                let lit = lit_and_identical(&FrameData::prepare(&map, &s), &s, &gbuf);
                 assert!(lit > 100, "{lobe:?} {strategy:?}: only {lit} lit pixels");
             }
         }
     }
+}
+
+/// A `w`² sphere of `lobe` (diffuse for `Lobe::None`), its colour varying over pixels.
+fn lobe_gbuffer(w: usize, lobe: crate::sampling::Lobe) -> Vec<Option<GPixel>> {
+    use crate::sampling::Lobe;
+    let mut gbuf = sphere_gbuffer(w, w, Material::diffuse(0.7));
+    for (i, px) in gbuf.iter_mut().flatten().enumerate() {
+        let c = Vec3::new(0.2 + 0.01 * (i % 50) as f32, 0.5, 0.9);
+        px.material = match lobe {
+            Lobe::None => Material {
+                kd: c,
+                ..Material::diffuse(1.0)
+            },
+            _ => Material {
+                kd: Vec3::ZERO,
+                ks: c,
+                lobe,
+            },
+        };
+    }
+    gbuf
+}
+
+/// Every pixel's specialised path agrees with its `Material` path (asserted); how many are lit.
+fn lit_and_identical(fd: &FrameData, s: &Settings, gbuf: &[Option<GPixel>]) -> usize {
+    gbuf.iter()
+        .enumerate()
+        .filter_map(|(i, px)| Some((i, px.as_ref()?)))
+        .filter(|&(i, px)| {
+            let m = &px.material;
+            if let Some(l) = m.as_lambert() {
+                same_as_material(fd, s, px, &l, i)
+            } else if let Some(g) = m.as_ggx() {
+                same_as_material(fd, s, px, &g, i)
+            } else if let Some(p) = m.as_phong() {
+                same_as_material(fd, s, px, &p, i)
+            } else {
+                panic!("{m:?} has no specialised path")
+            }
+        })
+        .count()
 }
 
 /// Pixel `i` shaded through `bsdf` and through its `Material` agree bit for bit (asserted);

@@ -232,9 +232,7 @@ pub fn reference_pixel_visible(
     }
     let size = map.size;
     assert_eq!(q.size, size);
-    let h = 2.0 / size as f64;
     let brdf = BrdfF64::new(&px.material, n, o);
-    let (k0, kh) = (q.k, horizon_subdivision(q.k));
     let side = size + 1;
     let mut sum = DVec3::ZERO;
     for f in 0..6 {
@@ -251,7 +249,6 @@ pub fn reference_pixel_visible(
                 if cos.iter().all(|&x| x <= 0.0) {
                     continue;
                 }
-                let t = (f * size + r) * size + c;
                 let mut acc = DVec3::ZERO;
                 let mut add = |d: DVec3, w: f64| {
                     let ct = n.dot(d);
@@ -259,30 +256,39 @@ pub fn reference_pixel_visible(
                         acc += brdf.eval(d) * (ct * w);
                     }
                 };
-                let wsum = if cos.iter().any(|&x| x <= 0.0) || q.samples.is_empty() {
-                    // Horizon texels (and maps too large for the table): midpoints on the fly.
-                    let k = if cos.iter().any(|&x| x <= 0.0) {
-                        kh
-                    } else {
-                        k0
-                    };
-                    let mut wsum = 0.0;
-                    for (d, w) in subsamples(f, c, r, h, k) {
-                        wsum += w;
-                        add(d, w);
-                    }
-                    wsum
-                } else {
-                    for &(d, w) in &q.samples[t * k0 * k0..(t + 1) * k0 * k0] {
-                        add(d, w);
-                    }
-                    q.wsum[t]
-                };
+                let horizon = cos.iter().any(|&x| x <= 0.0);
+                let wsum = texel_nodes(q, (f, c, r), horizon, &mut add);
                 sum += l.as_dvec3() * acc * (q.omega[r * size + c] / wsum);
             }
         }
     }
     sum
+}
+
+/// Feed texel (`f`, `c`, `r`)'s quadrature nodes to `add` (direction, weight); their weight
+/// sum. Horizon texels (and maps too large for the table) take midpoints on the fly, finer.
+fn texel_nodes(
+    q: &Quadrature,
+    (f, c, r): (usize, usize, usize),
+    horizon: bool,
+    add: &mut impl FnMut(DVec3, f64),
+) -> f64 {
+    let (k0, size) = (q.k, q.size);
+    if horizon || q.samples.is_empty() {
+        let k = if horizon { horizon_subdivision(k0) } else { k0 };
+        let mut wsum = 0.0;
+        for (d, w) in subsamples(f, c, r, 2.0 / size as f64, k) {
+            wsum += w;
+            add(d, w);
+        }
+        wsum
+    } else {
+        let t = (f * size + r) * size + c;
+        for &(d, w) in &q.samples[t * k0 * k0..(t + 1) * k0 * k0] {
+            add(d, w);
+        }
+        q.wsum[t]
+    }
 }
 
 /// Reference image of a G-buffer (f64 internally, stored as f32 RGB).

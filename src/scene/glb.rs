@@ -133,17 +133,7 @@ fn add_mesh(
             continue;
         }
         let at = |what: &str| format!("mesh {} primitive {}: {what}", mesh.index(), prim.index());
-        let pos_acc = prim
-            .get(&gltf::Semantic::Positions)
-            .ok_or_else(|| at("no POSITION"))?;
-        check_accessor(&pos_acc, DataType::F32, Dimensions::Vec3, blob).map_err(|e| at(&e))?;
-        let normals_acc = prim.get(&gltf::Semantic::Normals);
-        if let Some(a) = &normals_acc {
-            check_accessor(a, DataType::F32, Dimensions::Vec3, blob).map_err(|e| at(&e))?;
-        }
-        if let Some(a) = prim.indices() {
-            check_index_accessor(&a, blob).map_err(|e| at(&e))?;
-        }
+        let has_normals = check_primitive(&prim, blob).map_err(|e| at(&e))?;
         let reader = prim.reader(|b| (b.index() == 0).then_some(blob));
         let positions: Vec<Vec3> = reader
             .read_positions()
@@ -167,7 +157,7 @@ fn add_mesh(
         }
         let tris: Vec<[u32; 3]> = flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
         let normals: Vec<Vec3> = match reader.read_normals() {
-            Some(it) if normals_acc.is_some() => it.map(Vec3::from_array).collect(),
+            Some(it) if has_normals => it.map(Vec3::from_array).collect(),
             _ => vertex_normals(&positions, &tris),
         };
         if normals.len() != n {
@@ -181,6 +171,21 @@ fn add_mesh(
             .extend(tris.iter().map(|t| t.map(|i| i + base as u32)));
     }
     Ok(())
+}
+
+/// Check a primitive's accessors against the binary chunk before reading them: positions
+/// (required), normals, indices. Whether it has normals.
+fn check_primitive(prim: &gltf::Primitive, blob: &[u8]) -> std::result::Result<bool, String> {
+    let pos_acc = prim.get(&gltf::Semantic::Positions).ok_or("no POSITION")?;
+    check_accessor(&pos_acc, DataType::F32, Dimensions::Vec3, blob)?;
+    let normals_acc = prim.get(&gltf::Semantic::Normals);
+    if let Some(a) = &normals_acc {
+        check_accessor(a, DataType::F32, Dimensions::Vec3, blob)?;
+    }
+    if let Some(a) = prim.indices() {
+        check_index_accessor(&a, blob)?;
+    }
+    Ok(normals_acc.is_some())
 }
 
 /// An accessor of the expected type whose every element lies inside its buffer view, and the

@@ -37,17 +37,7 @@ pub(super) fn object_shape(
     resolve: &dyn Fn(&str) -> PathBuf,
     meshes: &mut MeshCache,
 ) -> Result<Shape> {
-    let rot = Quat::from_euler(
-        EulerRot::XYZ,
-        o.rotation[0].to_radians(),
-        o.rotation[1].to_radians(),
-        o.rotation[2].to_radians(),
-    );
-    let pos = Vec3::from(o.position);
-    if !(o.scale.is_finite() && o.scale > 0.0) {
-        return Err(err(path, format!("{}: must be > 0", at("scale"))));
-    }
-    let world = Affine3A::from_scale_rotation_translation(Vec3::splat(o.scale), rot, pos);
+    let (rot, pos, world) = object_pose(o, at, path)?;
     // A scale too small for f32 to invert (1e-39) is refused, not placed.
     let place = |mesh| {
         MeshInstance::new(mesh, world)
@@ -64,16 +54,7 @@ pub(super) fn object_shape(
             center: pos,
             radius: o.radius.unwrap_or(1.0) * o.scale,
         },
-        "plane" => {
-            let m = Mat3::from_quat(rot);
-            Shape::Plane {
-                center: pos,
-                normal: m * Vec3::Y,
-                u: m * Vec3::X,
-                v: m * Vec3::Z,
-                half: 0.5 * o.size.unwrap_or(10.0) * o.scale,
-            }
-        }
+        "plane" => plane_shape(pos, rot, 0.5 * o.size.unwrap_or(10.0) * o.scale),
         "torus" => {
             let (major, minor) = (
                 o.major_radius.unwrap_or(0.9),
@@ -101,4 +82,36 @@ pub(super) fn object_shape(
             ));
         }
     })
+}
+
+/// Object `o`'s rotation, position and object-to-world transform; its scale must be > 0.
+fn object_pose(
+    o: &ObjectSpec,
+    at: &dyn Fn(&str) -> String,
+    path: &Path,
+) -> Result<(Quat, Vec3, Affine3A)> {
+    let rot = Quat::from_euler(
+        EulerRot::XYZ,
+        o.rotation[0].to_radians(),
+        o.rotation[1].to_radians(),
+        o.rotation[2].to_radians(),
+    );
+    let pos = Vec3::from(o.position);
+    if !(o.scale.is_finite() && o.scale > 0.0) {
+        return Err(err(path, format!("{}: must be > 0", at("scale"))));
+    }
+    let world = Affine3A::from_scale_rotation_translation(Vec3::splat(o.scale), rot, pos);
+    Ok((rot, pos, world))
+}
+
+/// A square of half side `half` centred at `center`, its normal the rotated +Y.
+fn plane_shape(center: Vec3, rot: Quat, half: f32) -> Shape {
+    let m = Mat3::from_quat(rot);
+    Shape::Plane {
+        center,
+        normal: m * Vec3::Y,
+        u: m * Vec3::X,
+        v: m * Vec3::Z,
+        half,
+    }
 }

@@ -24,6 +24,23 @@ pub(super) fn debug_ui(
         "estimate: GPU ({:.3}, {:.3}, {:.3}), CPU twin ({:.3}, {:.3}, {:.3})",
         gpu.x, gpu.y, gpu.z, d.estimate.x, d.estimate.y, d.estimate.z
     ));
+    face_grid_ui(ui, d);
+    let count = |k| d.samples.iter().filter(|s| s.kind == k).count();
+    ui.label(format!(
+        "red (discarded) {}, green (used, cos > 0) {}, yellow (used, cos <= 0) {}, blue (used, blocked) {}",
+        count(SampleKind::Discarded),
+        count(SampleKind::Used),
+        count(SampleKind::Wasted),
+        count(SampleKind::Blocked)
+    ));
+    if !state.debug {
+        return;
+    }
+    draw_cross(ui, state.cross.as_ref().map(|(_, tex)| tex), d);
+}
+
+/// The pixel's per-face table: each face's weight `mu_f` and sample count `N_f`.
+fn face_grid_ui(ui: &mut egui::Ui, d: &PixelDebug) {
     egui::Grid::new("faces").striped(true).show(ui, |ui| {
         ui.label("face");
         for f in 0..6 {
@@ -41,24 +58,17 @@ pub(super) fn debug_ui(
         }
         ui.end_row();
     });
-    let count = |k| d.samples.iter().filter(|s| s.kind == k).count();
-    ui.label(format!(
-        "red (discarded) {}, green (used, cos > 0) {}, yellow (used, cos <= 0) {}, blue (used, blocked) {}",
-        count(SampleKind::Discarded),
-        count(SampleKind::Used),
-        count(SampleKind::Wasted),
-        count(SampleKind::Blocked)
-    ));
-    if !state.debug {
-        return;
-    }
-    // The unfolded cube cross with each pool sample at its face coordinates.
+}
+
+/// The unfolded cube cross (the environment's `cross` image, when there is one) with each pool
+/// sample at its face coordinates.
+fn draw_cross(ui: &mut egui::Ui, cross: Option<&egui::TextureHandle>, d: &PixelDebug) {
     let w = 320.0;
     let block = w / 4.0;
     let (rect, _) =
         ui.allocate_exact_size(egui::vec2(4.0 * block, 3.0 * block), egui::Sense::hover());
     let painter = ui.painter_at(rect);
-    if let Some((_, tex)) = &state.cross {
+    if let Some(tex) = cross {
         painter.image(
             tex.id(),
             rect,

@@ -7,9 +7,10 @@ mod camera;
 mod debug_panel;
 mod debug_view;
 mod script;
+mod settings_ui;
 mod ui;
 
-use super::scene_objects::{SceneObject, spawn_object, spawn_scene_objects};
+use super::scene_objects::{SceneCamera, SceneObject, spawn_object, spawn_scene_objects};
 use super::{
     EnvFrame, EnvMapStream, EnvisBrdf, EnvisCounters, EnvisMaterial, EnvisPlugin, EnvisProbe,
     EnvisStreamPlugin, EnvisTimings, Overlay,
@@ -177,6 +178,7 @@ fn envis_camera(stream: &EnvMapStream, s: &Settings, face_size: usize) -> impl B
     )
 }
 
+/// The scene (from the scene file, else the built-in showcase) and the demo camera.
 fn setup_scene(
     mut commands: Commands,
     mut meshes: ResMut<Assets<Mesh>>,
@@ -189,35 +191,56 @@ fn setup_scene(
     let camera = envis_camera(&stream, &state.sampling, state.face_size);
     if let Some(sc) = scene {
         let cam = spawn_scene_objects(&mut commands, &mut meshes, &mut materials, &sc.0);
-        let d = cam.eye - cam.target;
-        let distance = d.length().max(0.1);
-        commands.spawn((
-            Camera3d::default(),
-            Projection::Perspective(PerspectiveProjection {
-                fov: cam.fov,
-                ..default()
-            }),
-            Tonemapping::TonyMcMapface,
-            camera,
-            Orbit {
-                yaw: d.x.atan2(d.z),
-                pitch: (d.y / distance).asin(),
-                distance,
-                target: cam.target,
-            },
-            Transform::default(),
-        ));
+        spawn_scene_camera(&mut commands, camera, &cam);
         return;
     }
+    spawn_showcase(&mut commands, &mut meshes, &mut materials, &assets);
+    commands.spawn((
+        Camera3d::default(),
+        Tonemapping::TonyMcMapface,
+        camera,
+        Orbit {
+            yaw: 0.0,
+            pitch: 0.35,
+            distance: 9.0,
+            target: Vec3::new(0.0, 0.8, 0.0),
+        },
+        Transform::default(),
+    ));
+}
+
+/// The demo camera where the scene file puts it: orbiting its target from its eye, with its
+/// field of view.
+fn spawn_scene_camera(commands: &mut Commands, camera: impl Bundle, cam: &SceneCamera) {
+    let d = cam.eye - cam.target;
+    let distance = d.length().max(0.1);
+    commands.spawn((
+        Camera3d::default(),
+        Projection::Perspective(PerspectiveProjection {
+            fov: cam.fov,
+            ..default()
+        }),
+        Tonemapping::TonyMcMapface,
+        camera,
+        Orbit {
+            yaw: d.x.atan2(d.z),
+            pitch: (d.y / distance).asin(),
+            distance,
+            target: cam.target,
+        },
+        Transform::default(),
+    ));
+}
+
+/// The built-in showcase: a Phong sphere, a GGX bunny, a mixed torus and a diffuse ground.
+fn spawn_showcase(
+    commands: &mut Commands,
+    meshes: &mut Assets<Mesh>,
+    materials: &mut Assets<EnvisMaterial>,
+    assets: &AssetServer,
+) {
     let mut spawn = |name: &str, mesh, material, transform| {
-        spawn_object(
-            &mut commands,
-            &mut materials,
-            name,
-            mesh,
-            material,
-            transform,
-        );
+        spawn_object(commands, materials, name, mesh, material, transform);
     };
     spawn(
         "sphere",
@@ -262,16 +285,4 @@ fn setup_scene(
         },
         Transform::IDENTITY,
     );
-    commands.spawn((
-        Camera3d::default(),
-        Tonemapping::TonyMcMapface,
-        camera,
-        Orbit {
-            yaw: 0.0,
-            pitch: 0.35,
-            distance: 9.0,
-            target: Vec3::new(0.0, 0.8, 0.0),
-        },
-        Transform::default(),
-    ));
 }

@@ -75,22 +75,9 @@ pub(super) fn run_script(
     let Some(dir) = state.script.clone() else {
         return;
     };
-    state.script_frame += 1;
-    let f = state.script_frame;
-    if f == 1 {
-        // A still environment, so the screenshots differ only by what each step changed.
-        stream.stream.playing = false;
-        state.script_next = WARMUP;
-    }
-    if f < state.script_next {
+    let Some((f, step)) = next_step(&mut state, &mut stream, &counters, &mut exit) else {
         return;
-    }
-    if script_waits(&mut state, &counters, &mut exit) {
-        return;
-    }
-    let step = state.script_step;
-    state.script_step += 1;
-    state.script_next = f + STEP;
+    };
     let Ok((camera, cam_transform, mut settings)) = cams.single_mut() else {
         return;
     };
@@ -119,17 +106,54 @@ pub(super) fn run_script(
         Some(Step::GlossySphere) => make_sphere_glossy(&mut objects, &mut materials),
         Some(Step::Report) => {
             let report = script_report(&state, &timings, &counters, (w, h), f);
-            // A report that cannot be written fails the scripted run, saying why.
-            if let Err(e) = crate::render::output::write_json(&dir.join("report.json"), &report) {
-                error!("{e}");
-                eprintln!("envis: error: {e}");
-                exit.write(AppExit::error());
-            }
+            write_report(&dir, &report, &mut exit);
         }
         Some(Step::Exit) => {
             exit.write(AppExit::Success);
         }
         None => {}
+    }
+}
+
+/// Advance the script's clock by a frame; the frame number and the index of the step to run
+/// when one is due (the warm-up is over, its time has come and nothing is awaited).
+fn next_step(
+    state: &mut DemoState,
+    // A `ResMut`, written only on the first frame: the stream is not marked changed otherwise.
+    stream: &mut ResMut<EnvMapStream>,
+    counters: &EnvisCounters,
+    exit: &mut MessageWriter<AppExit>,
+) -> Option<(u32, usize)> {
+    state.script_frame += 1;
+    let f = state.script_frame;
+    if f == 1 {
+        // A still environment, so the screenshots differ only by what each step changed.
+        stream.stream.playing = false;
+        state.script_next = WARMUP;
+    }
+    if f < state.script_next {
+        return None;
+    }
+    if script_waits(state, counters, exit) {
+        return None;
+    }
+    let step = state.script_step;
+    state.script_step += 1;
+    state.script_next = f + STEP;
+    Some((f, step))
+}
+
+/// Write `report.json` into `dir`; a report that cannot be written fails the scripted run,
+/// saying why.
+fn write_report(
+    dir: &std::path::Path,
+    report: &serde_json::Value,
+    exit: &mut MessageWriter<AppExit>,
+) {
+    if let Err(e) = crate::render::output::write_json(&dir.join("report.json"), report) {
+        error!("{e}");
+        eprintln!("envis: error: {e}");
+        exit.write(AppExit::error());
     }
 }
 

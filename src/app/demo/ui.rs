@@ -1,7 +1,9 @@
 //! The demo's egui panel: environment, sampling, materials, timings and the debug inset.
 
 use super::debug_panel::debug_ui;
+use super::settings_ui::{material_ui, sampling_ui};
 use super::*;
+use bevy::ecs::system::SystemParam;
 
 /// The environment as a small 4:3 cross image (Reinhard-tonemapped) for the panel's inset.
 fn cross_texture(ctx: &egui::Context, map: &CubeMap) -> egui::TextureHandle {
@@ -28,7 +30,32 @@ fn cross_texture(ctx: &egui::Context, map: &CubeMap) -> egui::TextureHandle {
     ctx.load_texture("envis-cross", ci, egui::TextureOptions::NEAREST)
 }
 
-#[allow(clippy::too_many_arguments)]
+/// The panel's read-only sources for the "Timings" section: timings, counters, the window's
+/// size and Bevy's diagnostics.
+#[derive(SystemParam)]
+pub(super) struct PanelStats<'w, 's> {
+    timings: Res<'w, EnvisTimings>,
+    counters: Res<'w, EnvisCounters>,
+    windows: Query<'w, 's, &'static Window, With<PrimaryWindow>>,
+    diagnostics: Res<'w, bevy::diagnostic::DiagnosticsStore>,
+}
+
+/// The scene's objects and their material assets, edited by the "Materials" section.
+#[derive(SystemParam)]
+pub(super) struct PanelObjects<'w, 's> {
+    objects: Query<'w, 's, &'static mut SceneObject>,
+    materials: ResMut<'w, Assets<EnvisMaterial>>,
+}
+
+/// The demo camera's components the panel edits, kept as `Mut` (Bevy's change detection sees a
+/// write wherever a section takes `&mut` of one, as the single system did before).
+struct CameraEdits<'a> {
+    settings: Mut<'a, EnvironmentSampling>,
+    env: Mut<'a, EnvisEnvironment>,
+    exposure: Mut<'a, bevy::camera::Exposure>,
+}
+
+/// The demo's egui windows: the "envis" panel, the overlay's legend and the sample-debug inset.
 pub(super) fn panel(
     mut contexts: EguiContexts,
     mut cams: Query<
@@ -42,86 +69,169 @@ pub(super) fn panel(
     mut stream: ResMut<EnvMapStream>,
     mut state: ResMut<DemoState>,
     frame: Res<EnvFrame>,
-    timings: Res<EnvisTimings>,
-    counters: Res<EnvisCounters>,
-    mut objects: Query<&mut SceneObject>,
-    mut materials: ResMut<Assets<EnvisMaterial>>,
-    windows: Query<&Window, With<PrimaryWindow>>,
-    diagnostics: Res<bevy::diagnostic::DiagnosticsStore>,
+    mut objects: PanelObjects,
+    stats: PanelStats,
 ) -> Result {
     let ctx = contexts.ctx_mut()?.clone();
     if state.ui_scale > 0.0 && ctx.zoom_factor() != state.ui_scale {
         ctx.set_zoom_factor(state.ui_scale);
     }
-    let Ok((mut settings, mut env, mut exposure)) = cams.single_mut() else {
+    let Ok((settings, env, exposure)) = cams.single_mut() else {
         return Ok(());
     };
-    if state
+    let mut cam = CameraEdits {
+        settings,
+        env,
+        exposure,
+    };
+    if cross_is_stale(&state, &frame) {
+        state.cross = Some((frame.generation, cross_texture(&ctx, &frame.map)));
+    }
+    egui::Window::new("envis")
+        .anchor(egui::Align2::RIGHT_TOP, [-8.0, 8.0])
+        .default_width(320.0)
+        .show(&ctx, |ui| {
+            egui::ScrollArea::vertical().show(ui, |ui| {
+                envis_window_ui(ui, &mut cam, &mut stream, &mut state, &mut objects, &stats);
+            });
+        });
+    overlay_legend_window(&ctx, &cam.settings);
+    egui::Window::new("sample debug (right-click a pixel, D)")
+        .anchor(egui::Align2::LEFT_BOTTOM, [8.0, -8.0])
+        .default_width(330.0)
+        .show(&ctx, |ui| debug_ui(ui, &mut cam.settings, &mut state));
+    Ok(())
+}
+
+/// Whether the inset's cross image is missing or of an older environment frame.
+fn cross_is_stale(state: &DemoState, frame: &EnvFrame) -> bool {
+    state
         .cross
         .as_ref()
         .is_none_or(|(g, _)| *g != frame.generation)
-    {
-        state.cross = Some((frame.generation, cross_texture(&ctx, &frame.map)));
-    }
-    egui::Window::new("envis").anchor(egui::Align2::RIGHT_TOP, [-8.0, 8.0]).default_width(320.0).show(&ctx, |ui| {
-        egui::ScrollArea::vertical().show(ui, |ui| {
-            ui.collapsing("Environment", |ui| environment_ui(ui, &mut stream, &mut env, &mut state));
-            if settings.face_size != state.face_size {
-                settings.face_size = state.face_size;
-            }
-            if ui.add(egui::Slider::new(&mut state.exposure, 0.01..=8.0).logarithmic(true).text("exposure")).changed() {
-                *exposure = exposure_multiplier(state.exposure);
-            }
-            egui::CollapsingHeader::new("Sampling").default_open(true).show(ui, |ui| sampling_ui(ui, &mut settings));
-            ui.collapsing("Materials", |ui| {
-                for mut o in &mut objects {
-                    if material_ui(ui, &o.name.clone(), &mut o.material)
-                        && let Some(mut m) = materials.get_mut(&o.handle)
-                    {
-                        m.brdf = o.material;
-                    }
-                }
-            });
-            egui::CollapsingHeader::new("Timings").default_open(true).show(ui, |ui| {
-                let t = timings.get();
-                let f = |x: Option<f64>| x.map_or("n/a".to_string(), |v| format!("{v:.3} ms"));
-                ui.label(format!("resample: GPU {}; distribution build: GPU {}; light pool: GPU {}; record: CPU {}", f(t.resample_gpu_ms), f(t.build_gpu_ms), f(t.pool_gpu_ms), f(t.build_cpu_ms)));
-                ui.label(format!("lighting (G-buffer -> MIS): GPU {}, CPU {}", f(t.lighting_gpu_ms), f(t.lighting_cpu_ms)));
-                let px = windows.single().map(|w| (w.physical_width() * w.physical_height()) as f64).unwrap_or(0.0);
-                let budget = settings.samples_per_pixel() as f64;
-                ui.label(format!("{:.1} FPS, sample budget {:.1} M samples/s", state.fps, px * budget * state.fps as f64 / 1e6));
-                ui.label(format!("builds {}, image bytes uploaded {}, lighting passes {}", counters.get(|c| &c.builds), counters.get(|c| &c.image_bytes_uploaded), counters.get(|c| &c.lighting_passes)));
-                ui.label("overlays run inside the lighting pass (no pass of their own)");
-                // Bevy's passes: the prepass writes the G-buffer.
-                let mut bevy_passes: Vec<(String, f64)> = diagnostics
-                    .iter()
-                    .filter(|d| d.path().as_str().starts_with("render/") && d.path().as_str().ends_with("/elapsed_gpu"))
-                    .filter_map(|d| d.smoothed().map(|v| (d.path().as_str().trim_start_matches("render/").trim_end_matches("/elapsed_gpu").to_string(), v)))
-                    .collect();
-                bevy_passes.sort_by(|a, b| b.1.total_cmp(&a.1));
-                egui::CollapsingHeader::new(format!("Bevy passes ({})", bevy_passes.len())).show(ui, |ui| {
-                    for (name, ms) in bevy_passes.iter().take(12) {
-                        ui.label(format!("{name}: {ms:.3} ms GPU"));
-                    }
-                });
-            });
-            for m in stream.log.iter().rev().take(3) {
-                ui.colored_label(egui::Color32::from_rgb(255, 170, 60), m);
-            }
-        });
+}
+
+/// The "envis" window's sections, top to bottom, and the stream's latest messages.
+fn envis_window_ui(
+    ui: &mut egui::Ui,
+    cam: &mut CameraEdits,
+    // A `ResMut`: the stream is marked changed only while the Environment section is open.
+    stream: &mut ResMut<EnvMapStream>,
+    state: &mut DemoState,
+    objects: &mut PanelObjects,
+    stats: &PanelStats,
+) {
+    ui.collapsing("Environment", |ui| {
+        environment_ui(ui, stream, &mut cam.env, state)
     });
+    if cam.settings.face_size != state.face_size {
+        cam.settings.face_size = state.face_size;
+    }
+    if ui
+        .add(
+            egui::Slider::new(&mut state.exposure, 0.01..=8.0)
+                .logarithmic(true)
+                .text("exposure"),
+        )
+        .changed()
+    {
+        *cam.exposure = exposure_multiplier(state.exposure);
+    }
+    egui::CollapsingHeader::new("Sampling")
+        .default_open(true)
+        .show(ui, |ui| sampling_ui(ui, &mut cam.settings));
+    ui.collapsing("Materials", |ui| materials_ui(ui, objects));
+    egui::CollapsingHeader::new("Timings")
+        .default_open(true)
+        .show(ui, |ui| timings_ui(ui, stats, &cam.settings, state.fps));
+    for m in stream.log.iter().rev().take(3) {
+        ui.colored_label(egui::Color32::from_rgb(255, 170, 60), m);
+    }
+}
+
+/// One row per object; an edited material is written to its asset too.
+fn materials_ui(ui: &mut egui::Ui, objects: &mut PanelObjects) {
+    for mut o in &mut objects.objects {
+        if material_ui(ui, &o.name.clone(), &mut o.material)
+            && let Some(mut m) = objects.materials.get_mut(&o.handle)
+        {
+            m.brdf = o.material;
+        }
+    }
+}
+
+/// GPU and CPU times of envis's passes, the frame rate and sample budget, the counters and
+/// Bevy's own passes.
+fn timings_ui(ui: &mut egui::Ui, stats: &PanelStats, settings: &EnvironmentSampling, fps: f32) {
+    let t = stats.timings.get();
+    let f = |x: Option<f64>| x.map_or("n/a".to_string(), |v| format!("{v:.3} ms"));
+    ui.label(format!(
+        "resample: GPU {}; distribution build: GPU {}; light pool: GPU {}; record: CPU {}",
+        f(t.resample_gpu_ms),
+        f(t.build_gpu_ms),
+        f(t.pool_gpu_ms),
+        f(t.build_cpu_ms)
+    ));
+    ui.label(format!(
+        "lighting (G-buffer -> MIS): GPU {}, CPU {}",
+        f(t.lighting_gpu_ms),
+        f(t.lighting_cpu_ms)
+    ));
+    let px = stats
+        .windows
+        .single()
+        .map(|w| (w.physical_width() * w.physical_height()) as f64)
+        .unwrap_or(0.0);
+    let budget = settings.samples_per_pixel() as f64;
+    ui.label(format!(
+        "{:.1} FPS, sample budget {:.1} M samples/s",
+        fps,
+        px * budget * fps as f64 / 1e6
+    ));
+    let counters = &stats.counters;
+    ui.label(format!(
+        "builds {}, image bytes uploaded {}, lighting passes {}",
+        counters.get(|c| &c.builds),
+        counters.get(|c| &c.image_bytes_uploaded),
+        counters.get(|c| &c.lighting_passes)
+    ));
+    ui.label("overlays run inside the lighting pass (no pass of their own)");
+    bevy_passes_ui(ui, &stats.diagnostics);
+}
+
+/// Bevy's passes' GPU times from its render diagnostics, slowest first (the prepass writes the
+/// G-buffer).
+fn bevy_passes_ui(ui: &mut egui::Ui, diagnostics: &bevy::diagnostic::DiagnosticsStore) {
+    let mut bevy_passes: Vec<(String, f64)> = diagnostics
+        .iter()
+        .filter(|d| {
+            d.path().as_str().starts_with("render/") && d.path().as_str().ends_with("/elapsed_gpu")
+        })
+        .filter_map(|d| {
+            d.smoothed().map(|v| {
+                let path = d.path().as_str();
+                let name = path.trim_start_matches("render/");
+                (name.trim_end_matches("/elapsed_gpu").to_string(), v)
+            })
+        })
+        .collect();
+    bevy_passes.sort_by(|a, b| b.1.total_cmp(&a.1));
+    egui::CollapsingHeader::new(format!("Bevy passes ({})", bevy_passes.len())).show(ui, |ui| {
+        for (name, ms) in bevy_passes.iter().take(12) {
+            ui.label(format!("{name}: {ms:.3} ms GPU"));
+        }
+    });
+}
+
+/// The active overlay's legend in its own window at the bottom (none for no overlay).
+fn overlay_legend_window(ctx: &egui::Context, settings: &EnvironmentSampling) {
     let budget = settings.samples_per_pixel();
     if let Some(legend) = settings.overlay.legend(budget) {
         egui::Window::new(format!("overlay: {}", settings.overlay.name()))
             .anchor(egui::Align2::CENTER_BOTTOM, [0.0, -8.0])
             .resizable(false)
-            .show(&ctx, |ui| legend_ui(ui, &legend));
+            .show(ctx, |ui| legend_ui(ui, &legend));
     }
-    egui::Window::new("sample debug (right-click a pixel, D)")
-        .anchor(egui::Align2::LEFT_BOTTOM, [8.0, -8.0])
-        .default_width(330.0)
-        .show(&ctx, |ui| debug_ui(ui, &mut settings, &mut state));
-    Ok(())
 }
 
 /// The overlay's colour bar with five labelled ticks and what it measures.
@@ -161,29 +271,14 @@ fn legend_ui(ui: &mut egui::Ui, legend: &crate::app::OverlayLegend) {
     ui.label(format!("{} ({})", legend.measures, legend.unit));
 }
 
+/// The "Environment" section: playback, background, distribution face size and the source.
 fn environment_ui(
     ui: &mut egui::Ui,
     stream: &mut EnvMapStream,
     env: &mut EnvisEnvironment,
     state: &mut DemoState,
 ) {
-    let s = &mut stream.stream;
-    ui.horizontal(|ui| {
-        if ui
-            .button(if s.playing { "pause" } else { "play" })
-            .clicked()
-        {
-            s.playing = !s.playing;
-        }
-        ui.add(egui::Slider::new(&mut s.speed, 0.0..=8.0).text("speed"));
-    });
-    if let Some(mut h) = s.sky_hours()
-        && ui
-            .add(egui::Slider::new(&mut h, 0.0..=24.0).text("time of day (h)"))
-            .changed()
-    {
-        s.set_sky_hours(h);
-    }
+    playback_ui(ui, &mut stream.stream);
     ui.checkbox(
         &mut env.show_background,
         "show the environment behind objects",
@@ -203,19 +298,7 @@ fn environment_ui(
             .button("open (file, frame directory, builtin:sky)")
             .clicked();
         if apply || face != state.face_size {
-            let src = if state.env_text.trim().is_empty() {
-                Ok(stream.stream.source().clone())
-            } else {
-                StreamSource::parse(state.env_text.trim())
-            };
-            match src {
-                Ok(src) => {
-                    if stream.switch(src, stream_face_size(face)) {
-                        state.face_size = face;
-                    }
-                }
-                Err(e) => stream.log.push(format!("{e}")),
-            }
+            open_source(stream, state, face);
         }
     });
     ui.label(format!(
@@ -225,151 +308,40 @@ fn environment_ui(
     ));
 }
 
-fn sampling_ui(ui: &mut egui::Ui, settings: &mut EnvironmentSampling) {
-    // Edited on a copy, so that Bevy's change detection sees a change only when there is one.
-    let mut core = *settings;
-    let s = &mut core;
-    ui.add(egui::Slider::new(&mut s.light_samples, 0..=256).text("N_L light samples"));
-    ui.add(egui::Slider::new(&mut s.brdf_samples, 0..=256).text("N_B BRDF samples"));
-    if s.light_samples + s.brdf_samples == 0 {
-        s.light_samples = 1;
+/// Play / pause, the playback speed and, for the built-in sky, the time of day.
+fn playback_ui(ui: &mut egui::Ui, s: &mut crate::stream::EnvStream) {
+    ui.horizontal(|ui| {
+        if ui
+            .button(if s.playing { "pause" } else { "play" })
+            .clicked()
+        {
+            s.playing = !s.playing;
+        }
+        ui.add(egui::Slider::new(&mut s.speed, 0.0..=8.0).text("speed"));
+    });
+    if let Some(mut h) = s.sky_hours()
+        && ui
+            .add(egui::Slider::new(&mut h, 0.0..=24.0).text("time of day (h)"))
+            .changed()
+    {
+        s.set_sky_hours(h);
     }
-    ui.horizontal(|ui| {
-        ui.label("strategy");
-        for &st in Strategy::value_variants() {
-            ui.selectable_value(&mut s.strategy, st, st.to_string());
-        }
-    });
-    ui.horizontal(|ui| {
-        ui.label("counts [I]");
-        for &c in Counts::value_variants() {
-            ui.selectable_value(&mut s.counts, c, c.to_string());
-        }
-    });
-    ui.horizontal(|ui| {
-        ui.label("MIS");
-        for &h in Heuristic::value_variants() {
-            ui.selectable_value(&mut s.heuristic, h, h.to_string());
-        }
-    });
-    ui.horizontal(|ui| {
-        ui.add(egui::DragValue::new(&mut s.seed).prefix("seed "));
-    });
-    ui.horizontal(|ui| {
-        ui.label("pool layout");
-        for &l in PoolLayout::value_variants() {
-            ui.selectable_value(&mut s.pool_layout, l, l.to_string());
-        }
-        if s.pool_layout == PoolLayout::Blocks {
-            ui.add(
-                egui::DragValue::new(&mut s.pool_blocks)
-                    .range(1..=64)
-                    .prefix("K "),
-            );
-        }
-    });
-    ui.horizontal(|ui| {
-        ui.label("tiles per face side");
-        ui.add(egui::DragValue::new(&mut s.tiles).range(1..=crate::sampling::MAX_TILES));
-        if s.tiles > 1 {
-            ui.label("counts per");
-            for &c in crate::sampling::TileCounts::value_variants() {
-                ui.selectable_value(&mut s.tile_counts, c, c.to_string());
-            }
-        }
-    });
-    ui.checkbox(
-        &mut s.material_budget,
-        "material budget (diffuse: light only, mirror: BRDF only)",
-    );
-    if core != *settings {
-        *settings = core;
-    }
-    ui.checkbox(
-        &mut settings.accumulate,
-        "accumulate over frames (restarts when anything changes)",
-    );
-    ui.horizontal(|ui| {
-        ui.label("environment shadows");
-        for &v in crate::visibility::ShadowRays::value_variants() {
-            ui.selectable_value(&mut settings.shadows, v, v.to_string());
-        }
-    });
-    ui.horizontal(|ui| {
-        ui.label("overlay [O]");
-        egui::ComboBox::from_id_salt("overlay")
-            .selected_text(settings.overlay.name())
-            .show_ui(ui, |ui| {
-                for o in Overlay::ALL {
-                    ui.selectable_value(&mut settings.overlay, o, o.name());
-                }
-            });
-    });
 }
 
-/// Returns true when the material changed.
-fn material_ui(ui: &mut egui::Ui, name: &str, m: &mut EnvisBrdf) -> bool {
-    let before = *m;
-    ui.horizontal(|ui| {
-        ui.label(name);
-        let (albedo, alpha, exponent, specular) = match *m {
-            EnvisBrdf::Lambert { albedo } => (albedo, 0.2, 150.0, 0.0),
-            EnvisBrdf::Phong { albedo, exponent } => (albedo, 0.2, exponent, 1.0),
-            EnvisBrdf::Ggx { albedo, alpha } => (albedo, alpha, 150.0, 1.0),
-            EnvisBrdf::Mix {
-                albedo,
-                specular,
-                alpha,
-            } => (albedo, alpha, 150.0, specular),
-        };
-        egui::ComboBox::from_id_salt(name)
-            .selected_text(match m {
-                EnvisBrdf::Lambert { .. } => "diffuse",
-                EnvisBrdf::Phong { .. } => "phong",
-                EnvisBrdf::Ggx { .. } => "ggx",
-                EnvisBrdf::Mix { .. } => "mix",
-            })
-            .show_ui(ui, |ui| {
-                ui.selectable_value(m, EnvisBrdf::Lambert { albedo }, "diffuse");
-                ui.selectable_value(m, EnvisBrdf::Phong { albedo, exponent }, "phong");
-                ui.selectable_value(m, EnvisBrdf::Ggx { albedo, alpha }, "ggx");
-                ui.selectable_value(
-                    m,
-                    EnvisBrdf::Mix {
-                        albedo,
-                        specular: specular.max(0.3),
-                        alpha,
-                    },
-                    "mix",
-                );
-            });
-    });
-    match m {
-        EnvisBrdf::Phong { exponent, .. } => {
-            ui.add(
-                egui::Slider::new(exponent, 0.0..=10000.0)
-                    .logarithmic(true)
-                    .text("exponent"),
-            );
+/// Switch the stream to the typed source (the current one when empty) at distribution face
+/// size `face`; a source that does not parse goes to the log.
+fn open_source(stream: &mut EnvMapStream, state: &mut DemoState, face: usize) {
+    let src = if state.env_text.trim().is_empty() {
+        Ok(stream.stream.source().clone())
+    } else {
+        StreamSource::parse(state.env_text.trim())
+    };
+    match src {
+        Ok(src) => {
+            if stream.switch(src, stream_face_size(face)) {
+                state.face_size = face;
+            }
         }
-        EnvisBrdf::Ggx { alpha, .. } => {
-            ui.add(
-                egui::Slider::new(alpha, 0.001..=1.0)
-                    .logarithmic(true)
-                    .text("alpha"),
-            );
-        }
-        EnvisBrdf::Mix {
-            alpha, specular, ..
-        } => {
-            ui.add(
-                egui::Slider::new(alpha, 0.001..=1.0)
-                    .logarithmic(true)
-                    .text("alpha"),
-            );
-            ui.add(egui::Slider::new(specular, 0.0..=1.0).text("specular"));
-        }
-        EnvisBrdf::Lambert { .. } => {}
+        Err(e) => stream.log.push(format!("{e}")),
     }
-    *m != before
 }

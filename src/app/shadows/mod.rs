@@ -189,6 +189,43 @@ pub fn gather_shadow_geometry(
     (mut scene, mut geometry): (ResMut<ShadowScene>, ResMut<ShadowGeometry>),
     counters: Res<EnvisCounters>,
 ) {
+    let assets_changed = forget_changed_meshes(&mut events, &mut scene);
+    // A first envis camera in a scene that has not changed since needs the geometry too.
+    let structure = !changed.is_empty()
+        | (!new_cameras.is_empty() && geometry.generation == 0)
+        | !opted_out.is_empty()
+        | (opted_in.read().count() > 0)
+        | (unlayered.read().count() > 0)
+        | (removed.read().count() > 0)
+        | (poses.bindposes_loaded() && scene.waiting)
+        | assets_changed;
+    // A skinned caster still waiting for its bind poses is built when it moves.
+    let posed = poses.any_moved();
+    let change = Change::of(
+        structure || (posed && scene.waiting),
+        posed,
+        !moved.is_empty(),
+    );
+    if change == Change::None || cameras.is_empty() {
+        return;
+    }
+    update_geometry(
+        change,
+        (&mut scene, &mut geometry),
+        &casters,
+        (&meshes, &poses),
+        &counters,
+    );
+}
+
+/// Drop the kept BVHs of modified or removed meshes; whether an event concerns the shadow
+/// geometry (such a mesh, or a new mesh while a caster waits for its mesh).
+fn forget_changed_meshes(
+    events: &mut MessageReader<AssetEvent<Mesh>>,
+    // A `ResMut`: the scene is marked changed only when a modified or removed mesh's event
+    // comes (its kept BVH is dropped through it), as in the single system before.
+    scene: &mut ResMut<ShadowScene>,
+) -> bool {
     // Only the meshes that cast shadows matter (a mesh modified every frame elsewhere, or one
     // with NotShadowCaster, costs nothing), and new ones while a caster waits for its mesh.
     let mut assets_changed = false;
@@ -205,51 +242,40 @@ pub fn gather_shadow_geometry(
             _ => {}
         }
     }
-    // A first envis camera in a scene that has not changed since needs the geometry too.
-    let structure = !changed.is_empty()
-        | (!new_cameras.is_empty() && geometry.generation == 0)
-        | !opted_out.is_empty()
-        | (opted_in.read().count() > 0)
-        | (unlayered.read().count() > 0)
-        | (removed.read().count() > 0)
-        | (poses.bindposes_loaded() && scene.waiting)
-        | assets_changed;
-    // A skinned caster still waiting for its bind poses is built when it moves.
-    let posed = poses.any_moved();
-    let change = match (
-        structure || (posed && scene.waiting),
-        posed,
-        moved.is_empty(),
-    ) {
-        (true, ..) => Change::Structure,
-        (false, true, _) => Change::Posed,
-        (false, false, false) => Change::Moved,
-        (false, false, true) => Change::None,
-    };
-    if change == Change::None || cameras.is_empty() {
-        return;
+    assets_changed
+}
+
+impl Change {
+    /// The change to act on: a structure change wins over a pose change, which wins over moves.
+    fn of(structure: bool, posed: bool, moved: bool) -> Change {
+        match (structure, posed, moved) {
+            (true, ..) => Change::Structure,
+            (false, true, _) => Change::Posed,
+            (false, false, true) => Change::Moved,
+            (false, false, false) => Change::None,
+        }
     }
+}
+
+/// Refit the top level for a move, or the deformed casters' BVHs for a pose change; build it
+/// anew for a structure change, or when a refit cannot be done.
+fn update_geometry(
+    change: Change,
+    (scene, geometry): (&mut ShadowScene, &mut ShadowGeometry),
+    casters: &Casters,
+    (meshes, poses): (&Assets<Mesh>, &Poses),
+    counters: &EnvisCounters,
+) {
     let done = match change {
-        Change::Moved => refit(&mut scene, &mut geometry, &casters),
-        Change::Posed => repose(
-            &mut scene,
-            &mut geometry,
-            (&casters, &meshes, &poses),
-            &counters,
-        ),
+        Change::Moved => refit(scene, geometry, casters),
+        Change::Posed => repose(scene, geometry, (casters, meshes, poses), counters),
         _ => false,
     };
     if done {
         counters.bump(|c: &Counters| &c.shadow_tlas_refits);
         return;
     }
-    rebuild(
-        &mut scene,
-        &mut geometry,
-        &casters,
-        (&meshes, &poses),
-        &counters,
-    );
+    rebuild(scene, geometry, casters, (meshes, poses), counters);
 }
 
 /// Upload the geometry when it changed: everything for a new generation, the top part when

@@ -12,7 +12,8 @@
 //! Output: `accuracy.csv`, `accuracy.json` and `accuracy-vs-time.md` (tables, Pareto fronts, the
 //! exact command) in the output directory.
 //!
-//! Here the sweep; `report.rs` the tables and summaries, `plots.rs` the charts.
+//! Here the sweep; `strategies.rs` the strategies swept, `report.rs` the tables and summaries,
+//! `plots.rs` the charts.
 
 use crate::envmap::load::{EnvSource, load_env};
 use crate::envmap::luminance_f64;
@@ -114,103 +115,6 @@ impl Config {
     }
 }
 
-/// The (label, settings) pairs swept at total budget `n`. The `paper-*` rows but `paper-offset`
-/// and `paper-blocks` are the paper's method exactly: one shared pool.
-fn strategies(n: usize) -> Vec<(String, Settings)> {
-    let half = Settings {
-        light_samples: n / 2,
-        brdf_samples: n - n / 2,
-        pool_layout: crate::render::PoolLayout::Shared,
-        ..Default::default()
-    };
-    let mut v = vec![
-        ("paper-fractional".to_string(), half),
-        (
-            "paper-offset".to_string(),
-            Settings {
-                pool_layout: crate::render::PoolLayout::Offset,
-                ..half
-            },
-        ),
-        (
-            "paper-blocks".to_string(),
-            Settings {
-                pool_layout: crate::render::PoolLayout::Blocks,
-                ..half
-            },
-        ),
-        (
-            "paper-blocks-power".to_string(),
-            Settings {
-                pool_layout: crate::render::PoolLayout::Blocks,
-                heuristic: Heuristic::Power,
-                ..half
-            },
-        ),
-        (
-            "paper-integer".to_string(),
-            Settings {
-                counts: Counts::Integer,
-                ..half
-            },
-        ),
-    ];
-    // Sub-face tiles on the default pool layout (`--tiles K`): against paper-blocks (K = 1).
-    for k in super::tiles::SWEPT {
-        v.push((
-            super::tiles::label(k),
-            Settings {
-                pool_layout: crate::render::PoolLayout::Blocks,
-                tiles: k,
-                ..half
-            },
-        ));
-    }
-    v.extend([
-        (
-            "global".to_string(),
-            Settings {
-                strategy: Strategy::Global,
-                heuristic: Heuristic::Power,
-                ..half
-            },
-        ),
-        (
-            "light".to_string(),
-            Settings {
-                strategy: Strategy::Light,
-                ..half
-            },
-        ),
-        (
-            "brdf".to_string(),
-            Settings {
-                strategy: Strategy::Brdf,
-                ..half
-            },
-        ),
-    ]);
-    if n >= 8 {
-        for (tag, nl) in [("L1/4", n / 4), ("L3/4", 3 * n / 4)] {
-            let s = Settings {
-                light_samples: nl,
-                brdf_samples: n - nl,
-                ..half
-            };
-            v.push((format!("paper-fractional {tag}"), s));
-            v.push((
-                format!("global {tag}"),
-                Settings {
-                    strategy: Strategy::Global,
-                    heuristic: Heuristic::Power,
-                    ..s
-                },
-            ));
-        }
-    }
-    v
-}
-
 /// Number of points [`sweep`] will measure.
 pub fn point_count(cfg: &Config) -> usize {
     cfg.envs.len()
@@ -264,116 +168,210 @@ pub fn sweep(
     cfg: &Config,
     resume: &[Point],
     mut gpu: Option<&mut GpuTimer>,
-    mut progress: impl FnMut(usize, usize, &Point, bool),
+    progress: impl FnMut(usize, usize, &Point, bool),
 ) -> Result<Vec<Point>> {
     let total = point_count(cfg);
-    let mut points = Vec::with_capacity(total);
-    let saved: std::collections::HashMap<_, &Point> = resume
-        .iter()
-        .map(|p| (key(&p.env, &p.material, &p.strategy, p.budget), p))
-        .collect();
+    let mut run = Run {
+        cfg,
+        points: Vec::with_capacity(total),
+        saved: resume
+            .iter()
+            .map(|p| (key(&p.env, &p.material, &p.strategy, p.budget), p))
+            .collect(),
+        total,
+        progress,
+    };
     for env_name in &cfg.envs {
-        let todo = |mname: &str| {
-            cfg.budgets.iter().any(|&n| {
-                strategies(n)
-                    .iter()
-                    .any(|(label, _)| !saved.contains_key(&key(env_name, mname, label, n)))
-            })
-        };
         // An environment whose points were all resumed is not even loaded.
-        let env = if cfg.materials.iter().any(|(m, _)| todo(m)) {
+        let env = if cfg.materials.iter().any(|(m, _)| run.todo(env_name, m)) {
             Some(load_env(&env_name.parse::<EnvSource>()?, cfg.face_size)?)
         } else {
             None
         };
         for (mname, mat) in &cfg.materials {
-            let gbuf = render::sphere_gbuffer(cfg.size, cfg.size, *mat);
-            let refimg = match &env {
-                Some(env) if todo(mname) => {
-                    reference::reference_image(&env.cube, &gbuf, cfg.size, cfg.size, 1.0).1
-                }
-                _ => Vec::new(),
-            };
-            let ref_rgb: Vec<glam::Vec3> = refimg.iter().map(|c| c.as_vec3()).collect();
-            let idx: Vec<usize> = (0..gbuf.len()).filter(|&i| gbuf[i].is_some()).collect();
-            for &n in &cfg.budgets {
-                for (label, s) in strategies(n) {
-                    if let Some(p) = saved.get(&key(env_name, mname, &label, n)) {
-                        progress(points.len() + 1, total, p, true);
-                        points.push((*p).clone());
-                        continue;
-                    }
-                    let Some(env) = &env else {
-                        unreachable!("a point to measure means its environment was loaded")
-                    };
-                    let (mut relmse, mut mse, mut build, mut shade, mut wasted, mut flip) =
-                        (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-                    for seed in 0..cfg.seeds {
-                        let out = render::render(
-                            &env.cube,
-                            &gbuf,
-                            cfg.size,
-                            cfg.size,
-                            &Settings { seed, ..s },
-                        )?;
-                        for &i in &idx {
-                            let (x, r) = (
-                                luminance_f64(out.image.data[i].as_dvec3()),
-                                luminance_f64(refimg[i]),
-                            );
-                            relmse += (x - r) * (x - r) / (r * r + 1e-2);
-                            mse += (x - r) * (x - r);
-                        }
-                        build += out.stats.build_ms;
-                        shade += out.stats.shade_ms;
-                        wasted += out.stats.wasted;
-                        flip += super::flip::hdr_flip(&ref_rgb, &out.image.data, cfg.size, cfg.size)
-                            .1 as f64;
-                    }
-                    let (gpu_build_ms, gpu_shade_ms) = match gpu.as_deref_mut() {
-                        Some(time) => {
-                            let (b, s) = time(&env.cube, &gbuf, cfg.size, &s)?;
-                            (Some(b), Some(s))
-                        }
-                        None => (None, None),
-                    };
-                    let k = cfg.seeds as f64;
-                    let np = (idx.len() as f64 * k).max(1.0);
-                    // The samples each technique actually draws (the baselines spend all N on one).
-                    let (nl, nb) = match s.strategy {
-                        Strategy::Light => (n, 0),
-                        Strategy::Brdf => (0, n),
-                        _ => (s.light_samples, s.brdf_samples),
-                    };
-                    let p = Point {
-                        env: env_name.clone(),
-                        material: mname.clone(),
-                        strategy: label,
-                        light_samples: nl,
-                        brdf_samples: nb,
-                        budget: n,
-                        relmse: relmse / np,
-                        rmse: (mse / np).sqrt(),
-                        build_ms: build / k,
-                        shade_ms: shade / k,
-                        wasted: wasted / k,
-                        flip: flip / k,
-                        gpu_build_ms,
-                        gpu_shade_ms,
-                    };
-                    progress(points.len() + 1, total, &p, false);
-                    points.push(p);
-                }
-            }
+            let cube = env.as_ref().map(|env| &env.cube);
+            let sphere = Sphere::new(cfg, env_name, mname, *mat, cube, run.todo(env_name, mname));
+            run.material(&sphere, gpu.as_deref_mut())?;
         }
     }
-    Ok(points)
+    Ok(run.points)
+}
+
+/// The sweep under way: the points so far, those resumed, and who hears of each.
+struct Run<'a, P> {
+    cfg: &'a Config,
+    points: Vec<Point>,
+    /// The points of an interrupted run, by [`key`].
+    saved: std::collections::HashMap<(String, String, String, usize), &'a Point>,
+    total: usize,
+    progress: P,
+}
+
+impl<P: FnMut(usize, usize, &Point, bool)> Run<'_, P> {
+    /// Whether material `mname` in `env_name` has a point left to measure.
+    fn todo(&self, env_name: &str, mname: &str) -> bool {
+        self.cfg.budgets.iter().any(|&n| {
+            strategies(n)
+                .iter()
+                .any(|(label, _)| !self.saved.contains_key(&key(env_name, mname, label, n)))
+        })
+    }
+
+    /// Every point of `sphere`'s environment and material: resumed where saved, else measured.
+    fn material(&mut self, sphere: &Sphere, mut gpu: Option<&mut GpuTimer>) -> Result<()> {
+        for &n in &self.cfg.budgets {
+            for (label, s) in strategies(n) {
+                if let Some(p) = self.saved.get(&key(sphere.env, sphere.material, &label, n)) {
+                    (self.progress)(self.points.len() + 1, self.total, p, true);
+                    self.points.push((*p).clone());
+                    continue;
+                }
+                let p = sphere.measure(self.cfg, label, n, s, gpu.as_deref_mut())?;
+                (self.progress)(self.points.len() + 1, self.total, &p, false);
+                self.points.push(p);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The sphere of one material in one environment, with its reference where points need it.
+struct Sphere<'a> {
+    env: &'a str,
+    material: &'a str,
+    /// The environment; `None` where all its points were resumed and it was not loaded.
+    cube: Option<&'a crate::envmap::CubeMap>,
+    gbuf: Vec<Option<render::GPixel>>,
+    /// The f64 reference; empty where none of the points is measured.
+    refimg: Vec<glam::DVec3>,
+    ref_rgb: Vec<glam::Vec3>,
+    /// The pixels the sphere covers.
+    idx: Vec<usize>,
+}
+
+impl<'a> Sphere<'a> {
+    /// The sphere's G-buffer, and its reference where `cube` is loaded and a point is `needed`.
+    fn new(
+        cfg: &Config,
+        env: &'a str,
+        material: &'a str,
+        mat: Material,
+        cube: Option<&'a crate::envmap::CubeMap>,
+        needed: bool,
+    ) -> Self {
+        let gbuf = render::sphere_gbuffer(cfg.size, cfg.size, mat);
+        let refimg = match cube {
+            Some(cube) if needed => {
+                reference::reference_image(cube, &gbuf, cfg.size, cfg.size, 1.0).1
+            }
+            _ => Vec::new(),
+        };
+        let ref_rgb: Vec<glam::Vec3> = refimg.iter().map(|c| c.as_vec3()).collect();
+        let idx: Vec<usize> = (0..gbuf.len()).filter(|&i| gbuf[i].is_some()).collect();
+        Sphere {
+            env,
+            material,
+            cube,
+            gbuf,
+            refimg,
+            ref_rgb,
+            idx,
+        }
+    }
+
+    /// The point of strategy `label` (settings `s`) at total budget `n`: CPU figures averaged
+    /// over the seeds, and the GPU's times where there is one.
+    fn measure(
+        &self,
+        cfg: &Config,
+        label: String,
+        n: usize,
+        s: Settings,
+        gpu: Option<&mut GpuTimer>,
+    ) -> Result<Point> {
+        let Some(cube) = self.cube else {
+            unreachable!("a point to measure means its environment was loaded")
+        };
+        let sums = self.seed_sums(cfg, cube, s)?;
+        let (gpu_build_ms, gpu_shade_ms) = match gpu {
+            Some(time) => {
+                let (b, s) = time(cube, &self.gbuf, cfg.size, &s)?;
+                (Some(b), Some(s))
+            }
+            None => (None, None),
+        };
+        let k = cfg.seeds as f64;
+        let np = (self.idx.len() as f64 * k).max(1.0);
+        // The samples each technique actually draws (the baselines spend all N on one).
+        let (nl, nb) = match s.strategy {
+            Strategy::Light => (n, 0),
+            Strategy::Brdf => (0, n),
+            _ => (s.light_samples, s.brdf_samples),
+        };
+        Ok(Point {
+            env: self.env.to_string(),
+            material: self.material.to_string(),
+            strategy: label,
+            light_samples: nl,
+            brdf_samples: nb,
+            budget: n,
+            relmse: sums.relmse / np,
+            rmse: (sums.mse / np).sqrt(),
+            build_ms: sums.build / k,
+            shade_ms: sums.shade / k,
+            wasted: sums.wasted / k,
+            flip: sums.flip / k,
+            gpu_build_ms,
+            gpu_shade_ms,
+        })
+    }
+
+    /// Renders settings `s` once per seed: the sums over seeds (and pixels) a point averages.
+    fn seed_sums(&self, cfg: &Config, cube: &crate::envmap::CubeMap, s: Settings) -> Result<Sums> {
+        let mut t = Sums::default();
+        for seed in 0..cfg.seeds {
+            let out = render::render(
+                cube,
+                &self.gbuf,
+                cfg.size,
+                cfg.size,
+                &Settings { seed, ..s },
+            )?;
+            for &i in &self.idx {
+                let (x, r) = (
+                    luminance_f64(out.image.data[i].as_dvec3()),
+                    luminance_f64(self.refimg[i]),
+                );
+                t.relmse += (x - r) * (x - r) / (r * r + 1e-2);
+                t.mse += (x - r) * (x - r);
+            }
+            t.build += out.stats.build_ms;
+            t.shade += out.stats.shade_ms;
+            t.wasted += out.stats.wasted;
+            t.flip +=
+                super::flip::hdr_flip(&self.ref_rgb, &out.image.data, cfg.size, cfg.size).1 as f64;
+        }
+        Ok(t)
+    }
+}
+
+/// A point's figures summed over seeds (relMSE and MSE also over pixels).
+#[derive(Default)]
+struct Sums {
+    relmse: f64,
+    mse: f64,
+    build: f64,
+    shade: f64,
+    wasted: f64,
+    flip: f64,
 }
 
 mod plots;
 mod report;
+mod strategies;
 
 pub use super::chart::{Chart, Series};
 pub use plots::{plot_error_vs_samples, plot_error_vs_time, plot_stem, plot_wasted};
 pub use report::{csv, pareto_front, report};
 pub(super) use report::{mean, pooled};
+use strategies::strategies;

@@ -268,8 +268,7 @@ pub fn resample_frame(
     frame: u32,
 ) -> crate::error::Result<Resampled> {
     s.validate_for(cur.split.rest.size)?;
-    let n_px = cur.width * cur.height;
-    assert_eq!(cur.gbuf.len(), n_px);
+    assert_eq!(cur.gbuf.len(), cur.width * cur.height);
     let s = Settings {
         seed: frame_seed(s.seed, frame),
         ..*s
@@ -283,13 +282,7 @@ pub fn resample_frame(
     let t1 = std::time::Instant::now();
     let stream = |pass: u32, i: usize| Rng::new(hash_combine(&[s.seed, pass, 0x5e57]), i as u32);
     // 1. Candidates, and the selected ones' shadow rays.
-    let first: Vec<Candidates> = (0..n_px)
-        .into_par_iter()
-        .map(|i| candidates(cur, &fd, &s, r, i, stream(1, i)))
-        .collect();
-    let mut rays: Vec<u32> = first.iter().map(|f| f.rays).collect();
-    let per_pixel: Vec<Option<PixelStats>> = first.iter().map(|f| f.stats).collect();
-    let mut res: Vec<Reservoirs> = first.into_iter().map(|f| f.res).collect();
+    let (mut res, mut rays, per_pixel) = candidate_pass(cur, &fd, &s, r, stream);
     let mut reuse = ReuseStats::default();
     // The next frame's history: the temporal pass's reservoirs, not the spatial pass's (below).
     let mut next = res.clone();
@@ -325,6 +318,24 @@ pub fn resample_frame(
         stats,
         reuse,
     })
+}
+
+/// Pass 1 over every pixel: its reservoirs, its shadow rays so far and its sample counts.
+fn candidate_pass(
+    cur: &Screen,
+    fd: &FrameData,
+    s: &Settings,
+    r: &Resampling,
+    stream: impl Fn(u32, usize) -> Rng + Sync,
+) -> (Vec<Reservoirs>, Vec<u32>, Vec<Option<PixelStats>>) {
+    let first: Vec<Candidates> = (0..cur.width * cur.height)
+        .into_par_iter()
+        .map(|i| candidates(cur, fd, s, r, i, stream(1, i)))
+        .collect();
+    let rays: Vec<u32> = first.iter().map(|f| f.rays).collect();
+    let per_pixel: Vec<Option<PixelStats>> = first.iter().map(|f| f.stats).collect();
+    let res: Vec<Reservoirs> = first.into_iter().map(|f| f.res).collect();
+    (res, rays, per_pixel)
 }
 
 /// Temporal (2.) and spatial (3.) reuse of the reservoirs of `part`, in place, their rays added
