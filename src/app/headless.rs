@@ -241,10 +241,7 @@ impl HeadlessSphere {
         sampling: EnvironmentSampling,
         size: u32,
     ) -> crate::error::Result<Self> {
-        let source = match StreamSource::parse(&sc.environment)? {
-            StreamSource::Sky { hours, .. } => StreamSource::Sky { hours, speed: 0.0 },
-            other => other,
-        };
+        let source = sc.stream_source(0.0)?;
         let face = sc.file.environment.face_size;
         let mut h = HeadlessApp::new();
         h.app.add_plugins(EnvisStreamPlugin {

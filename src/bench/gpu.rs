@@ -13,7 +13,7 @@ use crate::error::Result;
 use crate::gpu::{EnvSampler, GpuContext, GpuGPixel, Shader};
 use crate::render::{self, Settings, pool_seed};
 use crate::sampling::{CubeDistribution, LightPool, Material};
-use crate::stream::{EnvStream, StreamSource};
+use crate::stream::EnvStream;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -325,14 +325,8 @@ fn play(
 
 /// The scene's environment stream (a sky moving at the scene's speed).
 fn scene_stream(sc: &crate::scene::Scene) -> Result<EnvStream> {
-    let source = match StreamSource::parse(&sc.environment)? {
-        StreamSource::Sky { hours, .. } => StreamSource::Sky {
-            hours,
-            speed: sc.file.environment.speed,
-        },
-        o => o,
-    };
-    EnvStream::open(source, sc.file.environment.face_size)
+    let env = &sc.file.environment;
+    EnvStream::open(sc.stream_source(env.speed)?, env.face_size)
 }
 
 /// What one scene is played with: its G-buffer on the GPU, settings, sampler, shader and shadow

@@ -222,9 +222,7 @@ fn render_bevy(
     EnvStream::open(source.clone(), a.face_size)?; // refuse a bad source here, with its error
     let t0 = std::time::Instant::now();
     let mut app = HeadlessSphere::new(source, a.face_size, em, settings, a.size as u32);
-    let data = app.capture()?;
-    let mut stats = render::RenderStats::for_settings(a.size, a.size, s, s.pool_per_face());
-    stats.shade_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let out = captured(&mut app, t0, a.size, s)?;
     let c = app.counters();
     let t = app
         .app
@@ -240,12 +238,7 @@ fn render_bevy(
         "distribution_builds": c.get(|c| &c.builds),
         "lighting_passes": c.get(|c| &c.lighting_passes),
     });
-    let image = envis::envmap::Image {
-        width: a.size,
-        height: a.size,
-        data,
-    };
-    Ok((render::Rendered { image, stats }, extra))
+    Ok((out, extra))
 }
 
 /// `--backend gpu` with `--scene`: the scene's objects and camera in the headless app.
@@ -259,17 +252,30 @@ fn render_bevy_scene(
     use envis::app::headless::HeadlessSphere;
     let t0 = std::time::Instant::now();
     let mut app = HeadlessSphere::from_scene(sc, settings, size as u32)?;
+    let out = captured(&mut app, t0, size, s)?;
+    let extra =
+        serde_json::json!({ "backend": "gpu", "pipeline": "bevy (offscreen)", "scene": sc.path });
+    Ok((out, extra))
+}
+
+/// The headless app's `size`² image with the statistics of `s`, `shade_ms` the wall time since
+/// `t0` (the app's start-up included).
+#[cfg(feature = "app")]
+fn captured(
+    app: &mut envis::app::headless::HeadlessSphere,
+    t0: std::time::Instant,
+    size: usize,
+    s: &Settings,
+) -> Result<render::Rendered> {
     let data = app.capture()?;
     let mut stats = render::RenderStats::for_settings(size, size, s, s.pool_per_face());
     stats.shade_ms = t0.elapsed().as_secs_f64() * 1e3;
-    let extra =
-        serde_json::json!({ "backend": "gpu", "pipeline": "bevy (offscreen)", "scene": sc.path });
     let image = envis::envmap::Image {
         width: size,
         height: size,
         data,
     };
-    Ok((render::Rendered { image, stats }, extra))
+    Ok(render::Rendered { image, stats })
 }
 
 #[cfg(not(feature = "app"))]

@@ -66,13 +66,7 @@ fn demo_source(
 ) -> Result<envis::stream::StreamSource> {
     use envis::stream::StreamSource;
     Ok(if let Some(sc) = scene {
-        match StreamSource::parse(&sc.environment)? {
-            StreamSource::Sky { hours, .. } => StreamSource::Sky {
-                hours,
-                speed: sc.file.environment.speed,
-            },
-            other => other,
-        }
+        sc.stream_source(sc.file.environment.speed)?
     } else if let Some(dir) = a.sequence.take() {
         StreamSource::Sequence { dir, fps: a.fps }
     } else if !a.carousel.is_empty() {

@@ -214,6 +214,12 @@ impl EnvSampler {
         })
     }
 
+    /// The pool's slots: `m` per region, over every face's tiles (one thread each in the pool's
+    /// build and in its sub-texel refinement).
+    pub fn pool_slots(&self) -> u32 {
+        (6 * self.tiles * self.tiles * self.m) as u32
+    }
+
     /// The regions' records (corners and energies) at the start of `totals`: what the shading
     /// passes bind as `regions`.
     pub fn regions_binding(&self) -> wgpu::BufferBinding<'_> {
@@ -320,7 +326,6 @@ impl EnvSampler {
         enc: &mut wgpu::CommandEncoder,
         writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) {
-        let k = self.tiles as u32;
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("envis pool"),
             timestamp_writes: writes,
@@ -329,7 +334,7 @@ impl EnvSampler {
         grid(
             &mut pass,
             &self.pipelines[4],
-            dispatch_size(6 * k * k * self.m as u32, 64),
+            dispatch_size(self.pool_slots(), 64),
         );
     }
 

@@ -86,7 +86,7 @@ impl PoolRefine {
         if fine.ratio == 0 {
             return None;
         }
-        let count = (6 * sampler.tiles * sampler.tiles * sampler.m) as u32;
+        let count = sampler.pool_slots();
         let p = Params {
             n: sampler.n as u32,
             fine_n: fine.size,

@@ -244,16 +244,22 @@ impl FaceDistribution {
     /// Invert: the `u` that [`Self::sample`] of the tile holding face coordinates `(a, b)` maps
     /// to them.
     pub fn invert(&self, a: f32, b: f32) -> Vec2 {
-        let n = self.size;
-        let x = ((a + 1.0) * 0.5 * n as f32).clamp(0.0, n as f32 - 1e-3);
-        let y = ((b + 1.0) * 0.5 * n as f32).clamp(0.0, n as f32 - 1e-3);
-        let (col, row) = (x as usize, y as usize);
+        let ((col, du), (row, dv)) = (texel_offset(a, self.size), texel_offset(b, self.size));
         let t = self.tile(col, row);
         Vec2::new(
-            t.marginal.invert(col - t.col0, x - col as f32),
-            self.conditional.invert(col, row, y - row as f32),
+            t.marginal.invert(col - t.col0, du),
+            self.conditional.invert(col, row, dv),
         )
     }
+}
+
+/// The texel of face coordinate `a` on faces of `n` texels and the offset in it, in `[0, 1)`
+/// ([`FaceDistribution::invert`] and sub-texel refinement; the WGSL's `texel_offset`).
+#[inline]
+pub fn texel_offset(a: f32, n: usize) -> (usize, f32) {
+    let x = ((a + 1.0) * 0.5 * n as f32).clamp(0.0, n as f32 - 1e-3);
+    let c = x as usize;
+    (c, (x - c as f32).clamp(0.0, ONE_MINUS_EPSILON))
 }
 
 /// The six face distributions of one frame (each in `K x K` tiles).

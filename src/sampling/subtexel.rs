@@ -18,7 +18,7 @@
 //! texel, which is sampled uniformly. Unbiased wherever the coarse density is: a fine texel with
 //! radiance has `Y > 0`, so a positive factor.
 
-use super::distribution::CubeDistribution;
+use super::distribution::{CubeDistribution, texel_offset};
 use super::pool::{LightPool, PoolSample};
 use super::rng::ONE_MINUS_EPSILON;
 use crate::envmap::{CubeMap, dir_to_texel, face_ab_to_vec, luminance};
@@ -179,15 +179,6 @@ impl<'a> SubTexels<'a> {
             .par_iter_mut()
             .for_each(|s| *s = self.refine(dist, s));
     }
-}
-
-/// The texel of face coordinate `a` on faces of `n` texels and the offset in it, in `[0, 1)`
-/// (`FaceDistribution::invert`'s clamp; the WGSL's `texel_offset`).
-#[inline]
-pub fn texel_offset(a: f32, n: usize) -> (usize, f32) {
-    let x = ((a + 1.0) * 0.5 * n as f32).clamp(0.0, n as f32 - 1e-3);
-    let c = x as usize;
-    (c, (x - c as f32).clamp(0.0, ONE_MINUS_EPSILON))
 }
 
 /// One of `r` bins of weights `w(k)` for `u` in `[0, 1)` (uniform when they sum to 0) and `u`

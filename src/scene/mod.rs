@@ -158,6 +158,16 @@ impl Scene {
         })
     }
 
+    /// The stream of the scene's environment, a built-in sky's clock running at `speed` hours
+    /// per second (the scene's own `environment.speed` for playback, 0 for a still frame).
+    pub fn stream_source(&self, speed: f32) -> Result<crate::stream::StreamSource> {
+        use crate::stream::StreamSource;
+        Ok(match StreamSource::parse(&self.environment)? {
+            StreamSource::Sky { hours, .. } => StreamSource::Sky { hours, speed },
+            other => other,
+        })
+    }
+
     /// The scene's G-buffer seen by its camera (perspective), `width x height`, row-major.
     pub fn gbuffer(&self, width: usize, height: usize) -> Vec<Option<GPixel>> {
         self.gbuffer_points(width, height).0
