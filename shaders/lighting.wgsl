@@ -242,3 +242,8 @@ fn lighting(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
     }
     return vec4(color * scale, 0.0);
 }
+
+// Where a used sample goes (render::estimator's Sink for Vec3): summed into the pixel's colour.
+fn emit(res: ptr<function, Shaded>, dir: vec3<f32>, fl: vec3<f32>, cos: f32, scale: f32) {
+    (*res).color += fl * scale;
+}

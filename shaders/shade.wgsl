@@ -4,7 +4,10 @@
 // `env_radiance(d, coarse)`, the radiance in direction d given the texel table's value there
 // (render::FrameData::radiance), `env_radiance_factor(d, coarse)`, the same with the sub-texel
 // factor of the light density in w (sampling::SubTexels::radiance_and_factor), and `sample_blocked(px, pixel_index, d)`, whether a shadow ray
-// from the pixel's surface point is blocked (render::estimator's `Pixel::blocked`):
+// from the pixel's surface point is blocked (render::estimator's `Pixel::blocked`), and
+// `emit(res, dir, fl, cos, scale)`, where each used sample goes (render::estimator's `Sink`: its
+// contribution is fl x scale; the shading modules sum it into res.color, resampling.wgsl streams
+// it into a reservoir):
 // shade_compute.wgsl (headless backend, tests: the table's value; shadow rays through a BVH) or
 // lighting.wgsl (the Bevy lighting pass: the full-resolution image; shadow rays through the
 // scene's BVH). All of them are written by distribution.wgsl on the GPU; nothing is read back to
@@ -259,6 +262,7 @@ fn shade_counts(px: GPixel, pixel_index: u32, counts: u32) -> Shaded {
 struct LightHit {
     used: bool,
     f: vec3<f32>,
+    cos: f32,
     scale: f32,
 }
 
@@ -266,7 +270,7 @@ struct LightHit {
 // and light density n_l, counted green or yellow (or blocked); the caller reads its radiance only
 // when it is used.
 fn light_sample(p: Pixel, dir: vec3<f32>, weight: f32, n_l: f32, res: ptr<function, Shaded>) -> LightHit {
-    var hit = LightHit(false, vec3(0.0), 0.0);
+    var hit = LightHit(false, vec3(0.0), 0.0, 0.0);
     let cosv = dot(p.n, dir);
     if (cosv <= 0.0) {
         (*res).stats.z += 1u;
@@ -284,6 +288,7 @@ fn light_sample(p: Pixel, dir: vec3<f32>, weight: f32, n_l: f32, res: ptr<functi
     }
     hit.used = true;
     hit.f = brdf_eval(p.mat, p.ol, il);
+    hit.cos = cosv;
     hit.scale = weight * cosv * mis_weight_over_density(sp.mis, n_l, n_b);
     return hit;
 }
@@ -298,7 +303,7 @@ fn pool_sample(p: Pixel, r: u32, slot: u32, weight: f32, density: f32, res: ptr<
     }
     let hit = light_sample(p, dp.xyz, weight, density * dp.w, res);
     if (hit.used) {
-        (*res).color += hit.f * env_radiance(dp.xyz, pool[2u * s + 1u].xyz) * hit.scale;
+        emit(res, dp.xyz, hit.f * env_radiance(dp.xyz, pool[2u * s + 1u].xyz), hit.cos, hit.scale);
     }
 }
 
@@ -397,7 +402,7 @@ fn global_samples(p: Pixel, rng: ptr<function, Rng>, res: ptr<function, Shaded>)
         if (hit.used) {
             let t = dir_to_texel(gs.xyz, sp.n);
             let coarse = texels[(t.face * sp.n + t.row) * sp.n + t.col].xyz;
-            (*res).color += hit.f * env_radiance(gs.xyz, coarse) * hit.scale;
+            emit(res, gs.xyz, hit.f * env_radiance(gs.xyz, coarse), hit.cos, hit.scale);
         }
     }
 }
@@ -435,6 +440,6 @@ fn brdf_samples(p: Pixel, rng: ptr<function, Rng>, dens: LightDensities, res: pt
         } else if (sp.strategy == STRATEGY_GLOBAL) {
             n_l = f32(p.nl) * global_pdf(size, d);
         }
-        (*res).color += brdf_eval(p.mat, p.ol, il) * env.xyz * (il.z * mis_weight_over_density(sp.mis, nb_f * bs.w, n_l));
+        emit(res, d, brdf_eval(p.mat, p.ol, il) * env.xyz, il.z, il.z * mis_weight_over_density(sp.mis, nb_f * bs.w, n_l));
     }
 }

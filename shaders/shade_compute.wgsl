@@ -79,3 +79,8 @@ fn env_radiance_factor(d: vec3<f32>, coarse: vec3<f32>) -> vec4<f32> {
     let hit = dir_to_texel(d, n);
     return fine[(hit.face * n + hit.row) * n + hit.col];
 }
+
+// Where a used sample goes (render::estimator's Sink for Vec3): summed into the pixel's colour.
+fn emit(res: ptr<function, Shaded>, dir: vec3<f32>, fl: vec3<f32>, cos: f32, scale: f32) {
+    (*res).color += fl * scale;
+}

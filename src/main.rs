@@ -93,6 +93,8 @@ struct SequenceArgs {
     /// Biased reuse: 1/M MIS weights, no visibility in the weights (at most 2 shadow rays per pixel).
     #[arg(long)]
     biased: bool,
+    /// `cpu`: the oracle; `wgpu`: the WGSL passes on a headless device, the same frames to float
+    /// rounding; `gpu` (the Bevy pass) is not built yet for sequences.
     #[arg(long, value_enum, default_value_t = BackendArg::Cpu)]
     backend: BackendArg,
     /// Image width and height in pixels.

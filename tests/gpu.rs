@@ -126,6 +126,9 @@ mod twins;
 #[path = "gpu/shading.rs"]
 mod shading;
 
+#[path = "gpu/resampling.rs"]
+mod resampling;
+
 #[path = "gpu/functions.rs"]
 mod functions;
 

@@ -180,6 +180,7 @@ impl Motion {
             },
             resampling: r,
             visibility: None,
+            backend: Default::default(),
         };
         let mut row = MotionRow {
             name: name.into(),

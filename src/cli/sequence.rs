@@ -5,7 +5,7 @@ use envis::error::{Error, Result};
 use envis::render::output;
 use envis::render::resampling::Resampling;
 use envis::scene::Scene;
-use envis::sequence::{self, SequenceOptions};
+use envis::sequence::{self, SequenceBackend, SequenceOptions};
 
 pub fn sequence(a: SequenceArgs) -> Result<()> {
     check_args(&a)?;
@@ -22,6 +22,10 @@ pub fn sequence(a: SequenceArgs) -> Result<()> {
         settings,
         resampling: Resampling::for_mode(a.resampling, !a.biased),
         visibility: vis,
+        backend: match a.backend {
+            BackendArg::Wgpu => SequenceBackend::Wgpu,
+            _ => SequenceBackend::Cpu,
+        },
     };
     std::fs::create_dir_all(&a.out)
         .map_err(|e| Error::file(&a.out, format!("cannot create: {e}")))?;
@@ -43,9 +47,9 @@ pub fn sequence(a: SequenceArgs) -> Result<()> {
 
 /// The flags `sequence` checks before loading anything.
 fn check_args(a: &SequenceArgs) -> Result<()> {
-    if !matches!(a.backend, BackendArg::Cpu) {
+    if matches!(a.backend, BackendArg::Gpu) {
         return Err(Error::invalid(
-            "--backend: sequences run on the cpu backend only so far (the WGSL and Bevy passes of resampling are not built yet)",
+            "--backend gpu: the Bevy pass of resampling is not built yet; --backend wgpu runs the same WGSL headless",
         ));
     }
     if a.frames == 0 || a.frames > 100_000 {
@@ -77,7 +81,10 @@ fn write_stats(
         &serde_json::json!({
             "scene": a.scene.display().to_string(),
             "size": a.size,
-            "backend": "cpu",
+            "backend": match o.backend {
+                SequenceBackend::Cpu => "cpu",
+                SequenceBackend::Wgpu => "wgpu",
+            },
             "resampling": a.resampling.to_string(),
             "unbiased": !a.biased,
             "reuse": o.resampling,

@@ -10,6 +10,7 @@
 pub mod codes;
 pub mod context;
 pub mod resample;
+pub mod resampling;
 pub mod sampler;
 pub mod shaders;
 pub mod shading;

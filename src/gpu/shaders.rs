@@ -17,6 +17,9 @@ pub const RESAMPLE: &str = include_str!("../../shaders/resample.wgsl");
 pub const VISIBILITY: &str = include_str!("../../shaders/visibility.wgsl");
 pub const TRACE_RAYS: &str = include_str!("../../shaders/trace_rays.wgsl");
 pub const SUBTEXEL: &str = include_str!("../../shaders/subtexel.wgsl");
+pub const RESERVOIR: &str = include_str!("../../shaders/reservoir.wgsl");
+pub const BRIGHT: &str = include_str!("../../shaders/bright.wgsl");
+pub const RESAMPLING: &str = include_str!("../../shaders/resampling.wgsl");
 pub const SHADE_FUNCTIONS_TEST: &str = include_str!("../../shaders/shade_functions_test.wgsl");
 
 /// Distribution build + pool module.
@@ -49,6 +52,23 @@ pub fn shade_source() -> String {
         SHADE,
         VISIBILITY,
         SHADE_COMPUTE,
+    ]
+    .concat()
+}
+
+/// Reservoir resampling of a frame (`candidates`, `history_targets`, `temporal`, `spatial`,
+/// `shade_reservoirs`): the shading module's sample loops with a reservoir as their sink.
+pub fn resampling_source() -> String {
+    [
+        COMMON,
+        SAMPLING,
+        CDF,
+        GLOBAL_LAYOUT,
+        SHADE,
+        VISIBILITY,
+        RESERVOIR,
+        BRIGHT,
+        RESAMPLING,
     ]
     .concat()
 }
@@ -133,6 +153,15 @@ mod tests {
             wgsl_const(super::COMMON, "MAX_RADIANCE"),
             crate::envmap::MAX_RADIANCE
         );
+        use crate::render::resampling as r;
+        for (name, value) in [
+            ("SPATIAL_RADIUS", r::SPATIAL_RADIUS),
+            ("SPATIAL_CONFIDENCE", r::SPATIAL_CONFIDENCE),
+            ("NORMAL_COS", r::NORMAL_COS),
+            ("DEPTH_REL", r::DEPTH_REL),
+        ] {
+            assert_eq!(wgsl_const(super::RESAMPLING, name), value, "{name}");
+        }
     }
 
     /// The reloadable source is the embedded one, file for file.

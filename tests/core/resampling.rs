@@ -72,6 +72,7 @@ fn frames(
         },
         resampling: r,
         visibility: None,
+        backend: Default::default(),
     };
     let mut out = Vec::new();
     sequence::run(scene, &o, |f| {

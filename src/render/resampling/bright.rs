@@ -160,6 +160,19 @@ impl BrightLight {
         self.dist.is_none()
     }
 
+    /// Its texels in table order: cube-map index, radiance and probability (the GPU's copy,
+    /// `gpu::resampling`).
+    pub fn texels(&self) -> impl Iterator<Item = (u32, Vec3, f32)> + '_ {
+        let pmf = |k| self.dist.as_ref().map_or(0.0, |d| d.bin_pmf(k));
+        (self.texels.iter().zip(&self.radiance).enumerate())
+            .map(move |(k, (&t, &l))| (t, l, pmf(k)))
+    }
+
+    /// The CDF over [`Self::texels`] (empty without a bright part).
+    pub fn cdf(&self) -> &[f32] {
+        self.dist.as_ref().map_or(&[], |d| &d.cdf)
+    }
+
     /// Whether `other` is the same light: the same texels with the same radiance. The bright
     /// part's history is reused only then: a moving sun moves radiance by orders of magnitude
     /// between a sample's frame and the next (measured: 300x the error of no reuse).

@@ -2,7 +2,11 @@
 //! sequence clock (`[animation]`), its map loaded for that time, shaded either by today's
 //! estimator alone or with reservoir resampling across pixels and frames
 //! ([`crate::render::resampling`]), which needs each pixel's place in the previous frame: the
-//! point, moved back by its object's velocity, seen by the previous frame's camera.
+//! point, moved back by its object's velocity, seen by the previous frame's camera. On the CPU
+//! (the oracle) or, with the `gpu` feature, on a headless wgpu device ([`gpu`]: the WGSL twins).
+
+#[cfg(feature = "gpu")]
+mod gpu;
 
 use crate::envmap::load::{EnvSource, load_env};
 use crate::envmap::{CubeMap, Image};
@@ -27,6 +31,17 @@ pub struct SequenceOptions {
     pub resampling: Option<Resampling>,
     /// Shadow rays (`None`: the scene file's choice).
     pub visibility: Option<ShadowRays>,
+    pub backend: SequenceBackend,
+}
+
+/// Where a sequence is rendered.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SequenceBackend {
+    /// The CPU oracle.
+    #[default]
+    Cpu,
+    /// The WGSL passes on a headless wgpu device (`envis sequence --backend wgpu`).
+    Wgpu,
 }
 
 /// One rendered frame.
@@ -112,13 +127,30 @@ impl Posed {
     }
 }
 
-/// Render `o.frames` frames of `scene`, handing each to `each` in order.
+/// Render `o.frames` frames of `scene` on `o.backend`, handing each to `each` in order.
 pub fn run(
+    scene: &Scene,
+    o: &SequenceOptions,
+    each: impl FnMut(SequenceFrame) -> Result<()>,
+) -> Result<()> {
+    o.settings.validate()?;
+    match o.backend {
+        SequenceBackend::Cpu => run_cpu(scene, o, each),
+        #[cfg(feature = "gpu")]
+        SequenceBackend::Wgpu => gpu::run(scene, o, each),
+        #[cfg(not(feature = "gpu"))]
+        SequenceBackend::Wgpu => Err(crate::error::Error::invalid(
+            "--backend wgpu: this build has no GPU support (built without the `gpu` feature)",
+        )),
+    }
+}
+
+/// [`run`] on the CPU.
+fn run_cpu(
     scene: &Scene,
     o: &SequenceOptions,
     mut each: impl FnMut(SequenceFrame) -> Result<()>,
 ) -> Result<()> {
-    o.settings.validate()?;
     let (shadows, _) = scene.shadows(o.visibility);
     let mut prev: Option<(Posed, Split, Vec<Reservoirs>)> = None;
     for k in 0..o.frames {

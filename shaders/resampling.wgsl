@@ -1,0 +1,427 @@
+// envis — reservoir resampling of a frame (render::resampling::resample_frame), one entry point
+// per pass, each over every pixel: `candidates`, `history_targets` (bound with the previous
+// frame's shadow geometry), `temporal`, `spatial`, `shade_reservoirs`. Needs common.wgsl,
+// sampling.wgsl, cdf.wgsl, global_layout.wgsl, shade.wgsl, visibility.wgsl, reservoir.wgsl and
+// bright.wgsl before it. A pixel's two reservoirs (render::resampling::Part: the rest, then the
+// bright part) sit side by side: reservoir 2 i + part.
+
+// The paper's sampler, built on the rest of the map (shade.wgsl reads these).
+@group(0) @binding(0) var<storage, read> texels: array<vec4<f32>>;
+@group(0) @binding(1) var<storage, read> pool: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> regions: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read> cdfs: array<f32>;
+@group(0) @binding(4) var<uniform> sp: ShadeParams;
+@group(0) @binding(5) var<uniform> rp: ResampleParams;
+// This frame's and the previous frame's surfaces, and their maps split (per cube texel: the rest's
+// radiance, then the bright part's with its probability in w).
+@group(0) @binding(6) var<storage, read> surfaces: array<Surface>;
+@group(0) @binding(7) var<storage, read> prev_surfaces: array<Surface>;
+@group(0) @binding(8) var<storage, read> split_tex: array<vec4<f32>>;
+@group(0) @binding(9) var<storage, read> prev_split_tex: array<vec4<f32>>;
+@group(0) @binding(10) var<storage, read> bright_cdf: array<f32>;
+@group(0) @binding(11) var<storage, read> bright_ids: array<u32>;
+// Shadow geometry: this frame's, except in `history_targets` (the previous frame's).
+@group(0) @binding(12) var<storage, read> bvh_nodes: array<BvhNode>;
+@group(0) @binding(13) var<storage, read> bvh_triangles: array<array<vec4<f32>, 3>>;
+// The pass's input reservoirs, the previous frame's (the history), and its output.
+@group(0) @binding(14) var<storage, read> res_in: array<Reservoir>;
+@group(0) @binding(15) var<storage, read> res_hist: array<Reservoir>;
+@group(0) @binding(16) var<storage, read_write> res_out: array<Reservoir>;
+// Per pixel: the previous pixel (x, u32 max: none) and the distance from the previous camera
+// its point had then (y, bits of an f32).
+@group(0) @binding(17) var<storage, read> reproject: array<vec2<u32>>;
+// Per reservoir: the canonical sample's target with visibility at the history pixel, in the
+// previous frame (written by history_targets, read by temporal).
+@group(0) @binding(18) var<storage, read_write> hist_targets: array<f32>;
+// Per pixel: (shadow rays so far, history accepted, neighbours accepted, 0).
+@group(0) @binding(19) var<storage, read_write> counters: array<vec4<u32>>;
+// Per pixel: the estimate (r, g, b, 1 where shaded), and the candidates' (available, green,
+// yellow, brdf) sample counts.
+@group(0) @binding(20) var<storage, read_write> out_color: array<vec4<f32>>;
+@group(0) @binding(21) var<storage, read_write> out_stats: array<vec4<u32>>;
+
+// gpu::resampling::ResampleParams.
+struct ResampleParams {
+    width: u32,
+    height: u32,
+    // Face size of split_tex and prev_split_tex.
+    n: u32,
+    prev_n: u32,
+    // Texels of this frame's bright part (0: none; its reservoirs then stay empty and unused).
+    bright_count: u32,
+    // 1 where there is a previous frame, and where its bright part is this one's (same_light).
+    history: u32,
+    bright_history: u32,
+    temporal: u32,
+    spatial: u32,
+    max_history: f32,
+    unbiased: u32,
+    seed: u32,
+    bvh_nodes: u32,
+    prev_bvh_nodes: u32,
+    pad0: u32,
+    pad1: u32,
+}
+
+// A pixel as reuse sees it: the G-buffer texel (n.w = 1 where shaded), its surface point (xyz)
+// and distance from the camera (w), its object (id.x).
+struct Surface {
+    px: GPixel,
+    p: vec4<f32>,
+    id: vec4<u32>,
+}
+
+// render::resampling's constants (a test checks them against Rust).
+const SPATIAL_RADIUS: f32 = 8.0;
+const SPATIAL_CONFIDENCE: f32 = 0.25;
+const NORMAL_COS: f32 = 0.9;
+const DEPTH_REL: f32 = 0.1;
+const TAU: f32 = 6.28318530717959;
+
+// The candidates' sink (resample's CandidateSink); emit (shade.wgsl) streams into it.
+var<private> cand: Sink;
+
+fn emit(res: ptr<function, Shaded>, dir: vec3<f32>, fl: vec3<f32>, cos: f32, scale: f32) {
+    cand = sink_add(cand, dir, fl, cos, scale);
+}
+
+// The candidates cast no shadow rays (the selected one does, below).
+fn sample_blocked(px: GPixel, pixel_index: u32, d: vec3<f32>) -> bool {
+    return false;
+}
+
+// Radiance from the texel table (the rest of the map, at the sampler's resolution).
+fn env_radiance(d: vec3<f32>, coarse: vec3<f32>) -> vec3<f32> {
+    return coarse;
+}
+fn env_radiance_factor(d: vec3<f32>, coarse: vec3<f32>) -> vec4<f32> {
+    return vec4(coarse, 1.0);
+}
+
+// combine::DomainSurface::visible through the bound BVH of `nodes` nodes: whether d is unblocked
+// from the surface (true, and no ray, without geometry).
+fn visible_through(px: GPixel, point: vec3<f32>, d: vec3<f32>, nodes: u32, rays: ptr<function, u32>) -> bool {
+    if (nodes == 0u) {
+        return true;
+    }
+    *rays += 1u;
+    let o = shadow_origin(point, normalize_or_zero(px.n.xyz), d);
+    return !bvh_occluded(o, d, 1e-4, 3.4028235e38, nodes, ALL_LAYERS);
+}
+
+// This frame's visibility (bright.wgsl's and the passes' shadow ray).
+fn visible_from(px: GPixel, point: vec3<f32>, d: vec3<f32>, rays: ptr<function, u32>) -> bool {
+    return visible_through(px, point, d, rp.bvh_nodes, rays);
+}
+
+// The radiance of a split map's part in direction d (Split::radiance).
+fn split_radiance(prev: bool, part: u32, d: vec3<f32>) -> vec3<f32> {
+    let n = select(rp.n, rp.prev_n, prev);
+    let t = dir_to_texel(d, n);
+    let k = 2u * ((t.face * n + t.row) * n + t.col) + part;
+    if (prev) {
+        return prev_split_tex[k].xyz;
+    }
+    return split_tex[k].xyz;
+}
+
+// resampling::target_rgb: the unshadowed integrand f L cos at a pixel, L the part's radiance.
+fn target_rgb(px: GPixel, prev: bool, part: u32, d: vec3<f32>) -> vec3<f32> {
+    let mat = Material(px.kd.xyz, px.ks.xyz, u32(px.kd.w), px.ks.w);
+    let n = normalize_or_zero(px.n.xyz);
+    let o = normalize_or_zero(px.o.xyz);
+    if (all(n == vec3(0.0)) || all(o == vec3(0.0)) || dot(n, o) <= 0.0 || is_black(mat)) {
+        return vec3(0.0);
+    }
+    let cosv = dot(n, d);
+    if (cosv <= 0.0) {
+        return vec3(0.0);
+    }
+    let fr = frame_new(n);
+    return brdf_eval(mat, to_local(fr, o), to_local(fr, d)) * split_radiance(prev, part, d) * cosv;
+}
+
+// resampling::similar: the same object, normals within NORMAL_COS, depths within DEPTH_REL.
+fn similar(n_a: vec3<f32>, depth_a: f32, id_a: u32, b: Surface) -> bool {
+    return id_a == b.id.x
+        && dot(normalize_or_zero(n_a), normalize_or_zero(b.px.n.xyz)) >= NORMAL_COS
+        && abs(depth_a - b.p.w) <= DEPTH_REL * max(depth_a, b.p.w);
+}
+
+// Whether a part's reservoirs are resampled at all (the bright part only where there is one).
+fn part_live(part: u32) -> bool {
+    return part == 0u || rp.bright_count > 0u;
+}
+
+// passes::temporal's history pixel for pixel i and part: the reprojected pixel where it passes
+// the geometric tests, -1 otherwise.
+fn history_pixel(i: u32, part: u32) -> i32 {
+    if (rp.history == 0u || rp.temporal == 0u || (part == 1u && rp.bright_history == 0u)) {
+        return -1;
+    }
+    let r = reproject[i];
+    if (r.x == 0xffffffffu) {
+        return -1;
+    }
+    let h = prev_surfaces[r.x];
+    let s = surfaces[i];
+    if (h.px.n.w == 0.0 || !similar(s.px.n.xyz, bitcast<f32>(r.y), s.id.x, h)) {
+        return -1;
+    }
+    return i32(r.x);
+}
+
+// A pass's per-pixel random stream (resample_frame's `stream(pass, i)`).
+fn pass_rng(stage: u32, i: u32) -> Rng {
+    return rng_new(hash3(rp.seed, stage, 0x5e57u), i);
+}
+
+fn pixel_id(gid: vec3<u32>, nwg: vec3<u32>) -> u32 {
+    return linear_id(gid, nwg, 64u);
+}
+
+// Pass 1 (passes::candidates): the rest's reservoir from the paper's samples, the bright part's
+// (bright_reservoir), each selected sample shadow-tested.
+@compute @workgroup_size(64)
+fn candidates(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let i = pixel_id(gid, nwg);
+    if (i >= rp.width * rp.height) {
+        return;
+    }
+    let s = surfaces[i];
+    if (s.px.n.w == 0.0) {
+        res_out[2u * i] = reservoir_empty(0.0);
+        res_out[2u * i + 1u] = reservoir_empty(0.0);
+        counters[i] = vec4(0u);
+        out_stats[i] = vec4(0u);
+        return;
+    }
+    var rng = pass_rng(1u, i);
+    var bright_rng = rng_new(rng_next_u32(&rng), i);
+    cand = sink_new(rng);
+    let shaded = shade(s.px, i);
+    var q = sink_finish(cand);
+    var rays = 0u;
+    if (q.ucw > 0.0) {
+        q.visible = u32(visible_from(s.px, s.p.xyz, q.dir, &rays));
+        if (q.visible == 0u) {
+            q.ucw = 0.0;
+        }
+    }
+    res_out[2u * i] = q;
+    res_out[2u * i + 1u] = bright_reservoir(s.px, s.p.xyz, &bright_rng, &rays);
+    counters[i] = vec4(rays, 0u, 0u, 0u);
+    out_stats[i] = shaded.stats;
+}
+
+// Before temporal reuse, with the previous frame's shadow geometry bound: per part, the
+// canonical sample's target with visibility at the history pixel in its frame
+// (DomainSurface::target_visible), where the pairwise weights will ask for it.
+@compute @workgroup_size(64)
+fn history_targets(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let i = pixel_id(gid, nwg);
+    if (i >= rp.width * rp.height) {
+        return;
+    }
+    var rays = 0u;
+    for (var part = 0u; part < 2u; part++) {
+        var t = 0.0;
+        let own = res_in[2u * i + part];
+        let q = history_pixel(i, part);
+        if (rp.unbiased != 0u && part_live(part) && surfaces[i].px.n.w != 0.0 && q >= 0 && own.ucw > 0.0 && own.p_hat > 0.0) {
+            let h = prev_surfaces[u32(q)];
+            t = luminance(target_rgb(h.px, true, part, own.dir));
+            if (t > 0.0 && !visible_through(h.px, h.p.xyz, own.dir, rp.prev_bvh_nodes, &rays)) {
+                t = 0.0;
+            }
+        }
+        hist_targets[2u * i + part] = t;
+    }
+    counters[i].x += rays;
+}
+
+// The domain of reservoir `res` made elsewhere, its sample re-evaluated at pixel s
+// (Domain::reused); p_c and p_at_c are set by the caller.
+fn reused_domain(res: Reservoir, s: Surface, part: u32) -> Domain {
+    return Domain(res, target_rgb(s.px, false, part, res.dir), 0.0, 0.0);
+}
+
+// combine::canonical_target for every domain: the canonical sample's own target where live; a
+// reused sample's target here with this pixel's visibility (a ray where it is positive).
+fn canonical_targets(dom: ptr<function, array<Domain, MAX_DOMAINS>>, count: u32, s: Surface, rays: ptr<function, u32>) {
+    let own = (*dom)[0].res;
+    (*dom)[0].p_c = select(0.0, own.p_hat, own.ucw > 0.0);
+    for (var j = 1u; j < count; j++) {
+        let d = (*dom)[j];
+        var t = luminance(d.here);
+        if (!(t > 0.0 && d.res.ucw > 0.0 && visible_from(s.px, s.p.xyz, d.res.dir, rays))) {
+            t = 0.0;
+        }
+        (*dom)[j].p_c = t;
+    }
+}
+
+// combine::combine over the domains prepared.
+fn combine(dom: ptr<function, array<Domain, MAX_DOMAINS>>, count: u32, rng: ptr<function, Rng>) -> Reservoir {
+    if (rp.unbiased != 0u) {
+        return combine_pairwise(dom, count, rng);
+    }
+    return combine_biased(dom, count, rng);
+}
+
+// Pass 2 (passes::temporal): each part's reservoir combined with the history pixel's, its
+// confidence capped at max_history.
+@compute @workgroup_size(64)
+fn temporal(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let i = pixel_id(gid, nwg);
+    if (i >= rp.width * rp.height) {
+        return;
+    }
+    let s = surfaces[i];
+    var c = counters[i];
+    for (var part = 0u; part < 2u; part++) {
+        let own = res_in[2u * i + part];
+        var out = own;
+        let q = history_pixel(i, part);
+        if (part_live(part) && s.px.n.w != 0.0 && q >= 0) {
+            var old = res_hist[2u * u32(q) + part];
+            old.m = min(old.m, rp.max_history);
+            var dom: array<Domain, MAX_DOMAINS>;
+            dom[0] = Domain(own, own.rgb, 0.0, 0.0);
+            dom[1] = reused_domain(old, s, part);
+            var rays = 0u;
+            if (rp.unbiased != 0u) {
+                canonical_targets(&dom, 2u, s, &rays);
+                dom[1].p_at_c = hist_targets[2u * i + part];
+            }
+            var rng = pass_rng(2u + 4u * part, i);
+            out = combine(&dom, 2u, &rng);
+            c.x += rays;
+            if (part == 0u) {
+                c.y += 1u;
+            }
+        }
+        res_out[2u * i + part] = out;
+    }
+    counters[i] = c;
+}
+
+// Rust's f32::round: halves away from zero (WGSL's round goes to even).
+fn round_away(x: f32) -> f32 {
+    return sign(x) * floor(abs(x) + 0.5);
+}
+
+// Pass 3 (passes::spatial): up to rp.spatial neighbours in a disc of SPATIAL_RADIUS pixels,
+// passing the geometric tests, their confidence capped at SPATIAL_CONFIDENCE of the pixel's.
+@compute @workgroup_size(64)
+fn spatial(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let i = pixel_id(gid, nwg);
+    if (i >= rp.width * rp.height) {
+        return;
+    }
+    let s = surfaces[i];
+    var c = counters[i];
+    for (var part = 0u; part < 2u; part++) {
+        let own = res_in[2u * i + part];
+        var out = own;
+        if (part_live(part) && s.px.n.w != 0.0 && rp.spatial > 0u) {
+            var rng = pass_rng(3u + 4u * part, i);
+            var dom: array<Domain, MAX_DOMAINS>;
+            var at: array<u32, MAX_DOMAINS>;
+            dom[0] = Domain(own, own.rgb, 0.0, 0.0);
+            let count = spatial_domains(i, part, &dom, &at, &rng);
+            if (count > 1u) {
+                var rays = 0u;
+                if (rp.unbiased != 0u) {
+                    canonical_targets(&dom, count, s, &rays);
+                    neighbour_targets(&dom, &at, count, part, &rays);
+                }
+                out = combine(&dom, count, &rng);
+                c.x += rays;
+                if (part == 0u) {
+                    c.z += count - 1u;
+                }
+            }
+        }
+        res_out[2u * i + part] = out;
+    }
+    counters[i] = c;
+}
+
+// The neighbours of pixel i that pass the tests, into dom[1..] (their pixels into at); the
+// domain count.
+fn spatial_domains(i: u32, part: u32, dom: ptr<function, array<Domain, MAX_DOMAINS>>, at: ptr<function, array<u32, MAX_DOMAINS>>, rng: ptr<function, Rng>) -> u32 {
+    let s = surfaces[i];
+    let own_m = (*dom)[0].res.m;
+    let w = i32(rp.width);
+    let h = i32(rp.height);
+    let x = i32(i % rp.width);
+    let y = i32(i / rp.width);
+    var count = 1u;
+    for (var k = 0u; k < min(rp.spatial, MAX_DOMAINS - 1u); k++) {
+        let u1 = rng_next_f32(rng);
+        let u2 = rng_next_f32(rng);
+        let rad = SPATIAL_RADIUS * sqrt(u1);
+        let nx = x + i32(round_away(rad * cos(TAU * u2)));
+        let ny = y + i32(round_away(rad * sin(TAU * u2)));
+        if ((nx == x && ny == y) || nx < 0 || ny < 0 || nx >= w || ny >= h) {
+            continue;
+        }
+        let j = u32(ny * w + nx);
+        let nb = surfaces[j];
+        if (nb.px.n.w == 0.0 || !similar(s.px.n.xyz, s.p.w, s.id.x, nb)) {
+            continue;
+        }
+        var q = res_in[2u * j + part];
+        q.m = min(q.m, SPATIAL_CONFIDENCE * own_m);
+        (*dom)[count] = reused_domain(q, s, part);
+        (*at)[count] = j;
+        count += 1u;
+    }
+    return count;
+}
+
+// For the canonical sample's pairwise weight: its target with visibility at each neighbour
+// (DomainSurface::target_visible), where the canonical sample can be selected.
+fn neighbour_targets(dom: ptr<function, array<Domain, MAX_DOMAINS>>, at: ptr<function, array<u32, MAX_DOMAINS>>, count: u32, part: u32, rays: ptr<function, u32>) {
+    let own = (*dom)[0];
+    if (!(own.p_c > 0.0 && own.res.ucw > 0.0)) {
+        return;
+    }
+    for (var j = 1u; j < count; j++) {
+        let nb = surfaces[(*at)[j]];
+        var t = luminance(target_rgb(nb.px, false, part, own.res.dir));
+        if (t > 0.0 && !visible_from(nb.px, nb.p.xyz, own.res.dir, rays)) {
+            t = 0.0;
+        }
+        (*dom)[j].p_at_c = t;
+    }
+}
+
+// Pass 4 (resampling's shade): per pixel f(Y) V(Y) W summed over the parts, a final sample
+// shadow-tested where its visibility is not known yet (the biased mode).
+@compute @workgroup_size(64)
+fn shade_reservoirs(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let i = pixel_id(gid, nwg);
+    if (i >= rp.width * rp.height) {
+        return;
+    }
+    let s = surfaces[i];
+    var sum = vec3(0.0);
+    var rays = 0u;
+    for (var part = 0u; part < 2u; part++) {
+        var q = res_in[2u * i + part];
+        if (s.px.n.w != 0.0 && q.ucw > 0.0 && q.visible == 0u) {
+            q.visible = u32(visible_from(s.px, s.p.xyz, q.dir, &rays));
+            if (q.visible == 0u) {
+                q.ucw = 0.0;
+            }
+        }
+        if (q.ucw > 0.0) {
+            sum += q.rgb * q.ucw;
+        }
+        res_out[2u * i + part] = q;
+    }
+    counters[i].x += rays;
+    out_color[i] = vec4(sum, select(0.0, 1.0, s.px.n.w != 0.0));
+}

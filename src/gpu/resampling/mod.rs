@@ -1,0 +1,458 @@
+//! Reservoir resampling on the GPU (`shaders/resampling.wgsl`): the twin of
+//! [`crate::render::resampling::resample_frame`], pass for pass, with the same random streams.
+//! Per frame: the paper's sampler is built on the rest of the map (as the CPU's `FrameData`),
+//! then five dispatches over the pixels: `candidates`, `history_targets` (the canonical samples'
+//! targets at the history pixels, with the previous frame's shadow geometry bound), `temporal`,
+//! `spatial` and `shade_reservoirs`. The previous frame's surfaces, split map, shadow geometry
+//! and reservoirs stay on the device for the next frame; nothing but the image and the
+//! statistics is read back. `tests/gpu/resampling.rs` compares whole sequences with the CPU.
+
+mod layout;
+
+pub use layout::{GpuReservoir, GpuSurface, ResampleParams};
+
+use super::sampler::{EnvSampler, storage};
+use super::shading::ShadeParams;
+use super::{GpuContext, dispatch_size, shaders};
+use crate::envmap::Image;
+use crate::error::{Error, Result};
+use crate::render::resampling::{Resampling, Reservoir, ReuseStats, Screen, frame_seed};
+use crate::render::{PixelStats, RenderStats, Settings, Strategy, pool_seed};
+use crate::visibility::FlatBvh;
+use glam::Vec3;
+use wgpu::util::DeviceExt;
+
+/// The most spatial neighbours the shaders take (`MAX_DOMAINS - 1` in `reservoir.wgsl`).
+pub const MAX_SPATIAL: u32 = 8;
+
+/// The entry points, in dispatch order.
+const PASSES: [&str; 5] = [
+    "candidates",
+    "history_targets",
+    "temporal",
+    "spatial",
+    "shade_reservoirs",
+];
+
+/// What temporal reuse needs of the caller: per pixel, where it was in the previous frame (the
+/// pixel, and the distance from the previous camera its point had then), and whether the
+/// previous frame's bright part is this one's ([`crate::render::resampling::BrightLight::same_light`]).
+pub struct GpuHistory<'a> {
+    pub reproject: &'a [Option<(usize, f32)>],
+    pub same_bright: bool,
+}
+
+/// A resampled frame from the GPU.
+pub struct GpuResampled {
+    pub image: Image,
+    pub stats: RenderStats,
+    pub reuse: ReuseStats,
+}
+
+/// The previous frame, on the device.
+struct Previous {
+    surfaces: wgpu::Buffer,
+    split: wgpu::Buffer,
+    n: u32,
+    bvh: Option<(wgpu::Buffer, wgpu::Buffer, u32)>,
+    /// The temporal pass's output: the next frame's history.
+    reservoirs: wgpu::Buffer,
+    pixels: usize,
+}
+
+/// The resampling pipelines, the sampler they build on, and the previous frame.
+pub struct GpuResampler {
+    layout: wgpu::BindGroupLayout,
+    pipelines: Vec<wgpu::ComputePipeline>,
+    shade_params: wgpu::Buffer,
+    params: wgpu::Buffer,
+    /// Bound where a pass has nothing to read (no history, no bright part, no geometry).
+    placeholder: wgpu::Buffer,
+    sampler: Option<((usize, usize, usize, bool), EnvSampler)>,
+    prev: Option<Previous>,
+}
+
+impl GpuResampler {
+    pub fn new(ctx: &GpuContext) -> Self {
+        let device = &ctx.device;
+        use wgpu::BufferBindingType as Kind;
+        let (ro, rw) = (
+            Kind::Storage { read_only: true },
+            Kind::Storage { read_only: false },
+        );
+        // Bindings 0..=21 as in `shaders/resampling.wgsl`.
+        let mut kinds = vec![ro; 22];
+        kinds[4] = Kind::Uniform;
+        kinds[5] = Kind::Uniform;
+        for b in [16, 18, 19, 20, 21] {
+            kinds[b] = rw;
+        }
+        let layout = super::buffer_layout(device, "envis resampling layout", &kinds);
+        let pl = super::one_group_layout(device, "envis resampling", &layout);
+        let module = shaders::module(
+            device,
+            "envis resampling.wgsl",
+            &shaders::resampling_source(),
+        );
+        let pipelines = PASSES
+            .iter()
+            .map(|entry| super::compute_pipeline(device, &pl, &module, entry))
+            .collect();
+        let placeholder = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("envis resampling placeholder"),
+            size: 256,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        GpuResampler {
+            layout,
+            pipelines,
+            shade_params: super::uniform_buffer::<ShadeParams>(device, "envis resampling shade"),
+            params: super::uniform_buffer::<ResampleParams>(device, "envis resampling params"),
+            placeholder,
+            sampler: None,
+            prev: None,
+        }
+    }
+
+    /// Forget the history: the next frame starts afresh.
+    pub fn reset(&mut self) {
+        self.prev = None;
+    }
+
+    /// Resample frame `frame` of a sequence: the twin of
+    /// [`crate::render::resampling::resample_frame`] with `cur`'s shadow geometry as `bvh`
+    /// (`cur.occluder` is not read), its history the previous call's frame where `history` is
+    /// given.
+    pub fn frame(
+        &mut self,
+        ctx: &GpuContext,
+        cur: &Screen,
+        bvh: Option<&FlatBvh>,
+        history: Option<GpuHistory>,
+        s: &Settings,
+        r: &Resampling,
+        frame: u32,
+    ) -> Result<GpuResampled> {
+        check(cur, s, r)?;
+        let s = Settings {
+            seed: frame_seed(s.seed, frame),
+            ..*s
+        };
+        let n_px = cur.width * cur.height;
+        let history = history.filter(|_| self.prev.as_ref().is_some_and(|p| p.pixels == n_px));
+        let t0 = std::time::Instant::now();
+        self.build(ctx, cur, &s)?;
+        let build_ms = t0.elapsed().as_secs_f64() * 1e3;
+        let t1 = std::time::Instant::now();
+        let f = FrameBuffers::new(ctx, cur, bvh, history.as_ref().map(|h| h.reproject));
+        let params = self.params_for(cur, &f, history.as_ref(), r, s.seed);
+        ctx.queue
+            .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        let (_, sampler) = self.sampler.as_ref().expect("built above");
+        let shade = ShadeParams::new(&s, sampler.n, sampler.m, n_px);
+        ctx.queue
+            .write_buffer(&self.shade_params, 0, bytemuck::bytes_of(&shade));
+        let out = self.dispatch(ctx, &f, history.is_some())?;
+        let shade_ms = t1.elapsed().as_secs_f64() * 1e3;
+        let mut stats = RenderStats::for_settings(cur.width, cur.height, &s, s.pool_slots());
+        (stats.build_ms, stats.shade_ms) = (build_ms, shade_ms);
+        let result = out.into_frame(cur, stats);
+        self.prev = Some(f.into_previous(cur.split.rest.size as u32));
+        Ok(result)
+    }
+
+    /// Build the paper's sampler on the rest of `cur`'s map (a new one when the sizes change).
+    fn build(&mut self, ctx: &GpuContext, cur: &Screen, s: &Settings) -> Result<()> {
+        let rest = &cur.split.rest;
+        let global = s.strategy == Strategy::Global;
+        let key = (rest.size, s.pool_slots(), s.pool_block_count(), global);
+        if self.sampler.as_ref().is_none_or(|(k, _)| *k != key) {
+            let mut sampler = EnvSampler::for_settings(ctx, rest.size, s)?;
+            if global {
+                sampler.enable_global(&ctx.device, &ctx.queue)?;
+            }
+            self.sampler = Some((key, sampler));
+        }
+        let (_, sampler) = self.sampler.as_ref().expect("set above");
+        sampler.upload(&ctx.queue, rest);
+        ctx.wait(sampler.run(ctx, pool_seed(s.seed)))
+    }
+
+    fn params_for(
+        &self,
+        cur: &Screen,
+        f: &FrameBuffers,
+        history: Option<&GpuHistory>,
+        r: &Resampling,
+        seed: u32,
+    ) -> ResampleParams {
+        let prev = self.prev.as_ref().filter(|_| history.is_some());
+        ResampleParams {
+            width: cur.width as u32,
+            height: cur.height as u32,
+            n: cur.split.rest.size as u32,
+            prev_n: prev.map_or(0, |p| p.n),
+            bright_count: f.bright_count,
+            history: prev.is_some() as u32,
+            bright_history: history.is_some_and(|h| h.same_bright) as u32,
+            temporal: r.temporal as u32,
+            spatial: r.spatial,
+            max_history: r.max_history as f32,
+            unbiased: r.unbiased as u32,
+            seed,
+            bvh_nodes: f.bvh.as_ref().map_or(0, |b| b.2),
+            prev_bvh_nodes: prev.and_then(|p| p.bvh.as_ref()).map_or(0, |b| b.2),
+            ..Default::default()
+        }
+    }
+}
+
+/// What the GPU passes cannot do, as one-line errors: the CPU oracle's test mutations, shadowed
+/// candidates, more neighbours than the shaders hold.
+fn check(cur: &Screen, s: &Settings, r: &Resampling) -> Result<()> {
+    s.validate_for(cur.split.rest.size)?;
+    assert_eq!(cur.gbuf.len(), cur.width * cur.height);
+    if r.mutation.is_some() {
+        return Err(Error::invalid(
+            "resampling mutations are the CPU oracle's tests; the GPU passes have none",
+        ));
+    }
+    if r.candidate_visibility {
+        return Err(Error::invalid(
+            "shadow-tested candidates are a CPU-only experiment of the resampling oracle",
+        ));
+    }
+    if r.spatial > MAX_SPATIAL {
+        return Err(Error::invalid(format!(
+            "spatial {} neighbours: the GPU passes take at most {MAX_SPATIAL}",
+            r.spatial
+        )));
+    }
+    Ok(())
+}
+
+/// A storage buffer holding `data` (at least `min` bytes).
+fn init<T: bytemuck::Pod>(device: &wgpu::Device, label: &str, data: &[T]) -> wgpu::Buffer {
+    let bytes: &[u8] = bytemuck::cast_slice(data);
+    let mut v = bytes.to_vec();
+    v.resize(bytes.len().max(256), 0);
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents: &v,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+    })
+}
+
+/// One frame's buffers.
+struct FrameBuffers {
+    surfaces: wgpu::Buffer,
+    split: wgpu::Buffer,
+    bright_cdf: wgpu::Buffer,
+    bright_ids: wgpu::Buffer,
+    bright_count: u32,
+    bvh: Option<(wgpu::Buffer, wgpu::Buffer, u32)>,
+    reproject: Option<wgpu::Buffer>,
+    /// Candidates, after temporal reuse (the next history), after spatial reuse, shaded.
+    res: [wgpu::Buffer; 4],
+    hist_targets: wgpu::Buffer,
+    counters: wgpu::Buffer,
+    color: wgpu::Buffer,
+    stats: wgpu::Buffer,
+    pixels: usize,
+}
+
+impl FrameBuffers {
+    fn new(
+        ctx: &GpuContext,
+        cur: &Screen,
+        bvh: Option<&FlatBvh>,
+        reproject: Option<&[Option<(usize, f32)>]>,
+    ) -> Self {
+        let device = &ctx.device;
+        let n_px = cur.width * cur.height;
+        let surfaces = layout::surfaces(cur.gbuf, cur.points, cur.surfaces);
+        let (tex, cdf, ids) = layout::split_tables(cur.split);
+        let res = |label| storage(device, label, n_px as u64 * 96);
+        FrameBuffers {
+            surfaces: init(device, "envis surfaces", &surfaces),
+            split: init(device, "envis split map", &tex),
+            bright_cdf: init(device, "envis bright cdf", &cdf),
+            bright_ids: init(device, "envis bright texels", &ids),
+            bright_count: ids.len() as u32,
+            bvh: bvh.map(|b| {
+                let (nodes, tris) = super::visibility::upload_bvh(device, b);
+                (nodes, tris, b.tlas_nodes() as u32)
+            }),
+            reproject: reproject
+                .map(|m| init(device, "envis reprojection", &layout::reprojection(m))),
+            res: [
+                res("envis candidates"),
+                res("envis temporal reservoirs"),
+                res("envis spatial reservoirs"),
+                res("envis final reservoirs"),
+            ],
+            hist_targets: storage(device, "envis history targets", n_px as u64 * 8),
+            counters: storage(device, "envis reuse counters", n_px as u64 * 16),
+            color: storage(device, "envis resampled color", n_px as u64 * 16),
+            stats: storage(device, "envis candidate stats", n_px as u64 * 16),
+            pixels: n_px,
+        }
+    }
+
+    fn into_previous(self, n: u32) -> Previous {
+        let [_, temporal, _, _] = self.res;
+        Previous {
+            surfaces: self.surfaces,
+            split: self.split,
+            n,
+            bvh: self.bvh,
+            reservoirs: temporal,
+            pixels: self.pixels,
+        }
+    }
+}
+
+/// What the frame's dispatches read back.
+struct Readback {
+    color: Vec<[f32; 4]>,
+    stats: Vec<[u32; 4]>,
+    counters: Vec<[u32; 4]>,
+    reservoirs: Vec<GpuReservoir>,
+}
+
+impl GpuResampler {
+    /// The five passes in one submission, and the readback.
+    fn dispatch(&self, ctx: &GpuContext, f: &FrameBuffers, history: bool) -> Result<Readback> {
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        let (x, y) = dispatch_size(f.pixels as u32, 64);
+        for (pass, pipeline) in self.pipelines.iter().enumerate() {
+            if pass == 1 && !history {
+                continue; // no history: temporal passes its input through
+            }
+            let bind = self.bind_group(ctx, f, pass);
+            let mut cp = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some(PASSES[pass]),
+                timestamp_writes: None,
+            });
+            cp.set_pipeline(pipeline);
+            cp.set_bind_group(0, &bind, &[]);
+            cp.dispatch_workgroups(x, y, 1);
+        }
+        ctx.wait(ctx.queue.submit([enc.finish()]))?;
+        let n = f.pixels as u64;
+        let data = ctx.read_many(&[
+            (&f.color, 0, n * 16),
+            (&f.stats, 0, n * 16),
+            (&f.counters, 0, n * 16),
+            (&f.res[3], 0, n * 96),
+        ])?;
+        Ok(Readback {
+            color: bytemuck::pod_collect_to_vec(&data[0]),
+            stats: bytemuck::pod_collect_to_vec(&data[1]),
+            counters: bytemuck::pod_collect_to_vec(&data[2]),
+            reservoirs: bytemuck::pod_collect_to_vec(&data[3]),
+        })
+    }
+
+    /// Pass `pass`'s bind group: its input and output reservoirs, and the shadow geometry
+    /// (the previous frame's for `history_targets`).
+    fn bind_group(&self, ctx: &GpuContext, f: &FrameBuffers, pass: usize) -> wgpu::BindGroup {
+        let (_, sampler) = self.sampler.as_ref().expect("built before dispatch");
+        let ph = &self.placeholder;
+        let prev = self.prev.as_ref();
+        // Candidates write res[0]; temporal reads res[0] (history_targets too) and writes res[1];
+        // spatial res[1] -> res[2]; shading res[2] -> res[3].
+        let (input, output) = match pass {
+            0 => (&f.res[3], &f.res[0]),
+            1 | 2 => (&f.res[0], &f.res[1]),
+            3 => (&f.res[1], &f.res[2]),
+            _ => (&f.res[2], &f.res[3]),
+        };
+        let bvh = if pass == 1 {
+            prev.and_then(|p| p.bvh.as_ref())
+        } else {
+            f.bvh.as_ref()
+        };
+        let (nodes, tris) = bvh.map_or((ph, ph), |b| (&b.0, &b.1));
+        let resources = [
+            whole(&sampler.texels),
+            whole(&sampler.pool),
+            wgpu::BindingResource::Buffer(sampler.regions_binding()),
+            whole(&sampler.gdist),
+            whole(&self.shade_params),
+            whole(&self.params),
+            whole(&f.surfaces),
+            whole(prev.map_or(ph, |p| &p.surfaces)),
+            whole(&f.split),
+            whole(prev.map_or(ph, |p| &p.split)),
+            whole(&f.bright_cdf),
+            whole(&f.bright_ids),
+            whole(nodes),
+            whole(tris),
+            whole(input),
+            whole(prev.map_or(ph, |p| &p.reservoirs)),
+            whole(output),
+            whole(f.reproject.as_ref().unwrap_or(ph)),
+            whole(&f.hist_targets),
+            whole(&f.counters),
+            whole(&f.color),
+            whole(&f.stats),
+        ];
+        let entries: Vec<wgpu::BindGroupEntry> = (0u32..)
+            .zip(resources)
+            .map(|(binding, resource)| wgpu::BindGroupEntry { binding, resource })
+            .collect();
+        ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(PASSES[pass]),
+            layout: &self.layout,
+            entries: &entries,
+        })
+    }
+}
+
+/// A whole buffer as a binding.
+fn whole(b: &wgpu::Buffer) -> wgpu::BindingResource<'_> {
+    wgpu::BindingResource::Buffer(b.as_entire_buffer_binding())
+}
+
+impl Readback {
+    /// The image, the statistics as the CPU twin counts them, and what reuse did.
+    fn into_frame(self, cur: &Screen, mut stats: RenderStats) -> GpuResampled {
+        let per_pixel: Vec<Option<PixelStats>> = (self.stats.iter().zip(cur.gbuf))
+            .map(|(q, g)| {
+                g.as_ref().map(|_| PixelStats {
+                    available: q[0],
+                    green: q[1],
+                    yellow: q[2],
+                    brdf: q[3],
+                    ..Default::default()
+                })
+            })
+            .collect();
+        stats.accumulate(&per_pixel);
+        stats.shadow_rays += self.counters.iter().map(|c| c[0] as u64).sum::<u64>();
+        let shaded = cur.gbuf.iter().filter(|p| p.is_some()).count().max(1);
+        let rest_m: f64 = (cur.gbuf.iter().enumerate())
+            .filter(|(_, p)| p.is_some())
+            .map(|(i, _)| Reservoir::from(self.reservoirs[2 * i]).m as f64)
+            .sum();
+        let reuse = ReuseStats {
+            temporal_accepted: self.counters.iter().map(|c| c[1] as u64).sum(),
+            spatial_accepted: self.counters.iter().map(|c| c[2] as u64).sum(),
+            mean_history: rest_m / shaded as f64,
+        };
+        let image = Image {
+            width: cur.width,
+            height: cur.height,
+            data: (self.color.iter())
+                .map(|c| Vec3::new(c[0], c[1], c[2]))
+                .collect(),
+        };
+        GpuResampled {
+            image,
+            stats,
+            reuse,
+        }
+    }
+}

@@ -1,0 +1,66 @@
+//! A sequence on a headless wgpu device: the WGSL twins of the CPU path in [`super`], frame for
+//! frame with the same seeds ([`crate::gpu::resampling::GpuResampler`] with resampling,
+//! [`crate::gpu::GpuRenderer`] without). Shadow rays go through the scene's flattened BVH
+//! ([`crate::scene::Scene::shadow_bvh`]), which the CPU's occluders match ray for ray.
+
+use super::{Posed, SequenceFrame, SequenceOptions, frame_stats, split_map};
+use crate::error::{Error, Result};
+use crate::gpu::resampling::{GpuHistory, GpuResampler};
+use crate::gpu::{GpuContext, GpuRenderer};
+use crate::render::resampling::{ReuseStats, Split};
+use crate::scene::Scene;
+
+/// [`super::run`] on a new headless device.
+pub(super) fn run(
+    scene: &Scene,
+    o: &SequenceOptions,
+    mut each: impl FnMut(SequenceFrame) -> Result<()>,
+) -> Result<()> {
+    let ctx = GpuContext::new()?;
+    let (shadows, _) = scene.shadows(o.visibility);
+    let mut plain = GpuRenderer::new(&ctx);
+    let mut resampler = o.resampling.map(|_| GpuResampler::new(&ctx));
+    let mut prev: Option<(Posed, Split)> = None;
+    for k in 0..o.frames {
+        let cur = Posed::new(scene, scene.frame_time(k), o.size)?;
+        let bvh = shadows
+            .then(|| cur.scene.shadow_bvh())
+            .transpose()
+            .map_err(|e| Error::invalid(format!("shadow geometry: {e}")))?;
+        let (Some(r), Some(resampler)) = (o.resampling, resampler.as_mut()) else {
+            let (w, h) = (cur.camera.width, cur.camera.height);
+            let shadows = bvh.as_ref().map(|b| (b, cur.screen.points.as_slice()));
+            let (out, _) = plain.render_with_shadows(
+                &cur.map,
+                &cur.screen.gbuf,
+                w,
+                h,
+                &o.settings,
+                shadows,
+            )?;
+            each(SequenceFrame {
+                stats: frame_stats(k, cur.time, &out.stats, ReuseStats::default()),
+                image: out.image,
+            })?;
+            continue;
+        };
+        let split = split_map(&cur.map, &r);
+        let reproject: Option<Vec<_>> = prev.as_ref().map(|(p, _)| {
+            (0..cur.screen.gbuf.len())
+                .map(|i| cur.reproject(p, i, r.mutation))
+                .collect()
+        });
+        let history = (prev.as_ref().zip(reproject.as_deref())).map(|((_, ps), rep)| GpuHistory {
+            reproject: rep,
+            same_bright: ps.bright.same_light(&split.bright),
+        });
+        let screen = cur.screen(None, &split);
+        let out = resampler.frame(&ctx, &screen, bvh.as_ref(), history, &o.settings, &r, k)?;
+        each(SequenceFrame {
+            stats: frame_stats(k, cur.time, &out.stats, out.reuse),
+            image: out.image,
+        })?;
+        prev = Some((cur, split));
+    }
+    Ok(())
+}
