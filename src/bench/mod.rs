@@ -107,7 +107,7 @@ pub struct BenchArgs {
     /// Accuracy suite: a small sweep (a smoke test, under a minute).
     #[arg(long)]
     pub quick: bool,
-    /// Accuracy suite: do not also time each point on the GPU backend.
+    /// Accuracy and motion suites: do not also run on the GPU backend.
     #[arg(long)]
     pub cpu_only: bool,
     /// Motion suite: the animated scene file (default: `assets/scenes/motion.toml`).

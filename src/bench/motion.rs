@@ -9,9 +9,13 @@
 //! - `restir 4+4 shadowed candidates`: every candidate shadow-tested (`candidate_visibility`);
 //! - `restir 4+4 unsplit`: the map's bright part resampled with the rest (`split_bright` off).
 //!
+//! With the `gpu` feature (and without `--cpu-only`), the first four again on the WGSL passes
+//! (`wgpu ...`, a headless device: lavapipe in CI), each timed against `wgpu single 32+32` in the
+//! same sitting.
+//!
 //! Per configuration over the measured frames: mean relMSE and HDR-FLIP against the reference,
-//! lighting cost (build + shading) and shadow rays per pixel, and each as a ratio to
-//! `single 32+32`. The reference of a frame is today's estimator at `REF_SAMPLES` + `REF_SAMPLES`
+//! lighting cost (build + shading, wall clock) and shadow rays per pixel, and each as a ratio to
+//! `single 32+32` on the same backend. The reference of a frame is today's estimator at `REF_SAMPLES` + `REF_SAMPLES`
 //! samples (unbiased; its own relMSE is printed, so the floor is known). Writes
 //! `DIR/bench-motion.json`.
 
@@ -21,7 +25,7 @@ use crate::error::{Error, Result};
 use crate::render::resampling::{Resampling, ResamplingMode};
 use crate::render::{Extras, Settings};
 use crate::scene::Scene;
-use crate::sequence::{self, Posed, SequenceOptions};
+use crate::sequence::{self, Posed, SequenceBackend, SequenceOptions};
 use std::path::{Path, PathBuf};
 
 /// The suite's scene, relative to the crate root (`--scene` replaces it).
@@ -34,6 +38,7 @@ const REF_SAMPLES: usize = 1024;
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct MotionRow {
     pub name: String,
+    pub backend: &'static str,
     pub relmse: f64,
     pub flip: f64,
     /// Build + shading per frame, milliseconds.
@@ -65,9 +70,9 @@ pub(super) fn relmse(img: &Image, rf: &Image) -> f64 {
 pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
     let m = Motion::new(&a)?;
     let mut rows: Vec<MotionRow> = Vec::new();
-    for (name, r, n) in configs() {
-        let mut row = m.measure(name, r, n)?;
-        if let Some(base) = rows.first() {
+    for (name, r, n, backend) in configs(&a) {
+        let mut row = m.measure(&name, r, n, backend)?;
+        if let Some(base) = rows.iter().find(|b| b.backend == row.backend) {
             row.relmse_ratio = row.relmse / base.relmse;
             row.flip_ratio = row.flip / base.flip;
             row.cost_ratio = row.frame_ms / base.frame_ms;
@@ -99,9 +104,28 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
     Ok(())
 }
 
-/// The configurations compared, as (name, resampling, samples of each kind per pixel); the
-/// first is the baseline of the ratios.
-fn configs() -> [(&'static str, Option<Resampling>, usize); 7] {
+/// A configuration: its name, resampling, samples of each kind per pixel, backend.
+type Config = (String, Option<Resampling>, usize, SequenceBackend);
+
+/// The configurations compared: [`cpu_configs`] on the CPU, and the first four of them on the
+/// WGSL passes where this build has them (each backend's first is its baseline).
+fn configs(a: &BenchArgs) -> Vec<Config> {
+    let cpu = cpu_configs();
+    let mut v: Vec<Config> = (cpu.iter())
+        .map(|&(name, r, n)| (name.to_string(), r, n, SequenceBackend::Cpu))
+        .collect();
+    if cfg!(feature = "gpu") && !a.cpu_only {
+        v.extend(
+            (cpu.iter().take(4))
+                .map(|&(name, r, n)| (format!("wgpu {name}"), r, n, SequenceBackend::Wgpu)),
+        );
+    }
+    v
+}
+
+/// The CPU's configurations, as (name, resampling, samples of each kind per pixel); the first
+/// is the baseline of the ratios.
+fn cpu_configs() -> [(&'static str, Option<Resampling>, usize); 7] {
     let shadowed = Resampling {
         candidate_visibility: true,
         ..Default::default()
@@ -167,9 +191,15 @@ impl Motion {
         })
     }
 
-    /// Configuration `name` (resampling `r`, `n` + `n` samples) over the sequence: its means
-    /// over the measured frames, ratios still 1.
-    fn measure(&self, name: &str, r: Option<Resampling>, n: usize) -> Result<MotionRow> {
+    /// Configuration `name` (resampling `r`, `n` + `n` samples, on `backend`) over the sequence:
+    /// its means over the measured frames, ratios still 1.
+    fn measure(
+        &self,
+        name: &str,
+        r: Option<Resampling>,
+        n: usize,
+        backend: SequenceBackend,
+    ) -> Result<MotionRow> {
         let o = SequenceOptions {
             size: self.size,
             frames: self.frames,
@@ -180,10 +210,14 @@ impl Motion {
             },
             resampling: r,
             visibility: None,
-            backend: Default::default(),
+            backend,
         };
         let mut row = MotionRow {
             name: name.into(),
+            backend: match backend {
+                SequenceBackend::Cpu => "cpu",
+                SequenceBackend::Wgpu => "wgpu",
+            },
             relmse: 0.0,
             flip: 0.0,
             frame_ms: 0.0,

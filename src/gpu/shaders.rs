@@ -20,6 +20,7 @@ pub const SUBTEXEL: &str = include_str!("../../shaders/subtexel.wgsl");
 pub const RESERVOIR: &str = include_str!("../../shaders/reservoir.wgsl");
 pub const BRIGHT: &str = include_str!("../../shaders/bright.wgsl");
 pub const RESAMPLING: &str = include_str!("../../shaders/resampling.wgsl");
+pub const REUSE: &str = include_str!("../../shaders/reuse.wgsl");
 pub const SHADE_FUNCTIONS_TEST: &str = include_str!("../../shaders/shade_functions_test.wgsl");
 
 /// Distribution build + pool module.
@@ -69,6 +70,7 @@ pub fn resampling_source() -> String {
         RESERVOIR,
         BRIGHT,
         RESAMPLING,
+        REUSE,
     ]
     .concat()
 }

@@ -5,7 +5,7 @@
 
 use super::{Posed, SequenceFrame, SequenceOptions, frame_stats, split_map};
 use crate::error::{Error, Result};
-use crate::gpu::resampling::{GpuHistory, GpuResampler};
+use crate::gpu::resampling::{GpuFrame, GpuHistory, GpuResampler};
 use crate::gpu::{GpuContext, GpuRenderer};
 use crate::render::resampling::{ReuseStats, Split};
 use crate::scene::Scene;
@@ -54,8 +54,12 @@ pub(super) fn run(
             reproject: rep,
             same_bright: ps.bright.same_light(&split.bright),
         });
-        let screen = cur.screen(None, &split);
-        let out = resampler.frame(&ctx, &screen, bvh.as_ref(), history, &o.settings, &r, k)?;
+        let input = GpuFrame {
+            screen: &cur.screen(None, &split),
+            bvh: bvh.as_ref(),
+            history,
+        };
+        let out = resampler.frame(&ctx, input, &o.settings, &r, k)?;
         each(SequenceFrame {
             stats: frame_stats(k, cur.time, &out.stats, out.reuse),
             image: out.image,

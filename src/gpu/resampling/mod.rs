@@ -7,20 +7,21 @@
 //! and reservoirs stay on the device for the next frame; nothing but the image and the
 //! statistics is read back. `tests/gpu/resampling.rs` compares whole sequences with the CPU.
 
+mod frame;
 mod layout;
 
 pub use layout::{GpuReservoir, GpuSurface, ResampleParams};
 
-use super::sampler::{EnvSampler, storage};
+use frame::{FrameBuffers, Readback};
+
+use super::sampler::EnvSampler;
 use super::shading::ShadeParams;
 use super::{GpuContext, dispatch_size, shaders};
 use crate::envmap::Image;
 use crate::error::{Error, Result};
-use crate::render::resampling::{Resampling, Reservoir, ReuseStats, Screen, frame_seed};
-use crate::render::{PixelStats, RenderStats, Settings, Strategy, pool_seed};
+use crate::render::resampling::{Resampling, ReuseStats, Screen, frame_seed};
+use crate::render::{RenderStats, Settings, Strategy, pool_seed};
 use crate::visibility::FlatBvh;
-use glam::Vec3;
-use wgpu::util::DeviceExt;
 
 /// The most spatial neighbours the shaders take (`MAX_DOMAINS - 1` in `reservoir.wgsl`).
 pub const MAX_SPATIAL: u32 = 8;
@@ -40,6 +41,15 @@ const PASSES: [&str; 5] = [
 pub struct GpuHistory<'a> {
     pub reproject: &'a [Option<(usize, f32)>],
     pub same_bright: bool,
+}
+
+/// A frame as [`GpuResampler::frame`] takes it.
+pub struct GpuFrame<'a> {
+    /// The frame's screen (`screen.occluder` is not read: the shadow geometry is `bvh`).
+    pub screen: &'a Screen<'a>,
+    pub bvh: Option<&'a FlatBvh>,
+    /// Where the previous call's frame is this one's history.
+    pub history: Option<GpuHistory<'a>>,
 }
 
 /// A resampled frame from the GPU.
@@ -121,19 +131,21 @@ impl GpuResampler {
     }
 
     /// Resample frame `frame` of a sequence: the twin of
-    /// [`crate::render::resampling::resample_frame`] with `cur`'s shadow geometry as `bvh`
-    /// (`cur.occluder` is not read), its history the previous call's frame where `history` is
-    /// given.
+    /// [`crate::render::resampling::resample_frame`], its history the previous call's frame
+    /// where `input.history` is given.
     pub fn frame(
         &mut self,
         ctx: &GpuContext,
-        cur: &Screen,
-        bvh: Option<&FlatBvh>,
-        history: Option<GpuHistory>,
+        input: GpuFrame,
         s: &Settings,
         r: &Resampling,
         frame: u32,
     ) -> Result<GpuResampled> {
+        let GpuFrame {
+            screen: cur,
+            bvh,
+            history,
+        } = input;
         check(cur, s, r)?;
         let s = Settings {
             seed: frame_seed(s.seed, frame),
@@ -232,95 +244,6 @@ fn check(cur: &Screen, s: &Settings, r: &Resampling) -> Result<()> {
     Ok(())
 }
 
-/// A storage buffer holding `data` (at least `min` bytes).
-fn init<T: bytemuck::Pod>(device: &wgpu::Device, label: &str, data: &[T]) -> wgpu::Buffer {
-    let bytes: &[u8] = bytemuck::cast_slice(data);
-    let mut v = bytes.to_vec();
-    v.resize(bytes.len().max(256), 0);
-    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some(label),
-        contents: &v,
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-    })
-}
-
-/// One frame's buffers.
-struct FrameBuffers {
-    surfaces: wgpu::Buffer,
-    split: wgpu::Buffer,
-    bright_cdf: wgpu::Buffer,
-    bright_ids: wgpu::Buffer,
-    bright_count: u32,
-    bvh: Option<(wgpu::Buffer, wgpu::Buffer, u32)>,
-    reproject: Option<wgpu::Buffer>,
-    /// Candidates, after temporal reuse (the next history), after spatial reuse, shaded.
-    res: [wgpu::Buffer; 4],
-    hist_targets: wgpu::Buffer,
-    counters: wgpu::Buffer,
-    color: wgpu::Buffer,
-    stats: wgpu::Buffer,
-    pixels: usize,
-}
-
-impl FrameBuffers {
-    fn new(
-        ctx: &GpuContext,
-        cur: &Screen,
-        bvh: Option<&FlatBvh>,
-        reproject: Option<&[Option<(usize, f32)>]>,
-    ) -> Self {
-        let device = &ctx.device;
-        let n_px = cur.width * cur.height;
-        let surfaces = layout::surfaces(cur.gbuf, cur.points, cur.surfaces);
-        let (tex, cdf, ids) = layout::split_tables(cur.split);
-        let res = |label| storage(device, label, n_px as u64 * 96);
-        FrameBuffers {
-            surfaces: init(device, "envis surfaces", &surfaces),
-            split: init(device, "envis split map", &tex),
-            bright_cdf: init(device, "envis bright cdf", &cdf),
-            bright_ids: init(device, "envis bright texels", &ids),
-            bright_count: ids.len() as u32,
-            bvh: bvh.map(|b| {
-                let (nodes, tris) = super::visibility::upload_bvh(device, b);
-                (nodes, tris, b.tlas_nodes() as u32)
-            }),
-            reproject: reproject
-                .map(|m| init(device, "envis reprojection", &layout::reprojection(m))),
-            res: [
-                res("envis candidates"),
-                res("envis temporal reservoirs"),
-                res("envis spatial reservoirs"),
-                res("envis final reservoirs"),
-            ],
-            hist_targets: storage(device, "envis history targets", n_px as u64 * 8),
-            counters: storage(device, "envis reuse counters", n_px as u64 * 16),
-            color: storage(device, "envis resampled color", n_px as u64 * 16),
-            stats: storage(device, "envis candidate stats", n_px as u64 * 16),
-            pixels: n_px,
-        }
-    }
-
-    fn into_previous(self, n: u32) -> Previous {
-        let [_, temporal, _, _] = self.res;
-        Previous {
-            surfaces: self.surfaces,
-            split: self.split,
-            n,
-            bvh: self.bvh,
-            reservoirs: temporal,
-            pixels: self.pixels,
-        }
-    }
-}
-
-/// What the frame's dispatches read back.
-struct Readback {
-    color: Vec<[f32; 4]>,
-    stats: Vec<[u32; 4]>,
-    counters: Vec<[u32; 4]>,
-    reservoirs: Vec<GpuReservoir>,
-}
-
 impl GpuResampler {
     /// The five passes in one submission, and the readback.
     fn dispatch(&self, ctx: &GpuContext, f: &FrameBuffers, history: bool) -> Result<Readback> {
@@ -414,45 +337,4 @@ impl GpuResampler {
 /// A whole buffer as a binding.
 fn whole(b: &wgpu::Buffer) -> wgpu::BindingResource<'_> {
     wgpu::BindingResource::Buffer(b.as_entire_buffer_binding())
-}
-
-impl Readback {
-    /// The image, the statistics as the CPU twin counts them, and what reuse did.
-    fn into_frame(self, cur: &Screen, mut stats: RenderStats) -> GpuResampled {
-        let per_pixel: Vec<Option<PixelStats>> = (self.stats.iter().zip(cur.gbuf))
-            .map(|(q, g)| {
-                g.as_ref().map(|_| PixelStats {
-                    available: q[0],
-                    green: q[1],
-                    yellow: q[2],
-                    brdf: q[3],
-                    ..Default::default()
-                })
-            })
-            .collect();
-        stats.accumulate(&per_pixel);
-        stats.shadow_rays += self.counters.iter().map(|c| c[0] as u64).sum::<u64>();
-        let shaded = cur.gbuf.iter().filter(|p| p.is_some()).count().max(1);
-        let rest_m: f64 = (cur.gbuf.iter().enumerate())
-            .filter(|(_, p)| p.is_some())
-            .map(|(i, _)| Reservoir::from(self.reservoirs[2 * i]).m as f64)
-            .sum();
-        let reuse = ReuseStats {
-            temporal_accepted: self.counters.iter().map(|c| c[1] as u64).sum(),
-            spatial_accepted: self.counters.iter().map(|c| c[2] as u64).sum(),
-            mean_history: rest_m / shaded as f64,
-        };
-        let image = Image {
-            width: cur.width,
-            height: cur.height,
-            data: (self.color.iter())
-                .map(|c| Vec3::new(c[0], c[1], c[2]))
-                .collect(),
-        };
-        GpuResampled {
-            image,
-            stats,
-            reuse,
-        }
-    }
 }

@@ -1,0 +1,187 @@
+// envis — the reuse passes of a resampled frame: temporal (render::resampling::passes::temporal,
+// with `history_targets` before it) and spatial (passes::spatial). Part of the resampling module:
+// its bindings, `rp` and helpers are in resampling.wgsl, the combination in reservoir.wgsl.
+
+// Before temporal reuse, with the previous frame's shadow geometry bound: per part, the
+// canonical sample's target with visibility at the history pixel in its frame
+// (DomainSurface::target_visible), where the pairwise weights will ask for it.
+@compute @workgroup_size(64)
+fn history_targets(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let i = pixel_id(gid, nwg);
+    if (i >= rp.width * rp.height) {
+        return;
+    }
+    var rays = 0u;
+    for (var part = 0u; part < 2u; part++) {
+        var t = 0.0;
+        let own = res_in[2u * i + part];
+        let q = history_pixel(i, part);
+        if (rp.unbiased != 0u && part_live(part) && surfaces[i].px.n.w != 0.0 && q >= 0 && own.ucw > 0.0 && own.p_hat > 0.0) {
+            let h = prev_surfaces[u32(q)];
+            t = luminance(target_rgb(h.px, true, part, own.dir));
+            if (t > 0.0 && !visible_through(h.px, h.p.xyz, own.dir, rp.prev_bvh_nodes, &rays)) {
+                t = 0.0;
+            }
+        }
+        hist_targets[2u * i + part] = t;
+    }
+    counters[i].x += rays;
+}
+
+// The domain of reservoir `res` made elsewhere, its sample re-evaluated at pixel s
+// (Domain::reused); p_c and p_at_c are set by the caller.
+fn reused_domain(res: Reservoir, s: Surface, part: u32) -> Domain {
+    return Domain(res, target_rgb(s.px, false, part, res.dir), 0.0, 0.0);
+}
+
+// combine::canonical_target for every domain: the canonical sample's own target where live; a
+// reused sample's target here with this pixel's visibility (a ray where it is positive).
+fn canonical_targets(dom: ptr<function, array<Domain, MAX_DOMAINS>>, count: u32, s: Surface, rays: ptr<function, u32>) {
+    let own = (*dom)[0].res;
+    (*dom)[0].p_c = select(0.0, own.p_hat, own.ucw > 0.0);
+    for (var j = 1u; j < count; j++) {
+        let d = (*dom)[j];
+        var t = luminance(d.here);
+        if (!(t > 0.0 && d.res.ucw > 0.0 && visible_from(s.px, s.p.xyz, d.res.dir, rays))) {
+            t = 0.0;
+        }
+        (*dom)[j].p_c = t;
+    }
+}
+
+// combine::combine over the domains prepared.
+fn combine(dom: ptr<function, array<Domain, MAX_DOMAINS>>, count: u32, rng: ptr<function, Rng>) -> Reservoir {
+    if (rp.unbiased != 0u) {
+        return combine_pairwise(dom, count, rng);
+    }
+    return combine_biased(dom, count, rng);
+}
+
+// Pass 2 (passes::temporal): each part's reservoir combined with the history pixel's, its
+// confidence capped at max_history.
+@compute @workgroup_size(64)
+fn temporal(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let i = pixel_id(gid, nwg);
+    if (i >= rp.width * rp.height) {
+        return;
+    }
+    let s = surfaces[i];
+    var c = counters[i];
+    for (var part = 0u; part < 2u; part++) {
+        let own = res_in[2u * i + part];
+        var out = own;
+        let q = history_pixel(i, part);
+        if (part_live(part) && s.px.n.w != 0.0 && q >= 0) {
+            var old = res_hist[2u * u32(q) + part];
+            old.m = min(old.m, rp.max_history);
+            var dom: array<Domain, MAX_DOMAINS>;
+            dom[0] = Domain(own, own.rgb, 0.0, 0.0);
+            dom[1] = reused_domain(old, s, part);
+            var rays = 0u;
+            if (rp.unbiased != 0u) {
+                canonical_targets(&dom, 2u, s, &rays);
+                dom[1].p_at_c = hist_targets[2u * i + part];
+            }
+            var rng = pass_rng(2u + 4u * part, i);
+            out = combine(&dom, 2u, &rng);
+            c.x += rays;
+            if (part == 0u) {
+                c.y += 1u;
+            }
+        }
+        res_out[2u * i + part] = out;
+    }
+    counters[i] = c;
+}
+
+// Rust's f32::round: halves away from zero (WGSL's round goes to even).
+fn round_away(x: f32) -> f32 {
+    return sign(x) * floor(abs(x) + 0.5);
+}
+
+// Pass 3 (passes::spatial): up to rp.spatial neighbours in a disc of SPATIAL_RADIUS pixels,
+// passing the geometric tests, their confidence capped at SPATIAL_CONFIDENCE of the pixel's.
+@compute @workgroup_size(64)
+fn spatial(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let i = pixel_id(gid, nwg);
+    if (i >= rp.width * rp.height) {
+        return;
+    }
+    let s = surfaces[i];
+    var c = counters[i];
+    for (var part = 0u; part < 2u; part++) {
+        let own = res_in[2u * i + part];
+        var out = own;
+        if (part_live(part) && s.px.n.w != 0.0 && rp.spatial > 0u) {
+            var rng = pass_rng(3u + 4u * part, i);
+            var dom: array<Domain, MAX_DOMAINS>;
+            var at: array<u32, MAX_DOMAINS>;
+            dom[0] = Domain(own, own.rgb, 0.0, 0.0);
+            let count = spatial_domains(i, part, &dom, &at, &rng);
+            if (count > 1u) {
+                var rays = 0u;
+                if (rp.unbiased != 0u) {
+                    canonical_targets(&dom, count, s, &rays);
+                    neighbour_targets(&dom, &at, count, part, &rays);
+                }
+                out = combine(&dom, count, &rng);
+                c.x += rays;
+                if (part == 0u) {
+                    c.z += count - 1u;
+                }
+            }
+        }
+        res_out[2u * i + part] = out;
+    }
+    counters[i] = c;
+}
+
+// The neighbours of pixel i that pass the tests, into dom[1..] (their pixels into at); the
+// domain count.
+fn spatial_domains(i: u32, part: u32, dom: ptr<function, array<Domain, MAX_DOMAINS>>, at: ptr<function, array<u32, MAX_DOMAINS>>, rng: ptr<function, Rng>) -> u32 {
+    let s = surfaces[i];
+    let own_m = (*dom)[0].res.m;
+    let w = i32(rp.width);
+    let h = i32(rp.height);
+    let x = i32(i % rp.width);
+    let y = i32(i / rp.width);
+    var count = 1u;
+    for (var k = 0u; k < min(rp.spatial, MAX_DOMAINS - 1u); k++) {
+        let u1 = rng_next_f32(rng);
+        let u2 = rng_next_f32(rng);
+        let rad = SPATIAL_RADIUS * sqrt(u1);
+        let nx = x + i32(round_away(rad * cos(TAU * u2)));
+        let ny = y + i32(round_away(rad * sin(TAU * u2)));
+        if ((nx == x && ny == y) || nx < 0 || ny < 0 || nx >= w || ny >= h) {
+            continue;
+        }
+        let j = u32(ny * w + nx);
+        let nb = surfaces[j];
+        if (nb.px.n.w == 0.0 || !similar(s.px.n.xyz, s.p.w, s.id.x, nb)) {
+            continue;
+        }
+        var q = res_in[2u * j + part];
+        q.m = min(q.m, SPATIAL_CONFIDENCE * own_m);
+        (*dom)[count] = reused_domain(q, s, part);
+        (*at)[count] = j;
+        count += 1u;
+    }
+    return count;
+}
+
+// For the canonical sample's pairwise weight: its target with visibility at each neighbour
+// (DomainSurface::target_visible), where the canonical sample can be selected.
+fn neighbour_targets(dom: ptr<function, array<Domain, MAX_DOMAINS>>, at: ptr<function, array<u32, MAX_DOMAINS>>, count: u32, part: u32, rays: ptr<function, u32>) {
+    let own = (*dom)[0];
+    if (!(own.p_c > 0.0 && own.res.ucw > 0.0)) {
+        return;
+    }
+    for (var j = 1u; j < count; j++) {
+        let nb = surfaces[(*at)[j]];
+        var t = luminance(target_rgb(nb.px, false, part, own.res.dir));
+        if (t > 0.0 && !visible_from(nb.px, nb.p.xyz, own.res.dir, rays)) {
+            t = 0.0;
+        }
+        (*dom)[j].p_at_c = t;
+    }
+}
