@@ -94,9 +94,12 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgrou
     counters[i] = c;
 }
 
-// Rust's f32::round: halves away from zero (WGSL's round goes to even).
+// Rust's f32::round: halves away from zero (WGSL's round goes to even). Not floor(|x| + 0.5),
+// which rounds 0.49999997 up. The neighbour's angle still goes through the device's sin / cos,
+// not Rust's libm, so a rare offset near a half lands one pixel apart from the CPU twin's.
 fn round_away(x: f32) -> f32 {
-    return sign(x) * floor(abs(x) + 0.5);
+    let t = trunc(x);
+    return select(t, t + sign(x), abs(x - t) >= 0.5);
 }
 
 // Pass 3 (passes::spatial): up to rp.spatial neighbours in a disc of SPATIAL_RADIUS pixels,

@@ -9,7 +9,8 @@
 //! - `restir 4+4 shadowed candidates`: every candidate shadow-tested (`candidate_visibility`);
 //! - `restir 4+4 unsplit`: the map's bright part resampled with the rest (`split_bright` off).
 //!
-//! With the `gpu` feature (and without `--cpu-only`), the first four again on the WGSL passes
+//! With the `gpu` feature, a device (a machine without an adapter gets the CPU rows and a
+//! message) and without `--cpu-only`, the first four again on the WGSL passes
 //! (`wgpu ...`, a headless device: lavapipe in CI), each timed against `wgpu single 32+32` in the
 //! same sitting.
 //!
@@ -114,13 +115,26 @@ fn configs(a: &BenchArgs) -> Vec<Config> {
     let mut v: Vec<Config> = (cpu.iter())
         .map(|&(name, r, n)| (name.to_string(), r, n, SequenceBackend::Cpu))
         .collect();
-    if cfg!(feature = "gpu") && !a.cpu_only {
+    if !a.cpu_only && wgpu_available() {
         v.extend(
             (cpu.iter().take(4))
                 .map(|&(name, r, n)| (format!("wgpu {name}"), r, n, SequenceBackend::Wgpu)),
         );
     }
     v
+}
+
+/// Whether this build has the WGSL passes and a device to run them on; says why not once, so
+/// a machine without a GPU adapter still gets the CPU rows.
+fn wgpu_available() -> bool {
+    #[cfg(feature = "gpu")]
+    {
+        crate::gpu::GpuContext::new()
+            .map_err(|e| eprintln!("motion: no GPU backend ({e}); CPU rows only"))
+            .is_ok()
+    }
+    #[cfg(not(feature = "gpu"))]
+    false
 }
 
 /// The CPU's configurations, as (name, resampling, samples of each kind per pixel); the first

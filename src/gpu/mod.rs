@@ -269,7 +269,7 @@ impl<'c> GpuRenderer<'c> {
         timings.shade_wall_ms = t1.elapsed().as_secs_f64() * 1e3;
         timings.shade_gpu_ms = job.gpu_ms;
 
-        let mut stats = RenderStats::for_settings(width, height, s, key.1);
+        let mut stats = RenderStats::for_settings(width, height, s, s.pool_per_face());
         stats.build_ms = timings.build_wall_ms;
         stats.shade_ms = timings.shade_wall_ms;
         stats.accumulate(&job.pixel_stats(gbuf));

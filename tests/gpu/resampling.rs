@@ -7,15 +7,15 @@ use envis::render::resampling::{Resampling, ResamplingMode};
 use envis::scene::Scene;
 use envis::sequence::{self, SequenceBackend, SequenceFrame, SequenceOptions};
 
-/// Two spheres on a plane (contact shadows) under the built-in sky; the camera orbits, the
-/// glossy sphere slides and the sun moves, so that every frame reprojects and the bright part
-/// changes.
-fn moving_scene(dir: &Path) -> Scene {
+/// Two spheres on a plane (contact shadows) under the built-in sky; the camera orbits and the
+/// glossy sphere slides, so that every frame reprojects; the sun moves at `speed` (with 0 the
+/// bright part's history is reused too).
+fn moving_scene(dir: &Path, speed: f32) -> Scene {
     let text = r#"
 [environment]
 source = "builtin:sky:14"
 face_size = 8
-speed = 1.0
+speed = SPEED
 [camera]
 position = [0.0, 1.6, 3.2]
 target = [0.0, 0.5, 0.0]
@@ -43,7 +43,8 @@ material = { type = "ggx", albedo = 0.9, alpha = 0.3 }
 shape = "plane"
 size = 8.0
 material = { type = "diffuse", albedo = 0.6 }
-"#;
+"#
+    .replace("SPEED", &format!("{speed:?}"));
     let p = dir.join("moving.toml");
     std::fs::write(&p, text).unwrap();
     Scene::load(&p).unwrap()
@@ -72,27 +73,33 @@ fn run(scene: &Scene, r: Resampling, backend: SequenceBackend) -> Vec<SequenceFr
 
 /// The WGSL passes give the CPU oracle's frames: per pixel to float rounding, but for the few
 /// pixels where a selection, a neighbour's place or a shadow ray sits within rounding of its
-/// threshold (and, through the history, their successors); the same reuse and ray counts.
+/// threshold (and, through the history, their successors): at most 3% of them (on lavapipe, seeds
+/// 1 to 6 of the still sun: 0 to 8 of 660 over four frames, on the sphere's sharp sun-shadow
+/// edge); ray and reuse counts within 3%. A moving sun (unbiased and biased), and a still one,
+/// where the bright part reuses its history.
 #[test]
 fn gpu_resampling_matches_cpu_sequence() {
     if gpu().is_none() {
         return;
     }
     let dir = support::TempDir::new("gpu-resampling");
-    let scene = moving_scene(&dir);
-    for unbiased in [true, false] {
+    for (speed, unbiased) in [(1.0, true), (1.0, false), (0.0, true)] {
+        let scene = moving_scene(&dir, speed);
         let r = Resampling::for_mode(ResamplingMode::Spatiotemporal, unbiased).unwrap();
         let cpu = run(&scene, r, SequenceBackend::Cpu);
         let gpu = run(&scene, r, SequenceBackend::Wgpu);
         for (c, g) in cpu.iter().zip(&gpu) {
-            let label = format!("unbiased {unbiased}, frame {}", c.stats.frame);
+            let label = format!(
+                "sun speed {speed}, unbiased {unbiased}, frame {}",
+                c.stats.frame
+            );
             let shaded = c.stats.shaded_pixels as usize;
             assert_eq!(g.stats.shaded_pixels as usize, shaded, "{label}");
             let off = (c.image.data.iter().zip(&g.image.data))
                 .filter(|(a, b)| (**a - **b).abs().max_element() > 1e-3 * a.max_element().max(1e-2))
                 .count();
             assert!(
-                off * 50 <= shaded,
+                off * 33 <= shaded,
                 "{label}: {off} of {shaded} pixels differ"
             );
             let (mc, mg) = (mean_lum(&c.image.data), mean_lum(&g.image.data));
@@ -100,7 +107,8 @@ fn gpu_resampling_matches_cpu_sequence() {
                 "{label}: {off} of {shaded} pixels differ, mean {mg:.5} vs {mc:.5}, rays {} vs {}, reuse {:?} vs {:?}",
                 g.stats.shadow_rays, c.stats.shadow_rays, g.stats.reuse, c.stats.reuse
             );
-            assert!((mc - mg).abs() <= 0.005 * mc, "{label}: mean {mg} vs {mc}");
+            // One pixel flipping in or out of the sun's shadow moves a 16² image's mean by ~1%.
+            assert!((mc - mg).abs() <= 0.02 * mc, "{label}: mean {mg} vs {mc}");
             let close = |a: u64, b: u64| a.abs_diff(b) as f64 <= 0.03 * a.max(1) as f64;
             let (cr, gr) = (&c.stats.reuse, &g.stats.reuse);
             assert!(
@@ -130,7 +138,7 @@ fn cli_sequence_on_wgpu() {
         return;
     }
     let dir = support::TempDir::new("gpu-sequence-cli");
-    moving_scene(&dir);
+    moving_scene(&dir, 1.0);
     let envis = |backend: &str| {
         std::process::Command::new(env!("CARGO_BIN_EXE_envis"))
             .args([

@@ -100,3 +100,8 @@ pub struct ResampleParams {
     pub prev_bvh_nodes: u32,
     pub pad: [u32; 2],
 }
+
+// The WGSL structs' sizes: a field added on one side only fails the build, not a test.
+const _: () = assert!(size_of::<GpuReservoir>() == 48);
+const _: () = assert!(size_of::<GpuSurface>() == 96);
+const _: () = assert!(size_of::<ResampleParams>() == 64);

@@ -1,11 +1,12 @@
 //! Reservoir resampling on the GPU (`shaders/resampling.wgsl`): the twin of
 //! [`crate::render::resampling::resample_frame`], pass for pass, with the same random streams.
 //! Per frame: the paper's sampler is built on the rest of the map (as the CPU's `FrameData`),
-//! then five dispatches over the pixels: `candidates`, `history_targets` (the canonical samples'
-//! targets at the history pixels, with the previous frame's shadow geometry bound), `temporal`,
-//! `spatial` and `shade_reservoirs`. The previous frame's surfaces, split map, shadow geometry
-//! and reservoirs stay on the device for the next frame; nothing but the image and the
-//! statistics is read back. `tests/gpu/resampling.rs` compares whole sequences with the CPU.
+//! then up to five dispatches over the pixels: `candidates`, `history_targets` (the canonical
+//! samples' targets at the history pixels, with the previous frame's shadow geometry bound; only
+//! with a history), `temporal`, `spatial` and `shade_reservoirs`. The previous frame's surfaces,
+//! split map, shadow geometry and reservoirs stay on the device for the next frame. Read back
+//! (a sequence's output, not a frame path's): the image, the per-pixel sample counts, the reuse
+//! counters and the final reservoirs (for the mean history length). `tests/gpu/resampling.rs` compares whole sequences with the CPU.
 
 mod frame;
 mod layout;
@@ -132,7 +133,9 @@ impl GpuResampler {
 
     /// Resample frame `frame` of a sequence: the twin of
     /// [`crate::render::resampling::resample_frame`], its history the previous call's frame
-    /// where `input.history` is given.
+    /// where `input.history` is given. A history is ignored (the frame starts afresh, as after
+    /// [`GpuResampler::reset`]) when the previous frame had another pixel count: its buffers are
+    /// sized by it, and the CLI's sequences keep one size.
     pub fn frame(
         &mut self,
         ctx: &GpuContext,
@@ -167,7 +170,7 @@ impl GpuResampler {
             .write_buffer(&self.shade_params, 0, bytemuck::bytes_of(&shade));
         let out = self.dispatch(ctx, &f, history.is_some())?;
         let shade_ms = t1.elapsed().as_secs_f64() * 1e3;
-        let mut stats = RenderStats::for_settings(cur.width, cur.height, &s, s.pool_slots());
+        let mut stats = RenderStats::for_settings(cur.width, cur.height, &s, s.pool_per_face());
         (stats.build_ms, stats.shade_ms) = (build_ms, shade_ms);
         let result = out.into_frame(cur, stats);
         self.prev = Some(f.into_previous(cur.split.rest.size as u32));
@@ -245,7 +248,7 @@ fn check(cur: &Screen, s: &Settings, r: &Resampling) -> Result<()> {
 }
 
 impl GpuResampler {
-    /// The five passes in one submission, and the readback.
+    /// The passes in one submission (`history_targets` only with a history), and the readback.
     fn dispatch(&self, ctx: &GpuContext, f: &FrameBuffers, history: bool) -> Result<Readback> {
         let mut enc = ctx.device.create_command_encoder(&Default::default());
         let (x, y) = dispatch_size(f.pixels as u32, 64);
