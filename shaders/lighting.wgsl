@@ -2,18 +2,12 @@
 // decodes Bevy's deferred G-buffer, runs `shade` (shade.wgsl, the twin of render::shade_pixel) and
 // ADDS the environment's radiance to what Bevy's deferred lighting wrote (its lights, shadows,
 // emissive); pixels without geometry show the environment image at full resolution. Needs
-// common.wgsl, sampling.wgsl, shade.wgsl and image_source.wgsl before it.
+// common.wgsl, sampling.wgsl, shade.wgsl, image_source.wgsl and gbuffer.wgsl before it.
 //
 // The output is premultiplied: the pipeline blends src + (1 - src.a) dst, so alpha 0 adds (lit
 // pixels) and alpha 1 replaces (the background, overlays).
 //
-// Which pixels it lights is decided by Bevy's deferred lighting pass id:
-//   1 (StandardMaterial): base colour, metallic, perceptual roughness, reflectance and diffuse
-//     occlusion -> Lambert kd = base (1 - metallic) occlusion plus GGX with Schlick's Fresnel,
-//     F0 = 0.16 reflectance^2 (1 - metallic) + base metallic, alpha = clamp(roughness, 0.089, 1)^2
-//     (Bevy's conventions); unlit materials are left alone;
-//   231 (EnvisMaterial, src/app/material.rs): kd, ks (8-bit), lobe kind, exact lobe parameter;
-//   anything else (forward meshes, other deferred materials): left alone.
+// Which pixels it lights, and their materials: gbuffer.wgsl.
 
 struct LightingView {
     world_from_clip: mat4x4<f32>,
@@ -103,11 +97,6 @@ fn sample_blocked(px: GPixel, pixel_index: u32, d: vec3<f32>) -> bool {
     return bvh_occluded(o, dw, 1e-4, 3.4028235e38, sp.bvh_nodes, lv.render_layers);
 }
 
-const PBR_LIGHTING_PASS_ID: u32 = 1u;
-// app::material::ENVIS_LIGHTING_PASS_ID.
-const ENVIS_LIGHTING_PASS_ID: u32 = 231u;
-const DEFERRED_FLAGS_UNLIT_BIT: u32 = 1u;
-
 // Blue -> cyan -> green -> yellow -> red for t in [0, 1].
 fn heat(t: f32) -> vec3<f32> {
     let x = clamp(t, 0.0, 1.0) * 4.0;
@@ -118,44 +107,6 @@ fn heat(t: f32) -> vec3<f32> {
 fn fullscreen(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
     let uv = vec2<f32>(f32(i >> 1u), f32(i & 1u)) * 2.0;
     return vec4(uv * vec2(2.0, -2.0) + vec2(-1.0, 1.0), 0.0, 1.0);
-}
-
-// Bevy's octahedral decode (bevy_pbr utils.wgsl) of a [0, 1]^2 point.
-fn octahedral_decode(v: vec2<f32>) -> vec3<f32> {
-    let f = v * 2.0 - 1.0;
-    var n = vec3(f.xy, 1.0 - abs(f.x) - abs(f.y));
-    let t = saturate(-n.z);
-    let w = select(vec2(t), vec2(-t), n.xy >= vec2(0.0));
-    n = vec3(n.xy + w, n.z);
-    return normalize(n);
-}
-
-fn gbuffer_normal(packed: u32) -> vec3<f32> {
-    let oct = vec2(f32(packed & 0xFFFu), f32((packed >> 12u) & 0xFFFu)) / 4095.0;
-    return octahedral_decode(oct);
-}
-
-// A StandardMaterial texel of Bevy's deferred G-buffer (pbr_deferred_functions.wgsl) -> the
-// matching envis material (see the header).
-fn decode_standard(g: vec4<u32>, o: vec3<f32>) -> GPixel {
-    let base_rough = unpack4x8unorm(g.r);
-    let base = pow(base_rough.rgb, vec3(2.2));
-    let pr = clamp(base_rough.a, 0.089, 1.0);
-    let props = unpack4x8unorm(g.b);
-    let reflectance = props.r;
-    let metallic = props.g;
-    let occlusion = props.b;
-    let kd = base * (1.0 - metallic) * occlusion;
-    let f0 = vec3(0.16 * reflectance * reflectance * (1.0 - metallic)) + base * metallic;
-    return GPixel(vec4(gbuffer_normal(g.a), 1.0), vec4(o, 0.0), vec4(kd, f32(LOBE_GGX_SCHLICK)), vec4(f0, pr * pr));
-}
-
-// An EnvisMaterial texel (src/app/material.rs).
-fn decode_envis(g: vec4<u32>, o: vec3<f32>) -> GPixel {
-    let kd = unpack4x8unorm(g.x);
-    let ks = pow(unpack4x8unorm(g.y).rgb, vec3(2.2));
-    let lobe = round(kd.a * 255.0);
-    return GPixel(vec4(gbuffer_normal(g.w), 1.0), vec4(o, 0.0), vec4(pow(kd.rgb, vec3(2.2)), lobe), vec4(ks, bitcast<f32>(g.z)));
 }
 
 @fragment
@@ -182,9 +133,8 @@ fn lighting(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
     }
     let pass_id = textureLoad(pass_ids, coord, 0).r;
     let g = textureLoad(gbuffer, coord, 0);
-    let standard = pass_id == PBR_LIGHTING_PASS_ID && ((g.a >> 24u) & DEFERRED_FLAGS_UNLIT_BIT) == 0u;
-    if (!standard && pass_id != ENVIS_LIGHTING_PASS_ID) {
-        return vec4(0.0); // not ours to light
+    if (!ours_to_light(pass_id, g)) {
+        return vec4(0.0);
     }
     let wp = lv.world_from_clip * vec4(ndc, depth, 1.0);
     let world = wp.xyz / wp.w;
@@ -196,12 +146,7 @@ fn lighting(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
     o = env * o;
     shadow_point = world;
     world_from_env = transpose(env);
-    var px: GPixel;
-    if (standard) {
-        px = decode_standard(g, o);
-    } else {
-        px = decode_envis(g, o);
-    }
+    var px = decode_gbuffer(pass_id, g, o);
     px.n = vec4(env * px.n.xyz, 1.0);
     let local = vec2<u32>(max(pos.xy - lv.viewport.xy, vec2(0.0)));
     let pixel_index = local.y * u32(lv.viewport.z) + local.x;

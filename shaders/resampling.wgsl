@@ -59,8 +59,13 @@ struct ResampleParams {
     seed: u32,
     bvh_nodes: u32,
     prev_bvh_nodes: u32,
-    pad0: u32,
+    // The shadow casters the camera sees (visibility::Layers; ALL_LAYERS headless).
+    layers: u32,
     pad1: u32,
+    // Surfaces' normals and view directions, and samples' directions, are in the map's frame
+    // (the Bevy pass rotates them there, as its lighting pass does); points and the shadow BVH
+    // are in the world's. Identity headless.
+    world_from_map: mat3x3<f32>,
 }
 
 // A pixel as reuse sees it: the G-buffer texel (n.w = 1 where shaded), its surface point (xyz)
@@ -105,8 +110,9 @@ fn visible_through(px: GPixel, point: vec3<f32>, d: vec3<f32>, nodes: u32, rays:
         return true;
     }
     *rays += 1u;
-    let o = shadow_origin(point, normalize_or_zero(px.n.xyz), d);
-    return !bvh_occluded(o, d, 1e-4, 3.4028235e38, nodes, ALL_LAYERS);
+    let dw = rp.world_from_map * d;
+    let o = shadow_origin(point, rp.world_from_map * normalize_or_zero(px.n.xyz), dw);
+    return !bvh_occluded(o, dw, 1e-4, 3.4028235e38, nodes, rp.layers);
 }
 
 // This frame's visibility (bright.wgsl's and the passes' shadow ray).
@@ -239,5 +245,7 @@ fn shade_reservoirs(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_
         res_out[2u * i + part] = q;
     }
     counters[i].x += rays;
-    out_color[i] = vec4(sum, select(0.0, 1.0, s.px.n.w != 0.0));
+    // w: the rest's confidence (its history length; 0 where nothing is shaded), for the mean
+    // history and the Bevy pass's history overlay.
+    out_color[i] = vec4(sum, select(0.0, res_in[2u * i].m, s.px.n.w != 0.0));
 }

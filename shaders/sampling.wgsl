@@ -249,3 +249,13 @@ fn face_count(n_f_in: f32, m: u32, counts: u32) -> FaceCount {
     let r = select(whole, whole + 1.0, n_f - whole >= 0.5);
     return FaceCount(min(u32(r), m), 1.0, n_f);
 }
+
+// One G-buffer texel: normal (w = 1 where there is geometry), view direction, kd (w = lobe kind),
+// ks (w = Phong exponent or GGX alpha). Here, not in shade.wgsl, so that modules without the
+// shading (the Bevy pass's gather) can decode into it.
+struct GPixel {
+    n: vec4<f32>,
+    o: vec4<f32>,
+    kd: vec4<f32>,
+    ks: vec4<f32>,
+}

@@ -180,15 +180,6 @@ const STRATEGY_BRDF: u32 = 2u;
 // One lat-long distribution for the whole sphere (global_layout.wgsl), N_L samples per pixel.
 const STRATEGY_GLOBAL: u32 = 3u;
 
-// One G-buffer texel: normal (w = 1 where there is geometry), view direction, kd (w = lobe kind),
-// ks (w = Phong exponent or GGX alpha).
-struct GPixel {
-    n: vec4<f32>,
-    o: vec4<f32>,
-    kd: vec4<f32>,
-    ks: vec4<f32>,
-}
-
 struct Shaded {
     color: vec3<f32>,
     stats: vec4<u32>,

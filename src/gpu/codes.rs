@@ -238,6 +238,8 @@ pub(crate) mod tests {
             GLOBAL_LAYOUT,
             SHADE_COMPUTE,
             LIGHTING,
+            GBUFFER,
+            GATHER,
             IMAGE_SOURCE,
             RESAMPLE,
             VISIBILITY,

@@ -12,6 +12,8 @@ pub const GLOBAL: &str = include_str!("../../shaders/global.wgsl");
 pub const GLOBAL_LAYOUT: &str = include_str!("../../shaders/global_layout.wgsl");
 pub const SHADE_COMPUTE: &str = include_str!("../../shaders/shade_compute.wgsl");
 pub const LIGHTING: &str = include_str!("../../shaders/lighting.wgsl");
+pub const GBUFFER: &str = include_str!("../../shaders/gbuffer.wgsl");
+pub const GATHER: &str = include_str!("../../shaders/gather.wgsl");
 pub const IMAGE_SOURCE: &str = include_str!("../../shaders/image_source.wgsl");
 pub const RESAMPLE: &str = include_str!("../../shaders/resample.wgsl");
 pub const VISIBILITY: &str = include_str!("../../shaders/visibility.wgsl");
@@ -82,6 +84,12 @@ pub fn shade_functions_test_source() -> String {
     shade_source() + SHADE_FUNCTIONS_TEST
 }
 
+/// The Bevy resampling pass's gather (`gather`, `gather_split`): Bevy's prepass textures into
+/// what the resampling passes read.
+pub fn gather_source() -> String {
+    [COMMON, SAMPLING, GBUFFER, GATHER].concat()
+}
+
 /// Compile a module, turning a WGSL error into a readable panic (a shader that does not compile
 /// is a build defect, caught by the tests).
 pub fn module(device: &wgpu::Device, label: &str, source: &str) -> wgpu::ShaderModule {
@@ -92,7 +100,7 @@ pub fn module(device: &wgpu::Device, label: &str, source: &str) -> wgpu::ShaderM
 }
 
 /// The Bevy deferred lighting pass's modules, in order: file name and embedded text.
-pub const LIGHTING_MODULES: [(&str, &str); 8] = [
+pub const LIGHTING_MODULES: [(&str, &str); 9] = [
     ("common.wgsl", COMMON),
     ("sampling.wgsl", SAMPLING),
     ("cdf.wgsl", CDF),
@@ -100,6 +108,7 @@ pub const LIGHTING_MODULES: [(&str, &str); 8] = [
     ("shade.wgsl", SHADE),
     ("image_source.wgsl", IMAGE_SOURCE),
     ("visibility.wgsl", VISIBILITY),
+    ("gbuffer.wgsl", GBUFFER),
     ("lighting.wgsl", LIGHTING),
 ];
 

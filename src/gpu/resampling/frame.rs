@@ -1,10 +1,10 @@
 //! One resampled frame's device buffers, and what comes back of them.
 
-use super::{GpuResampled, GpuReservoir, Previous, layout};
+use super::{GpuResampled, Previous, layout};
 use crate::envmap::Image;
 use crate::gpu::GpuContext;
 use crate::gpu::sampler::storage;
-use crate::render::resampling::{Reservoir, ReuseStats, Screen};
+use crate::render::resampling::{ReuseStats, Screen};
 use crate::render::{PixelStats, RenderStats};
 use crate::visibility::FlatBvh;
 use glam::Vec3;
@@ -96,7 +96,6 @@ pub(super) struct Readback {
     pub(super) color: Vec<[f32; 4]>,
     pub(super) stats: Vec<[u32; 4]>,
     pub(super) counters: Vec<[u32; 4]>,
-    pub(super) reservoirs: Vec<GpuReservoir>,
 }
 
 impl Readback {
@@ -118,7 +117,7 @@ impl Readback {
         let shaded = cur.gbuf.iter().filter(|p| p.is_some()).count().max(1);
         let rest_m: f64 = (cur.gbuf.iter().enumerate())
             .filter(|(_, p)| p.is_some())
-            .map(|(i, _)| Reservoir::from(self.reservoirs[2 * i]).m as f64)
+            .map(|(i, _)| self.color[i][3] as f64)
             .sum();
         let reuse = ReuseStats {
             temporal_accepted: self.counters.iter().map(|c| c[1] as u64).sum(),

@@ -98,10 +98,24 @@ pub struct ResampleParams {
     pub seed: u32,
     pub bvh_nodes: u32,
     pub prev_bvh_nodes: u32,
-    pub pad: [u32; 2],
+    /// The shadow casters seen (`visibility::Layers`' bits; all of them headless).
+    pub layers: u32,
+    pub pad: u32,
+    /// The rotation from the map's frame (normals, view and sample directions) to the world's
+    /// (points, the shadow BVH): a `mat3x3<f32>`'s three padded columns.
+    pub world_from_map: [[f32; 4]; 3],
+}
+
+impl ResampleParams {
+    /// `world_from_map` where the map's frame is the world's.
+    pub const MAP_IS_WORLD: [[f32; 4]; 3] = [
+        [1.0, 0.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0, 0.0],
+        [0.0, 0.0, 1.0, 0.0],
+    ];
 }
 
 // The WGSL structs' sizes: a field added on one side only fails the build, not a test.
 const _: () = assert!(size_of::<GpuReservoir>() == 48);
 const _: () = assert!(size_of::<GpuSurface>() == 96);
-const _: () = assert!(size_of::<ResampleParams>() == 64);
+const _: () = assert!(size_of::<ResampleParams>() == 112);

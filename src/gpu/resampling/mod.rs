@@ -5,19 +5,21 @@
 //! samples' targets at the history pixels, with the previous frame's shadow geometry bound; only
 //! with a history), `temporal`, `spatial` and `shade_reservoirs`. The previous frame's surfaces,
 //! split map, shadow geometry and reservoirs stay on the device for the next frame. Read back
-//! (a sequence's output, not a frame path's): the image, the per-pixel sample counts, the reuse
-//! counters and the final reservoirs (for the mean history length). `tests/gpu/resampling.rs` compares whole sequences with the CPU.
+//! (a sequence's output, not a frame path's): the image (its alpha the history length), the
+//! per-pixel sample counts and the reuse counters. `tests/gpu/resampling.rs` compares whole sequences with the CPU.
 
 mod frame;
 mod layout;
+mod passes;
 
 pub use layout::{GpuReservoir, GpuSurface, ResampleParams};
+pub use passes::{BvhBuffers, PASSES, PassBuffers, ResamplingPasses};
 
 use frame::{FrameBuffers, Readback};
 
+use super::GpuContext;
 use super::sampler::EnvSampler;
 use super::shading::ShadeParams;
-use super::{GpuContext, dispatch_size, shaders};
 use crate::envmap::Image;
 use crate::error::{Error, Result};
 use crate::render::resampling::{Resampling, ReuseStats, Screen, frame_seed};
@@ -26,15 +28,6 @@ use crate::visibility::FlatBvh;
 
 /// The most spatial neighbours the shaders take (`MAX_DOMAINS - 1` in `reservoir.wgsl`).
 pub const MAX_SPATIAL: u32 = 8;
-
-/// The entry points, in dispatch order.
-const PASSES: [&str; 5] = [
-    "candidates",
-    "history_targets",
-    "temporal",
-    "spatial",
-    "shade_reservoirs",
-];
 
 /// What temporal reuse needs of the caller: per pixel, where it was in the previous frame (the
 /// pixel, and the distance from the previous camera its point had then), and whether the
@@ -73,12 +66,9 @@ struct Previous {
 
 /// The resampling pipelines, the sampler they build on, and the previous frame.
 pub struct GpuResampler {
-    layout: wgpu::BindGroupLayout,
-    pipelines: Vec<wgpu::ComputePipeline>,
+    passes: ResamplingPasses,
     shade_params: wgpu::Buffer,
     params: wgpu::Buffer,
-    /// Bound where a pass has nothing to read (no history, no bright part, no geometry).
-    placeholder: wgpu::Buffer,
     sampler: Option<((usize, usize, usize, bool), EnvSampler)>,
     prev: Option<Previous>,
 }
@@ -86,41 +76,10 @@ pub struct GpuResampler {
 impl GpuResampler {
     pub fn new(ctx: &GpuContext) -> Self {
         let device = &ctx.device;
-        use wgpu::BufferBindingType as Kind;
-        let (ro, rw) = (
-            Kind::Storage { read_only: true },
-            Kind::Storage { read_only: false },
-        );
-        // Bindings 0..=21 as in `shaders/resampling.wgsl`.
-        let mut kinds = vec![ro; 22];
-        kinds[4] = Kind::Uniform;
-        kinds[5] = Kind::Uniform;
-        for b in [16, 18, 19, 20, 21] {
-            kinds[b] = rw;
-        }
-        let layout = super::buffer_layout(device, "envis resampling layout", &kinds);
-        let pl = super::one_group_layout(device, "envis resampling", &layout);
-        let module = shaders::module(
-            device,
-            "envis resampling.wgsl",
-            &shaders::resampling_source(),
-        );
-        let pipelines = PASSES
-            .iter()
-            .map(|entry| super::compute_pipeline(device, &pl, &module, entry))
-            .collect();
-        let placeholder = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("envis resampling placeholder"),
-            size: 256,
-            usage: wgpu::BufferUsages::STORAGE,
-            mapped_at_creation: false,
-        });
         GpuResampler {
-            layout,
-            pipelines,
+            passes: ResamplingPasses::new(device),
             shade_params: super::uniform_buffer::<ShadeParams>(device, "envis resampling shade"),
             params: super::uniform_buffer::<ResampleParams>(device, "envis resampling params"),
-            placeholder,
             sampler: None,
             prev: None,
         }
@@ -218,7 +177,9 @@ impl GpuResampler {
             seed,
             bvh_nodes: f.bvh.as_ref().map_or(0, |b| b.2),
             prev_bvh_nodes: prev.and_then(|p| p.bvh.as_ref()).map_or(0, |b| b.2),
-            ..Default::default()
+            layers: u32::MAX,
+            pad: 0,
+            world_from_map: ResampleParams::MAP_IS_WORLD,
         }
     }
 }
@@ -248,96 +209,48 @@ fn check(cur: &Screen, s: &Settings, r: &Resampling) -> Result<()> {
 }
 
 impl GpuResampler {
-    /// The passes in one submission (`history_targets` only with a history), and the readback.
+    /// The passes in one submission, and the readback.
     fn dispatch(&self, ctx: &GpuContext, f: &FrameBuffers, history: bool) -> Result<Readback> {
+        let (_, sampler) = self.sampler.as_ref().expect("built before dispatch");
+        let prev = self.prev.as_ref().filter(|_| history);
+        let buffers = PassBuffers {
+            sampler,
+            shade_params: &self.shade_params,
+            params: &self.params,
+            surfaces: &f.surfaces,
+            prev_surfaces: prev.map(|p| &p.surfaces),
+            split: &f.split,
+            prev_split: prev.map(|p| &p.split),
+            bright: Some((&f.bright_cdf, &f.bright_ids)),
+            bvh: bvh_buffers(&f.bvh),
+            prev_bvh: prev.and_then(|p| bvh_buffers(&p.bvh)),
+            res: [&f.res[0], &f.res[1], &f.res[2], &f.res[3]],
+            history: prev.map(|p| &p.reservoirs),
+            reproject: f.reproject.as_ref(),
+            hist_targets: &f.hist_targets,
+            counters: &f.counters,
+            color: &f.color,
+            stats: &f.stats,
+            pixels: f.pixels as u32,
+        };
         let mut enc = ctx.device.create_command_encoder(&Default::default());
-        let (x, y) = dispatch_size(f.pixels as u32, 64);
-        for (pass, pipeline) in self.pipelines.iter().enumerate() {
-            if pass == 1 && !history {
-                continue; // no history: temporal passes its input through
-            }
-            let bind = self.bind_group(ctx, f, pass);
-            let mut cp = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some(PASSES[pass]),
-                timestamp_writes: None,
-            });
-            cp.set_pipeline(pipeline);
-            cp.set_bind_group(0, &bind, &[]);
-            cp.dispatch_workgroups(x, y, 1);
-        }
+        self.passes.record(&ctx.device, &mut enc, &buffers);
         ctx.wait(ctx.queue.submit([enc.finish()]))?;
         let n = f.pixels as u64;
         let data = ctx.read_many(&[
             (&f.color, 0, n * 16),
             (&f.stats, 0, n * 16),
             (&f.counters, 0, n * 16),
-            (&f.res[3], 0, n * 96),
         ])?;
         Ok(Readback {
             color: bytemuck::pod_collect_to_vec(&data[0]),
             stats: bytemuck::pod_collect_to_vec(&data[1]),
             counters: bytemuck::pod_collect_to_vec(&data[2]),
-            reservoirs: bytemuck::pod_collect_to_vec(&data[3]),
-        })
-    }
-
-    /// Pass `pass`'s bind group: its input and output reservoirs, and the shadow geometry
-    /// (the previous frame's for `history_targets`).
-    fn bind_group(&self, ctx: &GpuContext, f: &FrameBuffers, pass: usize) -> wgpu::BindGroup {
-        let (_, sampler) = self.sampler.as_ref().expect("built before dispatch");
-        let ph = &self.placeholder;
-        let prev = self.prev.as_ref();
-        // Candidates write res[0]; temporal reads res[0] (history_targets too) and writes res[1];
-        // spatial res[1] -> res[2]; shading res[2] -> res[3].
-        let (input, output) = match pass {
-            0 => (&f.res[3], &f.res[0]),
-            1 | 2 => (&f.res[0], &f.res[1]),
-            3 => (&f.res[1], &f.res[2]),
-            _ => (&f.res[2], &f.res[3]),
-        };
-        let bvh = if pass == 1 {
-            prev.and_then(|p| p.bvh.as_ref())
-        } else {
-            f.bvh.as_ref()
-        };
-        let (nodes, tris) = bvh.map_or((ph, ph), |b| (&b.0, &b.1));
-        let resources = [
-            whole(&sampler.texels),
-            whole(&sampler.pool),
-            wgpu::BindingResource::Buffer(sampler.regions_binding()),
-            whole(&sampler.gdist),
-            whole(&self.shade_params),
-            whole(&self.params),
-            whole(&f.surfaces),
-            whole(prev.map_or(ph, |p| &p.surfaces)),
-            whole(&f.split),
-            whole(prev.map_or(ph, |p| &p.split)),
-            whole(&f.bright_cdf),
-            whole(&f.bright_ids),
-            whole(nodes),
-            whole(tris),
-            whole(input),
-            whole(prev.map_or(ph, |p| &p.reservoirs)),
-            whole(output),
-            whole(f.reproject.as_ref().unwrap_or(ph)),
-            whole(&f.hist_targets),
-            whole(&f.counters),
-            whole(&f.color),
-            whole(&f.stats),
-        ];
-        let entries: Vec<wgpu::BindGroupEntry> = (0u32..)
-            .zip(resources)
-            .map(|(binding, resource)| wgpu::BindGroupEntry { binding, resource })
-            .collect();
-        ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some(PASSES[pass]),
-            layout: &self.layout,
-            entries: &entries,
         })
     }
 }
 
-/// A whole buffer as a binding.
-fn whole(b: &wgpu::Buffer) -> wgpu::BindingResource<'_> {
-    wgpu::BindingResource::Buffer(b.as_entire_buffer_binding())
+/// An uploaded BVH (nodes, triangles, node count) as the passes bind it.
+fn bvh_buffers(b: &Option<(wgpu::Buffer, wgpu::Buffer, u32)>) -> Option<BvhBuffers<'_>> {
+    b.as_ref().map(|b| (&b.0, &b.1))
 }
