@@ -34,7 +34,9 @@ struct LightingView {
     source_layout: u32,
     // The camera's RenderLayers as visibility::Layers: the shadow casters it sees.
     render_layers: u32,
-    _pad: u32,
+    // 1 where the camera resamples (EnvironmentResampling): the image is `resampled`'s, made by
+    // the resampling passes before this one.
+    resampled: u32,
 }
 // The shadow BVH's node count is sp.bvh_nodes (shade.wgsl's ShadeParams; 0: no shadow rays).
 
@@ -43,6 +45,9 @@ const OVERLAY_NONE: u32 = 0u;
 const OVERLAY_EFFECTIVE_SAMPLES: u32 = 1u;
 const OVERLAY_WASTED: u32 = 2u;
 const OVERLAY_COUNTS_DIFFERENCE: u32 = 3u;
+const OVERLAY_HISTORY: u32 = 4u;
+// The confidence the history overlay draws red (gpu::resampling::HISTORY_FULL_SCALE).
+const HISTORY_FULL_SCALE: f32 = 20.0;
 
 @group(0) @binding(0) var gbuffer: texture_2d<u32>;
 @group(0) @binding(1) var depth_tex: texture_depth_2d;
@@ -67,6 +72,9 @@ const OVERLAY_COUNTS_DIFFERENCE: u32 = 3u;
 // The scene's shadow-casting meshes as a BVH (visibility.wgsl; placeholders when off).
 @group(0) @binding(12) var<storage, read> bvh_nodes: array<BvhNode>;
 @group(0) @binding(13) var<storage, read> bvh_triangles: array<array<vec4<f32>, 3>>;
+// The resampling passes' image, one per viewport pixel (w: the reservoir's confidence M); a
+// placeholder unless lv.resampled.
+@group(0) @binding(14) var<storage, read> resampled: array<vec4<f32>>;
 
 // Sample radiance comes from the full-resolution image (the texel a direction falls in); the
 // texel table gives only densities (render::FrameData::fine is the CPU twin).
@@ -150,6 +158,14 @@ fn lighting(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
     px.n = vec4(env * px.n.xyz, 1.0);
     let local = vec2<u32>(max(pos.xy - lv.viewport.xy, vec2(0.0)));
     let pixel_index = local.y * u32(lv.viewport.z) + local.x;
+    if (lv.overlay == OVERLAY_HISTORY) {
+        return vec4(heat(select(0.0, resampled[pixel_index].w, lv.resampled != 0u) / HISTORY_FULL_SCALE), 1.0);
+    }
+    if (lv.resampled != 0u && lv.overlay == OVERLAY_NONE) {
+        // The resampled image replaces this pass's estimate (and its accumulation: reuse
+        // across frames is the resampling's own).
+        return vec4(resampled[pixel_index].xyz * scale, 0.0);
+    }
     let r = shade(px, pixel_index);
     if (all(vec2<f32>(local) == lv.probe_pixel)) {
         probe[0] = px.n;

@@ -151,6 +151,10 @@ mod bevy_plugin;
 mod bevy_pose;
 
 #[cfg(feature = "app")]
+#[path = "gpu/bevy_resampling.rs"]
+mod bevy_resampling;
+
+#[cfg(feature = "app")]
 #[path = "gpu/bevy_post.rs"]
 mod bevy_post;
 

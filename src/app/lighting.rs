@@ -153,7 +153,7 @@ type LightingViewData = (
 /// The per-view lighting pass: G-buffer + this frame's distribution and pool -> HDR radiance,
 /// added to Bevy's lighting inside the view's viewport.
 #[allow(clippy::too_many_arguments)]
-fn mis_lighting(
+pub(crate) fn mis_lighting(
     view: ViewQuery<LightingViewData>,
     (cache, pipeline, res): (
         Res<PipelineCache>,
@@ -166,7 +166,10 @@ fn mis_lighting(
         Option<Res<super::shadows::GpuShadowGeometry>>,
     ),
     (counters, timings): (Res<EnvisCounters>, Res<EnvisTimings>),
-    queue: Res<RenderQueue>,
+    (queue, resampling): (
+        Res<RenderQueue>,
+        Option<Res<super::resampling::ResamplingResources>>,
+    ),
     mut ctx: RenderContext,
 ) {
     let t0 = std::time::Instant::now();
@@ -183,11 +186,14 @@ fn mis_lighting(
         return;
     };
     let vp = ev.viewport;
-    let Some((params, lv, geometry)) =
+    let Some((params, mut lv, geometry)) =
         view_uniforms((ev, cam, extras), (sampling, env, vs), slot, &shadows)
     else {
         return;
     };
+    // The resampling pass's image, where it ran for this view this frame.
+    let resampled = resampling.and_then(|r| r.take_image(view_entity));
+    lv.resampled = resampled.is_some() as u32;
     let (bvh_nodes, bvh_triangles) = geometry.map_or((&res.no_shadows, &res.no_shadows), |g| {
         (&g.nodes, &g.triangles)
     });
@@ -204,6 +210,7 @@ fn mis_lighting(
         prepass_views,
         [&pbuf, &vbuf, &accum],
         (bvh_nodes, bvh_triangles),
+        resampled.as_ref().unwrap_or(&res.no_shadows),
     );
     encode_lighting(
         &mut ctx,
@@ -303,7 +310,7 @@ fn count_lighting_pass(
 
 /// The shadow geometry the view's rays traverse, and its BVH's node count (0: no shadow rays):
 /// when the camera asks for shadows and the uploaded geometry is this frame's.
-fn shadow_geometry<'a>(
+pub(super) fn shadow_geometry<'a>(
     shadows: &'a (
         Option<Res<super::shadows::ShadowGeometry>>,
         Option<Res<super::shadows::GpuShadowGeometry>>,
@@ -320,7 +327,7 @@ fn shadow_geometry<'a>(
 
 /// The view's shading parameters: its settings with the view's `seed`, over its viewport `vp`.
 /// `None` while the global strategy's distribution is not built (it is from the next frame on).
-fn shade_params(
+pub(super) fn shade_params(
     sampling: &EnvironmentSampling,
     seed: u32,
     sampler: &EnvSampler,
@@ -344,13 +351,15 @@ fn shade_params(
 
 /// The lighting pass's bind group, in binding order (`lighting_layout`): the prepass views
 /// (deferred G-buffer, depth, lighting-pass ids), the sampler's tables, the per-view buffers
-/// (params, view, accumulation), the source image and the shadow BVH.
+/// (params, view, accumulation), the source image, the shadow BVH and the resampled image (a
+/// placeholder where the view does not resample).
 fn lighting_bind_group(
     (device, cache, layout): (&RenderDevice, &PipelineCache, &LightingPipeline),
     (slot, res): (&SamplerSlot, &LightingResources),
     (deferred, depth, ids): (&TextureView, &TextureView, &TextureView),
     [pbuf, vbuf, accum]: [&wgpu::Buffer; 3],
     (bvh_nodes, bvh_triangles): (&wgpu::Buffer, &wgpu::Buffer),
+    resampled: &wgpu::Buffer,
 ) -> BindGroup {
     use wgpu::BindingResource as R;
     let sampler = &slot.sampler;
@@ -369,6 +378,7 @@ fn lighting_bind_group(
         R::TextureView(&slot.source),
         bvh_nodes.as_entire_binding(),
         bvh_triangles.as_entire_binding(),
+        resampled.as_entire_binding(),
     ));
     device.create_bind_group(
         "envis lighting",

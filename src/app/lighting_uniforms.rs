@@ -37,7 +37,8 @@ pub(super) struct LightingView {
     source_layout: u32,
     /// The camera's `RenderLayers` ([`super::shadows::layers_of`]): the casters its rays meet.
     render_layers: u32,
-    _pad: u32,
+    /// 1 where the camera resamples: the pass shows the resampling passes' image.
+    pub(super) resampled: u32,
 }
 
 impl Overlay {
@@ -48,6 +49,7 @@ impl Overlay {
             Overlay::EffectiveSamples => 1,
             Overlay::Wasted => 2,
             Overlay::CountsDifference => 3,
+            Overlay::History => 4,
         }
     }
 }
@@ -111,7 +113,7 @@ pub(super) fn lighting_view(
         accumulate: sampling.accumulate as u32,
         source_layout: layout.gpu_code(),
         render_layers: super::shadows::layers_of(render_layers).0,
-        _pad: 0,
+        resampled: 0,
     }
 }
 
@@ -149,7 +151,7 @@ pub(super) fn decode_probe(bytes: &[u8], seed: u32) -> Option<ProbeResult> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::gpu::codes::tests::{all_wgsl_consts, check_families, wgsl_u32_consts};
 
@@ -164,6 +166,7 @@ mod tests {
                     Overlay::EffectiveSamples => "EFFECTIVE_SAMPLES",
                     Overlay::Wasted => "WASTED",
                     Overlay::CountsDifference => "COUNTS_DIFFERENCE",
+                    Overlay::History => "HISTORY",
                 };
                 (name, o.gpu_code())
             })
@@ -180,7 +183,7 @@ mod tests {
     }
 
     /// WGSL's uniform layout of a struct body: each field's name and byte offset, and the size.
-    fn wgsl_layout(body: &str) -> (Vec<(String, usize)>, usize) {
+    pub(crate) fn wgsl_layout(body: &str) -> (Vec<(String, usize)>, usize) {
         let (mut fields, mut at, mut max_align) = (Vec::new(), 0usize, 4usize);
         for line in body.lines().map(str::trim).filter(|l| !l.starts_with("//")) {
             let Some((name, ty)) = line.split_once(':') else {
@@ -230,7 +233,7 @@ mod tests {
             accumulate,
             source_layout,
             render_layers,
-            _pad
+            resampled
         );
         assert_eq!(wgsl, rust);
         assert_eq!(size, std::mem::size_of::<LightingView>());

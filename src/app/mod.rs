@@ -24,6 +24,9 @@
 //!   shadow-casting meshes) for envis's shadow rays.
 //! - [`EnvisLightingPlugin`] (render world): per camera, the face-weighted MIS pass after Bevy's
 //!   deferred lighting (`Core3d`, main pass, before the opaque pass).
+//! - [`EnvisResamplingPlugin`] (both worlds): per camera with [`EnvironmentResampling`],
+//!   reservoir resampling of the environment light across pixels and frames, before the
+//!   lighting pass, which then shows its image.
 //!
 //! [`EnvisStreamPlugin`] (not in [`EnvisPlugin`]) plays envis's own streams (file sequences,
 //! the carousel, the built-in sky) into an `Image` for [`EnvisEnvironment`].
@@ -40,6 +43,7 @@ pub mod lighting;
 mod lighting_uniforms;
 pub mod material;
 pub mod pose;
+pub mod resampling;
 pub mod sampling;
 pub mod scene_objects;
 mod scene_revision;
@@ -56,6 +60,7 @@ pub use material::{
     ENVIS_LIGHTING_PASS_ID, EnvisBrdf, EnvisMaterial, EnvisMaterialPlugin,
     standard_material_decoded,
 };
+pub use resampling::{EnvironmentResampling, EnvisResamplingPlugin};
 pub use sampling::EnvisSamplingPlugin;
 pub use shader_reload::EnvisShaderReloadPlugin;
 pub use shadows::EnvisShadowsPlugin;
@@ -121,6 +126,7 @@ impl Plugin for EnvisPlugin {
                 EnvisSamplingPlugin,
                 shadows::EnvisShadowsPlugin,
                 EnvisLightingPlugin,
+                EnvisResamplingPlugin,
             ));
     }
 }
@@ -176,6 +182,12 @@ impl Overlay {
                 25.0,
                 "%",
                 "|fractional - integer| / |fractional|: where integer counts pop",
+            ),
+            Overlay::History => (
+                crate::gpu::resampling::HISTORY_FULL_SCALE,
+                "M",
+                "each resampled pixel's confidence: frames of candidates reused plus the spatial \
+                 neighbours' share (blue: no history, as after a disocclusion)",
             ),
         };
         Some(OverlayLegend {
@@ -257,6 +269,10 @@ pub struct Counters {
     /// Lighting passes that ran an overlay (the overlay is a branch of the lighting pass: with
     /// overlays off this stays 0 and no overlay code runs).
     pub overlay_passes: AtomicU64,
+    /// Frames resampled by `EnvironmentResampling` cameras (one per camera per frame), and of
+    /// those, the frames that had a history to reuse (not the first, not after a reset).
+    pub resampling_passes: AtomicU64,
+    pub resampling_histories: AtomicU64,
 }
 
 /// Frames each accumulating camera (main-world entity) has averaged so far, written by the

@@ -183,8 +183,13 @@ pub fn track_image_versions(
 }
 
 /// What else of a view its distribution and seed depend on: its layers (which casters shadow
-/// it, for the accumulation key) and whether it is jittered (TAA: a new seed every frame).
-type ViewExtras = (Option<&'static RenderLayers>, Has<TemporalJitter>);
+/// it, for the accumulation key) and whether it is jittered (TAA) or resamples: both average
+/// over frames, so each frame draws a new seed.
+type ViewExtras = (
+    Option<&'static RenderLayers>,
+    Has<TemporalJitter>,
+    Has<super::resampling::EnvironmentResampling>,
+);
 
 /// Per view: choose (and allocate) its distribution, decide whether that needs a rebuild, and
 /// track accumulation. Drops distributions and view state that no view uses any more.
@@ -212,7 +217,9 @@ pub fn prepare_samplers(
     let mut used = HashSet::new();
     let mut live_views = HashSet::new();
     let mut frames = cleared_frames(&accumulated);
-    for (entity, main, view, sampling, env, (layers, jittered)) in &views {
+    for (entity, main, view, sampling, env, (layers, jittered, resampled)) in &views {
+        // Resampling, as TAA, averages over frames: each frame draws new samples.
+        let jittered = jittered || resampled;
         let Some(gpu) = images.get(env.image.id()) else {
             continue; // not loaded yet: Bevy's lighting alone until it is
         };

@@ -220,6 +220,7 @@ pub(crate) mod tests {
             ("OVERLAY_EFFECTIVE_SAMPLES", None),
             ("OVERLAY_WASTED", None),
             ("OVERLAY_COUNTS_DIFFERENCE", None),
+            ("OVERLAY_HISTORY", None),
         ]
     }
 

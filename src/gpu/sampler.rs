@@ -73,7 +73,7 @@ pub struct EnvSampler {
 
 /// A storage buffer a pass reads or writes and the host fills or reads back (at least 16 bytes:
 /// an empty binding is invalid).
-pub(super) fn storage(device: &wgpu::Device, label: &str, size: u64) -> wgpu::Buffer {
+pub(crate) fn storage(device: &wgpu::Device, label: &str, size: u64) -> wgpu::Buffer {
     device.create_buffer(&wgpu::BufferDescriptor {
         label: Some(label),
         size: size.max(16),

@@ -173,6 +173,10 @@ mod tests {
         ] {
             assert_eq!(wgsl_const(super::RESAMPLING, name), value, "{name}");
         }
+        assert_eq!(
+            wgsl_const(super::LIGHTING, "HISTORY_FULL_SCALE"),
+            crate::gpu::resampling::HISTORY_FULL_SCALE
+        );
     }
 
     /// The reloadable source is the embedded one, file for file.

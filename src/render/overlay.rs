@@ -13,14 +13,19 @@ pub enum Overlay {
     Wasted,
     /// |fractional - integer| / fractional: where integer counts pop.
     CountsDifference,
+    /// Per pixel, the confidence `M` of its resampled reservoir (frames of candidates reused,
+    /// plus the spatial neighbours' share): where reuse holds and where it restarts. Cameras
+    /// with `EnvironmentResampling` only; blue elsewhere.
+    History,
 }
 
 impl Overlay {
-    pub const ALL: [Overlay; 4] = [
+    pub const ALL: [Overlay; 5] = [
         Overlay::None,
         Overlay::EffectiveSamples,
         Overlay::Wasted,
         Overlay::CountsDifference,
+        Overlay::History,
     ];
     pub fn name(self) -> &'static str {
         match self {
@@ -28,6 +33,7 @@ impl Overlay {
             Overlay::EffectiveSamples => "effective samples",
             Overlay::Wasted => "wasted (yellow) fraction",
             Overlay::CountsDifference => "fractional - integer",
+            Overlay::History => "resampling history",
         }
     }
 }

@@ -41,7 +41,7 @@ impl LightingPipeline {
     }
 }
 
-/// The bind group layout, in binding order (`@binding(0)` ... `@binding(13)` of
+/// The bind group layout, in binding order (`@binding(0)` ... `@binding(14)` of
 /// `shaders/lighting.wgsl`; `mis_lighting` binds the resources in the same order).
 pub fn lighting_layout() -> BindGroupLayoutDescriptor {
     let ro = || storage_buffer_read_only_sized(false, None);
@@ -62,6 +62,7 @@ pub fn lighting_layout() -> BindGroupLayoutDescriptor {
             crate::gpu::resample::source_binding(), // 11: the environment image
             ro(),                                // 12: BVH nodes
             ro(),                                // 13: BVH triangles
+            ro(),                                // 14: the resampled image
         ),
     );
     BindGroupLayoutDescriptor::new("envis lighting layout", &entries)

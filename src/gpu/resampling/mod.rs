@@ -29,6 +29,10 @@ use crate::visibility::FlatBvh;
 /// The most spatial neighbours the shaders take (`MAX_DOMAINS - 1` in `reservoir.wgsl`).
 pub const MAX_SPATIAL: u32 = 8;
 
+/// The confidence `M` the history overlay draws red (`HISTORY_FULL_SCALE` in
+/// `shaders/lighting.wgsl`): the default `max_history`.
+pub const HISTORY_FULL_SCALE: f32 = 20.0;
+
 /// What temporal reuse needs of the caller: per pixel, where it was in the previous frame (the
 /// pixel, and the distance from the previous camera its point had then), and whether the
 /// previous frame's bright part is this one's ([`crate::render::resampling::BrightLight::same_light`]).

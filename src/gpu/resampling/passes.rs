@@ -41,7 +41,8 @@ pub struct PassBuffers<'a> {
     pub bvh: Option<BvhBuffers<'a>>,
     /// The previous frame's shadow geometry (bound in `history_targets` only).
     pub prev_bvh: Option<BvhBuffers<'a>>,
-    /// Candidates, after temporal reuse (the next history), after spatial reuse, shaded.
+    /// Candidates, after temporal reuse (the next history), after spatial reuse, shaded (the
+    /// last may be the first: see `bind_group`).
     pub res: [&'a wgpu::Buffer; 4],
     /// The previous frame's temporal reservoirs.
     pub history: Option<&'a wgpu::Buffer>,
@@ -117,10 +118,11 @@ impl ResamplingPasses {
             o.unwrap_or(ph).as_entire_binding()
         }
         let ph = &self.placeholder;
-        // Candidates write res[0]; temporal reads res[0] (history_targets too) and writes res[1];
-        // spatial res[1] -> res[2]; shading res[2] -> res[3].
+        // Candidates write res[0] (their input is not read: any other buffer); temporal reads
+        // res[0] (history_targets too) and writes res[1]; spatial res[1] -> res[2]; shading
+        // res[2] -> res[3]. No pass reads what it writes, so res[3] may be res[0].
         let (input, output) = match pass {
-            0 => (b.res[3], b.res[0]),
+            0 => (b.res[2], b.res[0]),
             1 | 2 => (b.res[0], b.res[1]),
             3 => (b.res[1], b.res[2]),
             _ => (b.res[2], b.res[3]),

@@ -1,0 +1,402 @@
+//! `EnvisResamplingPlugin`: reservoir resampling (ReSTIR) of the environment light for every
+//! camera with [`EnvironmentResampling`] (besides [`EnvironmentSampling`] and
+//! [`EnvisEnvironment`]): the Bevy pass of `render::resampling::resample_frame`
+//! (`docs/temporal.md`). Per camera per frame, in the `Core3d` schedule after Bevy's deferred
+//! lighting and before envis's lighting pass:
+//! 1. the gather (`shaders/gather.wgsl`): Bevy's prepass textures (G-buffer, depth, lighting-pass
+//!    ids, motion vectors) into the surfaces and the reprojection the passes read, and the
+//!    map's texel table into the split map;
+//! 2. the resampling passes themselves, the WGSL the headless twin runs
+//!    (`gpu::resampling::ResamplingPasses`): candidates (the camera's `light_samples` +
+//!    `brdf_samples`), temporal reuse of the previous frame's reservoirs, spatial reuse, shading
+//!    with one shadow ray for the selected sample (plus the unbiased reuse's visibility rays).
+//!
+//! The lighting pass then shows the resampled image instead of its own estimate. Nothing is
+//! read back. Unlike the CPU oracle the Bevy pass has no bright part (the map is resampled
+//! whole, as `split_bright: false`) and no object ids (the geometric tests are normal and depth).
+
+mod gather;
+mod view;
+
+use super::components::{EnvironmentSampling, EnvisEnvironment};
+use super::sampling::{EnvSamplers, ViewSampling};
+use super::shadows::{GpuShadowGeometry, ShadowGeometry};
+use super::{EnvisCounters, lighting};
+use crate::gpu::resampling::{
+    BvhBuffers, MAX_SPATIAL, PassBuffers, ResampleParams, ResamplingPasses,
+};
+use bevy::camera::visibility::RenderLayers;
+use bevy::core_pipeline::prepass::{
+    DeferredPrepass, DepthPrepass, MotionVectorPrepass, ViewPrepassTextures,
+};
+use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
+use bevy::prelude::*;
+use bevy::render::camera::TemporalJitter;
+use bevy::render::renderer::{RenderContext, RenderQueue, ViewQuery};
+use bevy::render::sync_world::RenderEntity;
+use bevy::render::view::ExtractedView;
+use bevy::render::{ExtractSchedule, MainWorld, RenderApp};
+use gather::{GatherInputs, GatherPipelines, GatherView};
+use std::collections::HashMap;
+use std::sync::{Mutex, OnceLock};
+use view::{PreviousFrame, ViewResampling};
+
+/// Reservoir resampling of the environment light on this camera: with it,
+/// [`EnvironmentSampling`]'s `light_samples` / `brdf_samples` are the candidates each pixel
+/// draws per frame, and the image reuses the previous frame's and the neighbours' samples.
+/// Removing it gives the plain estimator back.
+#[derive(Component, Clone, Copy, Debug, PartialEq, Reflect)]
+#[reflect(Component, Default, Clone)]
+#[require(MotionVectorPrepass, DepthPrepass, DeferredPrepass)]
+pub struct EnvironmentResampling {
+    /// Reuse the previous frame's reservoirs (found through the motion vectors).
+    pub temporal: bool,
+    /// Spatial neighbours reused per pixel (at most 8: more are clamped).
+    pub spatial: u32,
+    /// The cap on a reservoir's confidence from its history (frames' worth of candidates).
+    pub max_history: u32,
+    /// Pairwise MIS with visibility in the reuse (unbiased, a few more shadow rays); `false`:
+    /// 1/M weights, no visibility reuse (faster, biased: measured in `docs/temporal.md`).
+    pub unbiased: bool,
+    /// Clear the history this frame (a camera cut), as TAA's `reset`; set back to `false`
+    /// after the frame is extracted.
+    pub reset: bool,
+}
+
+impl Default for EnvironmentResampling {
+    fn default() -> Self {
+        EnvironmentResampling {
+            temporal: true,
+            spatial: 3,
+            max_history: 20,
+            unbiased: true,
+            reset: false,
+        }
+    }
+}
+
+/// Adds the resampling pass to every camera with [`EnvironmentResampling`] (part of
+/// `EnvisPlugin`).
+pub struct EnvisResamplingPlugin;
+
+impl Plugin for EnvisResamplingPlugin {
+    fn build(&self, app: &mut App) {
+        super::share_resources(app);
+        app.register_type::<EnvironmentResampling>();
+        let Some(render_app) = app.get_sub_app_mut(RenderApp) else {
+            return;
+        };
+        render_app
+            .init_resource::<ResamplingResources>()
+            .add_systems(ExtractSchedule, extract_resampling)
+            .add_systems(
+                Core3d,
+                resample_environment
+                    .after(bevy::pbr::deferred::deferred_lighting)
+                    .before(lighting::mis_lighting)
+                    .in_set(Core3dSystems::MainPass),
+            );
+    }
+}
+
+/// Copy each active camera's [`EnvironmentResampling`] into the render world (removed there
+/// when it is removed here), then clear its `reset`, as TAA does.
+fn extract_resampling(mut commands: Commands, mut main_world: ResMut<MainWorld>) {
+    let mut cameras =
+        main_world.query::<(RenderEntity, &Camera, Option<&mut EnvironmentResampling>)>();
+    for (entity, camera, settings) in cameras.iter_mut(&mut main_world) {
+        let Ok(mut target) = commands.get_entity(entity) else {
+            continue;
+        };
+        match settings {
+            Some(mut settings) if camera.is_active => {
+                target.insert(*settings);
+                settings.reset = false;
+            }
+            _ => {
+                target.remove::<EnvironmentResampling>();
+            }
+        }
+    }
+}
+
+/// What the resampling pass keeps: its pipelines (compiled when a camera first resamples) and
+/// each resampling camera's buffers.
+#[derive(Resource, Default)]
+pub struct ResamplingResources {
+    pipelines: OnceLock<(ResamplingPasses, GatherPipelines)>,
+    views: Mutex<HashMap<Entity, ViewResampling>>,
+}
+
+impl ResamplingResources {
+    /// The image view `entity` resampled this frame, for the lighting pass to show (taken once:
+    /// `None` on a frame the pass did not run for it).
+    pub(super) fn take_image(&self, entity: Entity) -> Option<wgpu::Buffer> {
+        let mut views = self.views.lock().ok()?;
+        let v = views.get_mut(&entity)?;
+        std::mem::take(&mut v.ready).then(|| v.color.clone())
+    }
+}
+
+/// A resampling view's components.
+type ResamplingViewData = (
+    &'static ExtractedView,
+    &'static ViewPrepassTextures,
+    &'static EnvironmentSampling,
+    &'static EnvisEnvironment,
+    &'static ViewSampling,
+    &'static EnvironmentResampling,
+    Option<&'static RenderLayers>,
+    Option<&'static TemporalJitter>,
+);
+
+/// The prepass views the gather reads: G-buffer, depth, lighting-pass ids, motion vectors.
+fn prepass_views(
+    p: &ViewPrepassTextures,
+) -> Option<(
+    &wgpu::TextureView,
+    &wgpu::TextureView,
+    &wgpu::TextureView,
+    &wgpu::TextureView,
+)> {
+    Some((
+        p.deferred_view()?,
+        p.depth_view()?,
+        &p.deferred_lighting_pass_id.as_ref()?.texture.default_view,
+        p.motion_vectors_view()?,
+    ))
+}
+
+/// The per-view resampling pass: gather, then the resampling passes, recorded into the frame's
+/// encoder.
+fn resample_environment(
+    view: ViewQuery<ResamplingViewData>,
+    samplers: Res<EnvSamplers>,
+    shadows: (Option<Res<ShadowGeometry>>, Option<Res<GpuShadowGeometry>>),
+    (res, counters, queue): (
+        Option<Res<ResamplingResources>>,
+        Res<EnvisCounters>,
+        Res<RenderQueue>,
+    ),
+    mut ctx: RenderContext,
+) {
+    let entity = view.entity();
+    let (ev, prepass, sampling, env, vs, settings, layers, jitter) = view.into_inner();
+    let (Some(res), Some(slot)) = (res, samplers.slots.get(&vs.key)) else {
+        return;
+    };
+    let (Some(textures), Some(shade)) = (
+        prepass_views(prepass),
+        lighting::shade_params(sampling, vs.seed, &slot.sampler, ev.viewport),
+    ) else {
+        return;
+    };
+    let device = ctx.render_device().wgpu_device().clone();
+    let (passes, gather) = res.pipelines.get_or_init(|| {
+        (
+            ResamplingPasses::new(&device),
+            GatherPipelines::new(&device),
+        )
+    });
+    let Ok(mut views) = res.views.lock() else {
+        return;
+    };
+    let n = slot.sampler.n as u32;
+    let Some(state) = view_state(&mut views, &device, entity, ev.viewport.zw(), 6 * n * n) else {
+        return;
+    };
+    if settings.reset || !settings.temporal || state.prev.as_ref().is_some_and(|p| p.face_size != n)
+    {
+        state.prev = None;
+    }
+    let geometry = lighting::shadow_geometry(&shadows, sampling).0;
+    let frame = FrameInputs {
+        ev,
+        env,
+        settings,
+        layers: super::shadows::layers_of(layers).0,
+        jitter,
+        seed: vs.seed,
+        bvh: geometry.map(|g| (g.nodes.clone(), g.triangles.clone(), g.node_count)),
+    };
+    write_uniforms(&queue, state, &frame, &shade);
+    let enc = ctx.command_encoder();
+    record(
+        enc,
+        &device,
+        (passes, gather),
+        state,
+        (&slot.sampler, textures),
+        &frame,
+    );
+    counters.bump(|c| &c.resampling_passes);
+    if state.prev.is_some() {
+        counters.bump(|c| &c.resampling_histories);
+    }
+    state.advance(PreviousFrame {
+        camera: ev.world_from_view.translation(),
+        forward: ev.world_from_view.forward().as_vec3(),
+        face_size: n,
+        bvh: frame.bvh,
+    });
+}
+
+/// The view's buffers, made anew when its viewport or map size changed (the history is lost
+/// then); `None`, with a warning once, where the device cannot hold them.
+fn view_state<'a>(
+    views: &'a mut HashMap<Entity, ViewResampling>,
+    device: &wgpu::Device,
+    entity: Entity,
+    size: UVec2,
+    texels: u32,
+) -> Option<&'a mut ViewResampling> {
+    if views
+        .get(&entity)
+        .is_none_or(|v| v.size != size || v.texels != texels)
+    {
+        match ViewResampling::new(device, size, texels) {
+            Ok(v) => {
+                views.insert(entity, v);
+            }
+            Err(e) => {
+                views.remove(&entity);
+                bevy::log::warn_once!("envis resampling is off for a camera: {e}");
+                return None;
+            }
+        }
+    }
+    views.get_mut(&entity)
+}
+
+/// What of the view and its settings a frame's uniforms and passes take.
+struct FrameInputs<'a> {
+    ev: &'a ExtractedView,
+    env: &'a EnvisEnvironment,
+    settings: &'a EnvironmentResampling,
+    layers: u32,
+    jitter: Option<&'a TemporalJitter>,
+    seed: u32,
+    /// The shadow BVH (nodes, triangles, node count) when the camera casts shadow rays.
+    bvh: Option<(wgpu::Buffer, wgpu::Buffer, u32)>,
+}
+
+/// The gather's view, the shading's and the passes' parameters.
+fn write_uniforms(
+    queue: &RenderQueue,
+    state: &ViewResampling,
+    f: &FrameInputs,
+    shade: &crate::gpu::shading::ShadeParams,
+) {
+    let ev = f.ev;
+    let vp = ev.viewport;
+    let world_from_view = ev.world_from_view.to_matrix();
+    let clip_from_view = super::lighting_uniforms::rasterised_clip_from_view(ev, f.jitter);
+    let prev = state.prev.as_ref();
+    let camera = ev.world_from_view.translation();
+    let forward = ev.world_from_view.forward().as_vec3();
+    let gv = GatherView {
+        world_from_clip: (world_from_view * clip_from_view.inverse()).to_cols_array_2d(),
+        env_from_world: Mat4::from_quat(f.env.rotation.inverse()).to_cols_array_2d(),
+        camera: camera.to_array(),
+        orthographic: (ev.clip_from_view.w_axis.w == 1.0) as u32,
+        forward: forward.to_array(),
+        has_prev: prev.is_some() as u32,
+        prev_camera: prev.map_or(camera, |p| p.camera).to_array(),
+        texel_count: state.texels,
+        prev_forward: prev.map_or(forward, |p| p.forward).to_array(),
+        _pad: 0,
+        viewport: [vp.x as f32, vp.y as f32, vp.z as f32, vp.w as f32],
+    };
+    let r = f.settings;
+    let rot = Mat3::from_quat(f.env.rotation);
+    let params = ResampleParams {
+        width: vp.z,
+        height: vp.w,
+        n: (state.texels / 6).isqrt(),
+        prev_n: prev.map_or(0, |p| p.face_size),
+        bright_count: 0,
+        history: prev.is_some() as u32,
+        bright_history: 0,
+        temporal: r.temporal as u32,
+        spatial: r.spatial.min(MAX_SPATIAL),
+        max_history: r.max_history.max(1) as f32,
+        unbiased: r.unbiased as u32,
+        seed: f.seed,
+        bvh_nodes: f.bvh.as_ref().map_or(0, |b| b.2),
+        prev_bvh_nodes: prev.and_then(|p| p.bvh.as_ref()).map_or(0, |b| b.2),
+        layers: f.layers,
+        pad: 0,
+        world_from_map: [rot.x_axis, rot.y_axis, rot.z_axis].map(|c| c.extend(0.0).to_array()),
+    };
+    queue.write_buffer(&state.gather_view, 0, bytemuck::bytes_of(&gv));
+    queue.write_buffer(&state.shade_params, 0, bytemuck::bytes_of(shade));
+    queue.write_buffer(&state.params, 0, bytemuck::bytes_of(&params));
+}
+
+/// The gather and the resampling passes of one frame.
+fn record(
+    enc: &mut wgpu::CommandEncoder,
+    device: &wgpu::Device,
+    (passes, gather): (&ResamplingPasses, &GatherPipelines),
+    state: &mut ViewResampling,
+    (sampler, (gbuffer, depth, pass_ids, motion_vectors)): (
+        &crate::gpu::sampler::EnvSampler,
+        (
+            &wgpu::TextureView,
+            &wgpu::TextureView,
+            &wgpu::TextureView,
+            &wgpu::TextureView,
+        ),
+    ),
+    f: &FrameInputs,
+) {
+    let (surfaces, split, temporal) = state.current();
+    let pixels = state.size.x * state.size.y;
+    let inputs = GatherInputs {
+        gbuffer,
+        depth,
+        pass_ids,
+        motion_vectors,
+        view: &state.gather_view,
+        texels: &sampler.texels,
+        surfaces,
+        reproject: &state.reproject,
+        split,
+    };
+    gather.record(device, enc, &inputs, (pixels, state.texels));
+    let prev = state.prev.as_ref();
+    let (prev_surfaces, prev_split, history) = state.previous();
+    let buffers = PassBuffers {
+        sampler,
+        shade_params: &state.shade_params,
+        params: &state.params,
+        surfaces,
+        prev_surfaces: prev.map(|_| prev_surfaces),
+        split,
+        prev_split: prev.map(|_| prev_split),
+        bright: None,
+        bvh: bvh_buffers(&f.bvh),
+        prev_bvh: prev.and_then(|p| bvh_buffers(&p.bvh)),
+        // The shading's final reservoirs go to the candidates' buffer (read by no later pass).
+        res: [
+            &state.candidates,
+            temporal,
+            &state.spatial,
+            &state.candidates,
+        ],
+        history: prev.map(|_| history),
+        reproject: prev.map(|_| &state.reproject),
+        hist_targets: &state.hist_targets,
+        counters: &state.counters,
+        color: &state.color,
+        stats: &state.stats,
+        pixels,
+    };
+    passes.record(device, enc, &buffers);
+    state.ready = true;
+}
+
+/// A kept BVH (nodes, triangles, node count) as the passes bind it.
+fn bvh_buffers(b: &Option<(wgpu::Buffer, wgpu::Buffer, u32)>) -> Option<BvhBuffers<'_>> {
+    b.as_ref().map(|b| (&b.0, &b.1))
+}

@@ -1,0 +1,217 @@
+//! `EnvironmentResampling` in a Bevy app (the resampling pass: gather + the WGSL passes the
+//! headless twin runs, `tests/gpu/resampling.rs`): its image is the plain estimator's in
+//! expectation, its frames draw new samples, its history is found through the motion vectors
+//! on a still and on a moving camera (read through the history overlay), and removing it gives
+//! the plain estimator back.
+
+use super::bevy_app::on_sphere;
+use super::{gpu, rel};
+use bevy::prelude::*;
+use envis::app::headless::{HeadlessApp, radiance_camera, sphere_view};
+use envis::envmap::luminance;
+use envis::prelude::*;
+
+const SIZE: u32 = 40;
+
+/// A glossy StandardMaterial sphere under a sky with a bright patch, seen by the headless
+/// sphere view with `sampling` (and resampling where given).
+fn sphere_app(
+    sampling: EnvironmentSampling,
+    resampling: Option<EnvironmentResampling>,
+) -> (HeadlessApp, Handle<Image>, Entity) {
+    let mut h = HeadlessApp::new();
+    let mesh = h.add::<Mesh>(Sphere::new(1.0).mesh().ico(6).expect("icosphere"));
+    let mat = h.add::<StandardMaterial>(StandardMaterial {
+        base_color: Color::linear_rgb(0.8, 0.7, 0.6),
+        perceptual_roughness: 0.5,
+        ..default()
+    });
+    h.app
+        .world_mut()
+        .spawn((Mesh3d(mesh), MeshMaterial3d(mat), Transform::IDENTITY));
+    let (env, _) = super::bevy_plugin::latlong_image(16, |d| {
+        let patch = d
+            .dot(Vec3::new(0.5, 0.7, 0.5).normalize())
+            .max(0.0)
+            .powi(16);
+        Vec3::new(0.3, 0.4, 0.6) * (0.5 + 0.5 * d.y.max(0.0)) + Vec3::splat(20.0 * patch)
+    });
+    let env = h.add::<Image>(env);
+    let target = h.float_target(SIZE, SIZE);
+    let (projection, transform) = sphere_view();
+    let mut cam = h.app.world_mut().spawn(radiance_camera(
+        target.clone(),
+        projection,
+        transform,
+        sampling,
+        EnvisEnvironment::new(env),
+    ));
+    if let Some(r) = resampling {
+        cam.insert(r);
+    }
+    let cam = cam.id();
+    (h, target, cam)
+}
+
+fn candidates() -> EnvironmentSampling {
+    EnvironmentSampling {
+        light_samples: 4,
+        brdf_samples: 4,
+        ..default()
+    }
+}
+
+/// Mean luminance over the sphere's inside pixels.
+fn sphere_mean(img: &[Vec3]) -> f64 {
+    let inside = on_sphere(SIZE);
+    let idx: Vec<usize> = (0..img.len()).filter(|&i| inside(i)).collect();
+    idx.iter().map(|&i| luminance(img[i]) as f64).sum::<f64>() / idx.len() as f64
+}
+
+/// `t` of the overlays' `heat(t)` ramp (app::heat), read back from a colour.
+fn unheat(c: Vec3) -> f32 {
+    let x = if c.z >= 1.0 {
+        c.y
+    } else if c.x <= 0.0 {
+        2.0 - c.z
+    } else if c.y >= 1.0 {
+        2.0 + c.x
+    } else {
+        4.0 - c.y
+    };
+    x / 4.0
+}
+
+/// The mean confidence M near the sphere's centre (inside whichever way the camera sways),
+/// read through the history overlay.
+fn mean_history(h: &mut HeadlessApp, target: &Handle<Image>, cam: Entity) -> f64 {
+    let world = h.app.world_mut();
+    world.get_mut::<EnvironmentSampling>(cam).unwrap().overlay = Overlay::History;
+    let img = h.capture_next(target).unwrap();
+    let m: Vec<f64> = (0..img.len())
+        .filter(|&i| {
+            let (x, y) = ((i as u32 % SIZE) as f32, (i as u32 / SIZE) as f32);
+            let (u, v) = (2.0 * x / SIZE as f32 - 1.0, 2.0 * y / SIZE as f32 - 1.0);
+            u * u + v * v < 0.25
+        })
+        .map(|i| unheat(img[i]) as f64 * envis::gpu::resampling::HISTORY_FULL_SCALE as f64)
+        .collect();
+    m.iter().sum::<f64>() / m.len() as f64
+}
+
+/// Every frame, the resampling camera moves a quarter of the view's half-width sideways, back
+/// and forth (about 5 pixels a frame at 40²): each frame's history is elsewhere on screen.
+fn sway(mut cams: Query<&mut Transform, With<EnvironmentResampling>>, mut frame: Local<u32>) {
+    *frame += 1;
+    let dx = if frame.is_multiple_of(2) { 0.25 } else { -0.25 };
+    for mut t in &mut cams {
+        t.translation.x += dx;
+    }
+}
+
+/// Resampled 4 + 4 candidates give the 32 + 32 estimator's mean (unbiased, and biased within
+/// its measured bias), successive frames differ (new samples each frame), and the history is
+/// reused: M grows past what one frame's spatial reuse gives.
+#[test]
+fn bevy_resampling_matches_the_plain_estimator() {
+    let Some(_) = gpu() else { return };
+    let reference = {
+        let s = EnvironmentSampling {
+            light_samples: 32,
+            brdf_samples: 32,
+            ..default()
+        };
+        let (mut h, target, _) = sphere_app(s, None);
+        sphere_mean(&h.capture(&target).unwrap())
+    };
+    for unbiased in [true, false] {
+        let r = EnvironmentResampling {
+            unbiased,
+            ..default()
+        };
+        let (mut h, target, cam) = sphere_app(candidates(), Some(r));
+        let a = h.capture(&target).unwrap();
+        let b = h.capture_next(&target).unwrap();
+        let (ma, mb) = (sphere_mean(&a), sphere_mean(&b));
+        eprintln!("unbiased {unbiased}: means {ma:.4}, {mb:.4}, reference {reference:.4}");
+        let tol = if unbiased { 0.03 } else { 0.08 };
+        for m in [ma, mb] {
+            assert!(rel(m, reference) < tol, "mean {m} vs {reference}");
+        }
+        let differ = a.iter().zip(&b).filter(|(x, y)| x != y).count();
+        assert!(differ > a.len() / 4, "frames alike: {differ} pixels differ");
+        let c = h.counters();
+        let (passes, histories) = (
+            c.get(|c| &c.resampling_passes),
+            c.get(|c| &c.resampling_histories),
+        );
+        assert!(
+            histories + 1 >= passes && passes > 3,
+            "{passes} passes, {histories} with history"
+        );
+        let m = mean_history(&mut h, &target, cam);
+        eprintln!("unbiased {unbiased}: mean M {m:.2}");
+        // One frame with 3 neighbours: M <= 1 + 3 * 0.25 = 1.75.
+        assert!(m > 4.0, "mean history M {m}: the history is not reused");
+    }
+}
+
+/// A camera moving every frame (`sway`) still finds its history through the motion vectors
+/// (with the motion vectors' sign flipped in the gather, M stayed near one frame's); a reset
+/// clears it.
+#[test]
+fn bevy_resampling_follows_a_moving_camera() {
+    let Some(_) = gpu() else { return };
+    let (mut h, target, cam) = sphere_app(candidates(), Some(EnvironmentResampling::default()));
+    h.app.add_systems(Update, sway);
+    h.capture(&target).unwrap();
+    for _ in 0..6 {
+        h.update();
+    }
+    let moving = mean_history(&mut h, &target, cam);
+    let world = h.app.world_mut();
+    world.get_mut::<EnvironmentResampling>(cam).unwrap().reset = true;
+    let reset = mean_history(&mut h, &target, cam);
+    eprintln!("moving camera: mean M {moving:.2}, after a reset {reset:.2}");
+    assert!(moving > 4.0, "moving camera: mean M {moving}");
+    assert!(
+        reset < moving,
+        "a reset kept the history: M {reset} vs {moving}"
+    );
+    assert!(
+        !h.app
+            .world()
+            .get::<EnvironmentResampling>(cam)
+            .unwrap()
+            .reset,
+        "reset is cleared after its frame"
+    );
+}
+
+/// Removing `EnvironmentResampling` gives the plain estimator's image back, pixel for pixel.
+#[test]
+fn bevy_resampling_removed_gives_the_plain_image() {
+    let Some(_) = gpu() else { return };
+    let (mut plain, plain_target, _) = sphere_app(candidates(), None);
+    let want = plain.capture(&plain_target).unwrap();
+    let (mut h, target, cam) = sphere_app(candidates(), Some(EnvironmentResampling::default()));
+    h.capture(&target).unwrap();
+    h.app
+        .world_mut()
+        .entity_mut(cam)
+        .remove::<EnvironmentResampling>();
+    // The frame already extracted (pipelined rendering) still resamples.
+    h.update();
+    let before = h.counters().get(|c| &c.resampling_passes);
+    let got = h.capture(&target).unwrap();
+    assert_eq!(h.counters().get(|c| &c.resampling_passes), before);
+    let worst = got
+        .iter()
+        .zip(&want)
+        .map(|(a, b)| (*a - *b).abs().max_element())
+        .fold(0.0f32, f32::max);
+    assert!(
+        worst <= 1e-5,
+        "without resampling the image differs by {worst}"
+    );
+}
