@@ -135,6 +135,7 @@ fn demo_scripted_under_xvfb() {
         "overlay-samples.png",
         "overlay-wasted.png",
         "overlay-diff.png",
+        "overlay-history.png",
     ] {
         let d = centre_diff(&start, &shot(o));
         assert!(d > 10.0, "{o}: overlay not visible (mean diff {d})");
@@ -165,8 +166,19 @@ fn demo_scripted_under_xvfb() {
         ov >= 3 && ov < r["lighting_passes"].as_u64().unwrap(),
         "{r}"
     );
+    // Resampling (its last steps) reused history in every frame after its first, and drew a
+    // new pool each frame: those are the only builds besides the first ones.
+    let resampled = r["resampling_passes"].as_u64().unwrap();
     assert!(
-        r["builds"].as_u64().unwrap() <= 3,
+        resampled >= 3 && r["resampling_histories"].as_u64().unwrap() + 1 >= resampled,
+        "{r}"
+    );
+    assert!(
+        centre_diff(&shot("brdf.png"), &shot("resampling.png")) > 0.05,
+        "resampling did not change the image"
+    );
+    assert!(
+        r["builds"].as_u64().unwrap() <= 3 + resampled,
         "a paused sky must not be rebuilt every frame: {r}"
     );
     let p = &r["probe"];
@@ -193,6 +205,8 @@ fn demo_scripted_under_xvfb() {
             "overlay-samples.png",
             "overlay-wasted.png",
             "overlay-diff.png",
+            "resampling.png",
+            "overlay-history.png",
         ] {
             let _ = std::fs::copy(dir.join(n), Path::new(&d).join(format!("demo-{n}")));
         }

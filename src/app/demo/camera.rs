@@ -45,7 +45,11 @@ pub(super) fn orbit_camera(
 
 pub(super) fn keys(
     keys: Res<ButtonInput<KeyCode>>,
-    mut cams: Query<&mut EnvironmentSampling, With<DemoCamera>>,
+    mut cams: Query<
+        (Entity, &mut EnvironmentSampling, Has<EnvironmentResampling>),
+        With<DemoCamera>,
+    >,
+    mut commands: Commands,
     mut state: ResMut<DemoState>,
     mut last: Local<Option<std::time::Instant>>,
 ) {
@@ -60,9 +64,12 @@ pub(super) fn keys(
         };
     }
     *last = Some(now);
-    let Ok(mut settings) = cams.single_mut() else {
+    let Ok((camera, mut settings, resampling)) = cams.single_mut() else {
         return;
     };
+    if keys.just_pressed(KeyCode::KeyR) {
+        set_resampling(&mut commands, camera, !resampling);
+    }
     if keys.just_pressed(KeyCode::KeyI) {
         settings.counts = if settings.counts == Counts::Fractional {
             Counts::Integer

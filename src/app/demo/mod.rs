@@ -16,7 +16,9 @@ use super::{
     EnvisStreamPlugin, EnvisTimings, Overlay,
 };
 use crate::envmap::{CROSS_BLOCKS, CubeMap, dir_to_face_ab};
-use crate::prelude::{EnvironmentSampling, EnvisEnvironment, exposure_multiplier};
+use crate::prelude::{
+    EnvironmentResampling, EnvironmentSampling, EnvisEnvironment, exposure_multiplier,
+};
 use crate::render::{FrameData, PixelDebug, PoolLayout, SampleKind, Settings, Strategy};
 use crate::sampling::{Counts, Heuristic};
 use crate::stream::StreamSource;
@@ -46,6 +48,17 @@ pub struct DemoOptions {
     pub sampling: Settings,
     /// Objects and camera from a scene file (the built-in showcase otherwise).
     pub scene: Option<crate::scene::Scene>,
+}
+
+/// Reservoir resampling on (`EnvironmentResampling`'s defaults) or off for the demo camera.
+fn set_resampling(commands: &mut Commands, camera: Entity, on: bool) {
+    if on {
+        commands
+            .entity(camera)
+            .insert(EnvironmentResampling::default());
+    } else {
+        commands.entity(camera).remove::<EnvironmentResampling>();
+    }
 }
 
 /// The scene file the demo was started with.

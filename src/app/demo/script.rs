@@ -21,6 +21,8 @@ enum Step {
     Debug(bool),
     /// Make the sphere a near-mirror GGX.
     GlossySphere,
+    /// Add or remove `EnvironmentResampling` on the camera.
+    Resampling(bool),
     /// Write `report.json` (timings, counters, the probed pixel's samples).
     Report,
     Exit,
@@ -44,6 +46,10 @@ const SCRIPT: &[Step] = &[
     Step::Shot("debug-off.png"),
     Step::GlossySphere,
     Step::Shot("brdf.png"),
+    Step::Resampling(true),
+    Step::Shot("resampling.png"),
+    Step::Overlay(Overlay::History),
+    Step::Shot("overlay-history.png"),
     Step::Report,
     Step::Exit,
 ];
@@ -66,7 +72,10 @@ pub(super) fn run_script(
     mut objects: Query<&mut SceneObject>,
     mut materials: ResMut<Assets<EnvisMaterial>>,
     windows: Query<&Window, With<PrimaryWindow>>,
-    mut cams: Query<(&Camera, &GlobalTransform, &mut EnvironmentSampling), With<DemoCamera>>,
+    mut cams: Query<
+        (Entity, &Camera, &GlobalTransform, &mut EnvironmentSampling),
+        With<DemoCamera>,
+    >,
     timings: Res<EnvisTimings>,
     counters: Res<EnvisCounters>,
     mut commands: Commands,
@@ -78,7 +87,7 @@ pub(super) fn run_script(
     let Some((f, step)) = next_step(&mut state, &mut stream, &counters, &mut exit) else {
         return;
     };
-    let Ok((camera, cam_transform, mut settings)) = cams.single_mut() else {
+    let Ok((entity, camera, cam_transform, mut settings)) = cams.single_mut() else {
         return;
     };
     let shot = |commands: &mut Commands, name: &str| {
@@ -104,6 +113,7 @@ pub(super) fn run_script(
         Some(Step::AwaitProbe) => {}
         Some(Step::Debug(on)) => state.debug = *on,
         Some(Step::GlossySphere) => make_sphere_glossy(&mut objects, &mut materials),
+        Some(Step::Resampling(on)) => set_resampling(&mut commands, entity, *on),
         Some(Step::Report) => {
             let report = script_report(&state, &timings, &counters, (w, h), f);
             write_report(&dir, &report, &mut exit);
@@ -236,6 +246,8 @@ fn script_report(
         "image_bytes_uploaded": counters.get(|c| &c.image_bytes_uploaded),
         "lighting_passes": counters.get(|c| &c.lighting_passes),
         "overlay_passes": counters.get(|c| &c.overlay_passes),
+        "resampling_passes": counters.get(|c| &c.resampling_passes),
+        "resampling_histories": counters.get(|c| &c.resampling_histories),
         "probe": state.pixel.as_ref().map(|(d, g, gpu)| serde_json::json!({
             "normal": g.n, "gpu_estimate": gpu, "cpu_estimate": d.estimate,
             "red": d.samples.iter().filter(|s| s.kind == SampleKind::Discarded).count(),

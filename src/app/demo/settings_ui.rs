@@ -20,6 +20,43 @@ pub(super) fn sampling_ui(ui: &mut egui::Ui, settings: &mut EnvironmentSampling)
     view_options_ui(ui, settings);
 }
 
+/// The "Resampling" section: reservoir resampling across pixels and frames on or off (the
+/// component added to or removed from the camera), and its settings.
+pub(super) fn resampling_ui(
+    ui: &mut egui::Ui,
+    commands: &mut Commands,
+    (camera, current): (Entity, Option<Mut<EnvironmentResampling>>),
+) {
+    let mut on = current.is_some();
+    if ui
+        .checkbox(
+            &mut on,
+            "resampling (ReSTIR: candidates reused across pixels and frames) [R]",
+        )
+        .changed()
+    {
+        set_resampling(commands, camera, on);
+    }
+    let Some(mut r) = current else { return };
+    let mut edit = *r;
+    ui.checkbox(&mut edit.temporal, "temporal reuse");
+    ui.add(
+        egui::Slider::new(&mut edit.spatial, 0..=crate::gpu::resampling::MAX_SPATIAL)
+            .text("spatial neighbours"),
+    );
+    ui.add(egui::Slider::new(&mut edit.max_history, 1..=64).text("max history"));
+    ui.checkbox(
+        &mut edit.unbiased,
+        "unbiased (pairwise MIS, visibility in the reuse)",
+    );
+    if ui.button("reset history").clicked() {
+        edit.reset = true;
+    }
+    if edit != *r {
+        *r = edit;
+    }
+}
+
 /// Light and BRDF sample counts, the strategy, how counts are rounded, the MIS heuristic and
 /// the seed.
 fn sample_strategy_ui(ui: &mut egui::Ui, s: &mut EnvironmentSampling) {

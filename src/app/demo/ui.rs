@@ -1,7 +1,7 @@
 //! The demo's egui panel: environment, sampling, materials, timings and the debug inset.
 
 use super::debug_panel::debug_ui;
-use super::settings_ui::{material_ui, sampling_ui};
+use super::settings_ui::{material_ui, resampling_ui, sampling_ui};
 use super::*;
 use bevy::ecs::system::SystemParam;
 
@@ -50,22 +50,31 @@ pub(super) struct PanelObjects<'w, 's> {
 /// The demo camera's components the panel edits, kept as `Mut` (Bevy's change detection sees a
 /// write wherever a section takes `&mut` of one, as the single system did before).
 struct CameraEdits<'a> {
+    entity: Entity,
     settings: Mut<'a, EnvironmentSampling>,
+    resampling: Option<Mut<'a, EnvironmentResampling>>,
     env: Mut<'a, EnvisEnvironment>,
     exposure: Mut<'a, bevy::camera::Exposure>,
 }
 
+/// The demo camera's components as the panel queries them.
+type CameraData = (
+    Entity,
+    &'static mut EnvironmentSampling,
+    Option<&'static mut EnvironmentResampling>,
+    &'static mut EnvisEnvironment,
+    &'static mut bevy::camera::Exposure,
+);
+
 /// The demo's egui windows: the "envis" panel, the overlay's legend and the sample-debug inset.
+#[allow(
+    clippy::too_many_arguments,
+    reason = "a Bevy system's parameters are the data it touches"
+)]
 pub(super) fn panel(
     mut contexts: EguiContexts,
-    mut cams: Query<
-        (
-            &mut EnvironmentSampling,
-            &mut EnvisEnvironment,
-            &mut bevy::camera::Exposure,
-        ),
-        With<DemoCamera>,
-    >,
+    mut cams: Query<CameraData, With<DemoCamera>>,
+    mut commands: Commands,
     mut stream: ResMut<EnvMapStream>,
     mut state: ResMut<DemoState>,
     frame: Res<EnvFrame>,
@@ -76,11 +85,13 @@ pub(super) fn panel(
     if state.ui_scale > 0.0 && ctx.zoom_factor() != state.ui_scale {
         ctx.set_zoom_factor(state.ui_scale);
     }
-    let Ok((settings, env, exposure)) = cams.single_mut() else {
+    let Ok((entity, settings, resampling, env, exposure)) = cams.single_mut() else {
         return Ok(());
     };
     let mut cam = CameraEdits {
+        entity,
         settings,
+        resampling,
         env,
         exposure,
     };
@@ -93,6 +104,11 @@ pub(super) fn panel(
         .show(&ctx, |ui| {
             egui::ScrollArea::vertical().show(ui, |ui| {
                 envis_window_ui(ui, &mut cam, &mut stream, &mut state, &mut objects, &stats);
+                egui::CollapsingHeader::new("Resampling")
+                    .default_open(true)
+                    .show(ui, |ui| {
+                        resampling_ui(ui, &mut commands, (cam.entity, cam.resampling.take()))
+                    });
             });
         });
     overlay_legend_window(&ctx, &cam.settings);
