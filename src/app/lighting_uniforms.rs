@@ -183,7 +183,7 @@ pub(crate) mod tests {
     }
 
     /// WGSL's uniform layout of a struct body: each field's name and byte offset, and the size.
-    pub(crate) fn wgsl_layout(body: &str) -> (Vec<(String, usize)>, usize) {
+    fn wgsl_layout(body: &str) -> (Vec<(String, usize)>, usize) {
         let (mut fields, mut at, mut max_align) = (Vec::new(), 0usize, 4usize);
         for line in body.lines().map(str::trim).filter(|l| !l.starts_with("//")) {
             let Some((name, ty)) = line.split_once(':') else {
@@ -205,19 +205,30 @@ pub(crate) mod tests {
         (fields, at.next_multiple_of(max_align))
     }
 
-    /// The Rust struct has the WGSL struct's fields, in order, at the same offsets: a field out
-    /// of place would show only as garbage in test images.
+    /// `name`'s fields in the WGSL `src` are `rust`'s (name, offset), in order, and its size is
+    /// `rust_size`: a field out of place would show only as garbage in test images.
+    pub(crate) fn assert_wgsl_struct(
+        src: &str,
+        name: &str,
+        rust: &[(&str, usize)],
+        rust_size: usize,
+    ) {
+        let body = src
+            .split(&format!("struct {name} {{"))
+            .nth(1)
+            .and_then(|s| s.split('}').next())
+            .unwrap_or_else(|| panic!("no struct {name} in the WGSL"));
+        let (wgsl, size) = wgsl_layout(body);
+        let rust: Vec<(String, usize)> = rust.iter().map(|(n, o)| (n.to_string(), *o)).collect();
+        assert_eq!(wgsl, rust, "{name}");
+        assert_eq!(size, rust_size, "{name}'s size");
+    }
+
     #[test]
     fn lighting_view_matches_the_wgsl_struct() {
         use std::mem::offset_of;
-        let body = crate::gpu::shaders::LIGHTING
-            .split("struct LightingView {")
-            .nth(1)
-            .and_then(|s| s.split('}').next())
-            .expect("LightingView in lighting.wgsl");
-        let (wgsl, size) = wgsl_layout(body);
         macro_rules! rust_fields {
-            ($($f:ident),*) => { vec![$((stringify!($f).to_string(), offset_of!(LightingView, $f))),*] };
+            ($($f:ident),*) => { vec![$((stringify!($f), offset_of!(LightingView, $f))),*] };
         }
         let rust = rust_fields!(
             world_from_clip,
@@ -235,7 +246,11 @@ pub(crate) mod tests {
             render_layers,
             resampled
         );
-        assert_eq!(wgsl, rust);
-        assert_eq!(size, std::mem::size_of::<LightingView>());
+        assert_wgsl_struct(
+            crate::gpu::shaders::LIGHTING,
+            "LightingView",
+            &rust,
+            std::mem::size_of::<LightingView>(),
+        );
     }
 }

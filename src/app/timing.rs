@@ -24,6 +24,10 @@ pub struct PassTimes {
     /// ([`LIGHTING_GPU`]), CPU time to record.
     pub lighting_gpu_ms: Option<f64>,
     pub lighting_cpu_ms: Option<f64>,
+    /// Resampling pass (gather and the five passes; the last resampling camera's of the last
+    /// frame measured): GPU time ([`RESAMPLING_GPU`]), CPU time to record.
+    pub resampling_gpu_ms: Option<f64>,
+    pub resampling_cpu_ms: Option<f64>,
 }
 
 /// Shared by the main and the render world (the render world writes, the panel reads).
@@ -107,6 +111,8 @@ pub const DISTRIBUTION_GPU: DiagnosticPath =
 pub const POOL_GPU: DiagnosticPath = DiagnosticPath::const_new("render/envis_pool/elapsed_gpu");
 pub const LIGHTING_GPU: DiagnosticPath =
     DiagnosticPath::const_new("render/envis_lighting/elapsed_gpu");
+pub const RESAMPLING_GPU: DiagnosticPath =
+    DiagnosticPath::const_new("render/envis_resampling/elapsed_gpu");
 
 /// The latest GPU times of envis's passes in Bevy's diagnostics into [`EnvisTimings`] (a pass
 /// keeps its last value until it runs again: a static map builds once).
@@ -122,6 +128,7 @@ pub(crate) fn read_pass_diagnostics(
             (&DISTRIBUTION_GPU, &mut t.build_gpu_ms),
             (&POOL_GPU, &mut t.pool_gpu_ms),
             (&LIGHTING_GPU, &mut t.lighting_gpu_ms),
+            (&RESAMPLING_GPU, &mut t.resampling_gpu_ms),
         ] {
             if let Some(v) = ms(path) {
                 *field = Some(v);

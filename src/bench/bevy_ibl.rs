@@ -26,6 +26,9 @@ enum Light {
     /// envis with `light + brdf` samples per pixel, shadow rays on, averaging `frames` frames
     /// (1: a single frame, as a game shows it).
     Envis { light: u32, brdf: u32, frames: u32 },
+    /// envis with `EnvironmentResampling` (its defaults), `light + brdf` candidates a pixel,
+    /// shown after `frames` frames of a still camera (the history they built).
+    Resampled { light: u32, brdf: u32, frames: u32 },
     /// Bevy's `GeneratedEnvironmentMapLight`.
     Bevy,
 }
@@ -34,6 +37,7 @@ impl Light {
     fn name(self) -> String {
         match self {
             Light::Envis { light, brdf, .. } => format!("envis {light}+{brdf}"),
+            Light::Resampled { light, brdf, .. } => format!("envis {light}+{brdf} resampled"),
             Light::Bevy => "bevy GeneratedEnvironmentMapLight".into(),
         }
     }
@@ -93,12 +97,17 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
 }
 
 /// The lights measured against the converged image: envis with few and with many samples (a
-/// single frame each), and Bevy's.
-const LIGHTS: [Light; 3] = [
+/// single frame each), envis resampling few candidates (after 8 frames), and Bevy's.
+const LIGHTS: [Light; 4] = [
     Light::Envis {
         light: 4,
         brdf: 4,
         frames: 1,
+    },
+    Light::Resampled {
+        light: 4,
+        brdf: 4,
+        frames: 8,
     },
     Light::Envis {
         light: 32,
@@ -210,7 +219,7 @@ impl Shot<'_> {
         // Bevy's generator and envis's distribution are ready after a few frames; an
         // accumulating envis camera then averages its frames.
         let frames = match light {
-            Light::Envis { frames, .. } => frames as usize + 3,
+            Light::Envis { frames, .. } | Light::Resampled { frames, .. } => frames as usize + 3,
             Light::Bevy => 4,
         };
         for _ in 0..frames {
@@ -238,29 +247,33 @@ impl Shot<'_> {
         let target = h.float_target(self.w, self.h);
         let (projection, transform) = self.view();
         let world = h.app.world_mut();
+        let envis = |light: u32, brdf: u32, frames: u32| {
+            let sampling = EnvironmentSampling {
+                light_samples: light as usize,
+                brdf_samples: brdf as usize,
+                shadows: ShadowRays::On,
+                accumulate: frames > 1,
+                ..default()
+            };
+            let env = EnvisEnvironment {
+                show_background: false,
+                ..EnvisEnvironment::new(env.clone())
+            };
+            radiance_camera(target.clone(), projection.clone(), transform, sampling, env)
+        };
         match light {
             Light::Envis {
                 light,
                 brdf,
                 frames,
             } => {
-                let sampling = EnvironmentSampling {
-                    light_samples: light as usize,
-                    brdf_samples: brdf as usize,
-                    shadows: ShadowRays::On,
-                    accumulate: frames > 1,
-                    ..default()
-                };
-                let env = EnvisEnvironment {
-                    show_background: false,
-                    ..EnvisEnvironment::new(env)
-                };
-                world.spawn(radiance_camera(
-                    target.clone(),
-                    projection,
-                    transform,
-                    sampling,
-                    env,
+                world.spawn(envis(light, brdf, frames));
+            }
+            Light::Resampled { light, brdf, .. } => {
+                // Its frames build the history; they are not averaged.
+                world.spawn((
+                    envis(light, brdf, 1),
+                    crate::app::EnvironmentResampling::default(),
                 ));
             }
             Light::Bevy => {

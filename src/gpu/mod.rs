@@ -44,6 +44,16 @@ pub fn compute_pipeline(
     })
 }
 
+/// Bind group entries for `resources` at bindings 0, 1, 2, ... in order.
+pub fn sequential_entries<'a>(
+    resources: impl IntoIterator<Item = wgpu::BindingResource<'a>>,
+) -> Vec<wgpu::BindGroupEntry<'a>> {
+    (0u32..)
+        .zip(resources)
+        .map(|(binding, resource)| wgpu::BindGroupEntry { binding, resource })
+        .collect()
+}
+
 /// A compute-stage bind group layout entry for a buffer binding of kind `ty`.
 pub fn buffer_entry(binding: u32, ty: wgpu::BufferBindingType) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {

@@ -9,51 +9,6 @@ use envis::render::resampling::{BrightLight, Mutation, Resampling, bright_thresh
 use envis::scene::Scene;
 use envis::sequence::{self, Posed, SequenceOptions};
 
-/// A small scene: a diffuse and a glossy sphere on a plane (contact shadows) under the built-in
-/// sky with 8^2 faces, the camera close enough that almost every pixel sees geometry.
-/// `orbit` (degrees per second), the glossy sphere's `velocity` (x, units per second) and the
-/// sky's `speed` (hours per second) move it on a clock of `fps` frames per second.
-fn small_scene(dir: &Path, name: &str, orbit: f32, velocity: f32, speed: f32, fps: f32) -> Scene {
-    let text = format!(
-        r#"
-[environment]
-source = "builtin:sky:14"
-face_size = 8
-speed = {speed}
-[camera]
-position = [0.0, 1.6, 3.2]
-target = [0.0, 0.5, 0.0]
-fov = 45.0
-[animation]
-fps = {fps}
-orbit = {orbit}
-[sampling]
-light_samples = 2
-brdf_samples = 2
-material_budget = false
-visibility = "on"
-[[object]]
-shape = "sphere"
-radius = 0.5
-position = [-0.55, 0.5, 0.0]
-material = {{ type = "diffuse", albedo = [0.8, 0.6, 0.4] }}
-[[object]]
-shape = "sphere"
-radius = 0.4
-position = [0.5, 0.4, 0.3]
-velocity = [{velocity}, 0.0, 0.0]
-material = {{ type = "ggx", albedo = 0.9, alpha = 0.3 }}
-[[object]]
-shape = "plane"
-size = 8.0
-material = {{ type = "diffuse", albedo = 0.6 }}
-"#
-    );
-    let p = dir.join(format!("{name}.toml"));
-    std::fs::write(&p, text).unwrap();
-    Scene::load(&p).unwrap()
-}
-
 const SIZE: usize = 12;
 
 /// The frames of one seed's sequence.
@@ -149,13 +104,13 @@ fn sequence_checks(scene: &Scene, check: &[u32], seeds: u32, r: Resampling) -> U
 
 /// The moving scene: camera orbit, a sliding glossy sphere, the sun moving an hour a frame.
 fn moving(dir: &Path) -> Scene {
-    small_scene(dir, "moving", 40.0, 0.5, 2.0, 2.0)
+    support::resampling_scene(dir, "moving", 40.0, 0.5, 2.0, 2.0)
 }
 
 #[test]
 fn still_sequence_is_unbiased() {
     let dir = tempdir();
-    let scene = small_scene(&dir, "still", 0.0, 0.0, 0.0, 30.0);
+    let scene = support::resampling_scene(&dir, "still", 0.0, 0.0, 0.0, 30.0);
     let mut t = sequence_checks(&scene, &[0, 3], 48, Resampling::default());
     t.name = "still_sequence_is_unbiased".into();
     t.assert();
@@ -201,7 +156,7 @@ fn broken_reuse_is_caught() {
 #[test]
 fn biased_reuse_bias_is_detected() {
     let dir = tempdir();
-    let scene = small_scene(&dir, "still-biased", 0.0, 0.0, 0.0, 30.0);
+    let scene = support::resampling_scene(&dir, "still-biased", 0.0, 0.0, 0.0, 30.0);
     let r = Resampling {
         unbiased: false,
         ..Default::default()
@@ -226,7 +181,7 @@ fn biased_reuse_bias_is_detected() {
 fn history_is_found_where_the_point_was() {
     let dir = tempdir();
     // 10 degrees of orbit and 0.1 units of travel a frame.
-    let scene = small_scene(&dir, "slow", 20.0, 0.2, 0.0, 2.0);
+    let scene = support::resampling_scene(&dir, "slow", 20.0, 0.2, 0.0, 2.0);
     let (prev, cur) = (
         Posed::new(&scene, 0.0, 32).unwrap(),
         Posed::new(&scene, scene.frame_time(1), 32).unwrap(),
@@ -283,7 +238,7 @@ fn rel_mse(img: &Image, rf: &[DVec3]) -> f64 {
 #[test]
 fn reuse_lowers_the_error_over_frames() {
     let dir = tempdir();
-    let scene = small_scene(&dir, "still-conv", 0.0, 0.0, 0.0, 30.0);
+    let scene = support::resampling_scene(&dir, "still-conv", 0.0, 0.0, 0.0, 30.0);
     let rf7 = reference(&scene, 7);
     let mean_err = |r: Resampling, k: usize| {
         (0..4)

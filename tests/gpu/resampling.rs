@@ -7,47 +7,11 @@ use envis::render::resampling::{Resampling, ResamplingMode};
 use envis::scene::Scene;
 use envis::sequence::{self, SequenceBackend, SequenceFrame, SequenceOptions};
 
-/// Two spheres on a plane (contact shadows) under the built-in sky; the camera orbits and the
-/// glossy sphere slides, so that every frame reprojects; the sun moves at `speed` (with 0 the
-/// bright part's history is reused too).
+/// The resampling tests' scene (`support::resampling_scene`): the camera orbits and the glossy
+/// sphere slides, so that every frame reprojects; the sun moves at `speed` (with 0 the bright
+/// part's history is reused too).
 fn moving_scene(dir: &Path, speed: f32) -> Scene {
-    let text = r#"
-[environment]
-source = "builtin:sky:14"
-face_size = 8
-speed = SPEED
-[camera]
-position = [0.0, 1.6, 3.2]
-target = [0.0, 0.5, 0.0]
-fov = 45.0
-[animation]
-fps = 1.0
-orbit = 20.0
-[sampling]
-light_samples = 2
-brdf_samples = 2
-material_budget = false
-visibility = "on"
-[[object]]
-shape = "sphere"
-radius = 0.5
-position = [-0.55, 0.5, 0.0]
-material = { type = "diffuse", albedo = [0.8, 0.6, 0.4] }
-[[object]]
-shape = "sphere"
-radius = 0.4
-position = [0.5, 0.4, 0.3]
-velocity = [-0.1, 0.0, 0.0]
-material = { type = "ggx", albedo = 0.9, alpha = 0.3 }
-[[object]]
-shape = "plane"
-size = 8.0
-material = { type = "diffuse", albedo = 0.6 }
-"#
-    .replace("SPEED", &format!("{speed:?}"));
-    let p = dir.join("moving.toml");
-    std::fs::write(&p, text).unwrap();
-    Scene::load(&p).unwrap()
+    support::resampling_scene(dir, "moving", 20.0, -0.1, speed, 1.0)
 }
 
 fn run(scene: &Scene, r: Resampling, backend: SequenceBackend) -> Vec<SequenceFrame> {

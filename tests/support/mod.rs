@@ -266,3 +266,55 @@ impl Drop for TempDir {
         }
     }
 }
+
+/// The resampling tests' small scene (the CPU oracle's and its WGSL twin's): a diffuse and a glossy sphere on a plane (contact shadows) under the built-in
+/// sky with 8^2 faces, the camera close enough that almost every pixel sees geometry.
+/// `orbit` (degrees per second), the glossy sphere's `velocity` (x, units per second) and the
+/// sky's `speed` (hours per second) move it on a clock of `fps` frames per second.
+pub fn resampling_scene(
+    dir: &Path,
+    name: &str,
+    orbit: f32,
+    velocity: f32,
+    speed: f32,
+    fps: f32,
+) -> envis::scene::Scene {
+    let text = format!(
+        r#"
+[environment]
+source = "builtin:sky:14"
+face_size = 8
+speed = {speed}
+[camera]
+position = [0.0, 1.6, 3.2]
+target = [0.0, 0.5, 0.0]
+fov = 45.0
+[animation]
+fps = {fps}
+orbit = {orbit}
+[sampling]
+light_samples = 2
+brdf_samples = 2
+material_budget = false
+visibility = "on"
+[[object]]
+shape = "sphere"
+radius = 0.5
+position = [-0.55, 0.5, 0.0]
+material = {{ type = "diffuse", albedo = [0.8, 0.6, 0.4] }}
+[[object]]
+shape = "sphere"
+radius = 0.4
+position = [0.5, 0.4, 0.3]
+velocity = [{velocity}, 0.0, 0.0]
+material = {{ type = "ggx", albedo = 0.9, alpha = 0.3 }}
+[[object]]
+shape = "plane"
+size = 8.0
+material = {{ type = "diffuse", albedo = 0.6 }}
+"#
+    );
+    let p = dir.join(format!("{name}.toml"));
+    std::fs::write(&p, text).unwrap();
+    envis::scene::Scene::load(&p).unwrap()
+}

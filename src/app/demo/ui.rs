@@ -193,6 +193,13 @@ fn timings_ui(ui: &mut egui::Ui, stats: &PanelStats, settings: &EnvironmentSampl
         f(t.lighting_gpu_ms),
         f(t.lighting_cpu_ms)
     ));
+    if t.resampling_cpu_ms.is_some() {
+        ui.label(format!(
+            "resampling (gather, candidates, reuse, shading): GPU {}, CPU {}",
+            f(t.resampling_gpu_ms),
+            f(t.resampling_cpu_ms)
+        ));
+    }
     let px = stats
         .windows
         .single()

@@ -1,8 +1,7 @@
 //! The gather (`shaders/gather.wgsl`): Bevy's prepass textures into what the resampling passes
 //! read (surfaces, the reprojection, the split map). Its uniform is [`GatherView`].
 
-use crate::gpu::{dispatch_size, shaders};
-use bevy::prelude::*;
+use crate::gpu::{buffer_entry, dispatch_size, sequential_entries, shaders};
 
 /// `GatherView` of `shaders/gather.wgsl`, field for field (offsets checked by a test).
 #[repr(C)]
@@ -55,20 +54,6 @@ fn texture(binding: u32, sample_type: wgpu::TextureSampleType) -> wgpu::BindGrou
     }
 }
 
-/// A compute-stage buffer binding.
-fn buffer(binding: u32, ty: wgpu::BufferBindingType) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty,
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
 impl GatherPipelines {
     pub(super) fn new(device: &wgpu::Device) -> Self {
         use wgpu::BufferBindingType as B;
@@ -79,11 +64,11 @@ impl GatherPipelines {
             texture(1, T::Depth),
             texture(2, T::Uint),
             texture(3, T::Float { filterable: false }),
-            buffer(4, B::Uniform),
-            buffer(5, B::Storage { read_only: true }),
-            buffer(6, rw),
-            buffer(7, rw),
-            buffer(8, rw),
+            buffer_entry(4, B::Uniform),
+            buffer_entry(5, B::Storage { read_only: true }),
+            buffer_entry(6, rw),
+            buffer_entry(7, rw),
+            buffer_entry(8, rw),
         ];
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("envis gather layout"),
@@ -118,14 +103,10 @@ impl GatherPipelines {
             inputs.reproject.as_entire_binding(),
             inputs.split.as_entire_binding(),
         ];
-        let entries: Vec<wgpu::BindGroupEntry> = (0u32..)
-            .zip(resources)
-            .map(|(binding, resource)| wgpu::BindGroupEntry { binding, resource })
-            .collect();
         let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("envis gather"),
             layout: &self.layout,
-            entries: &entries,
+            entries: &sequential_entries(resources),
         });
         let mut cp = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("envis gather"),
@@ -148,14 +129,8 @@ mod tests {
     #[test]
     fn gather_view_matches_the_wgsl_struct() {
         use std::mem::offset_of;
-        let body = shaders::GATHER
-            .split("struct GatherView {")
-            .nth(1)
-            .and_then(|s| s.split('}').next())
-            .expect("GatherView in gather.wgsl");
-        let (wgsl, size) = crate::app::lighting_uniforms::tests::wgsl_layout(body);
         macro_rules! rust_fields {
-            ($($f:ident),*) => { vec![$((stringify!($f).to_string(), offset_of!(GatherView, $f))),*] };
+            ($($f:ident),*) => { vec![$((stringify!($f), offset_of!(GatherView, $f))),*] };
         }
         let rust = rust_fields!(
             world_from_clip,
@@ -170,7 +145,11 @@ mod tests {
             _pad,
             viewport
         );
-        assert_eq!(wgsl, rust);
-        assert_eq!(size, std::mem::size_of::<GatherView>());
+        crate::app::lighting_uniforms::tests::assert_wgsl_struct(
+            shaders::GATHER,
+            "GatherView",
+            &rust,
+            size_of::<GatherView>(),
+        );
     }
 }

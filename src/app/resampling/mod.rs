@@ -21,7 +21,7 @@ mod view;
 use super::components::{EnvironmentSampling, EnvisEnvironment};
 use super::sampling::{EnvSamplers, ViewSampling};
 use super::shadows::{GpuShadowGeometry, ShadowGeometry};
-use super::{EnvisCounters, lighting};
+use super::{EnvisCounters, EnvisTimings, lighting};
 use crate::gpu::resampling::{
     BvhBuffers, MAX_SPATIAL, PassBuffers, ResampleParams, ResamplingPasses,
 };
@@ -32,6 +32,7 @@ use bevy::core_pipeline::prepass::{
 use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
 use bevy::prelude::*;
 use bevy::render::camera::TemporalJitter;
+use bevy::render::diagnostic::RecordDiagnostics;
 use bevy::render::renderer::{RenderContext, RenderQueue, ViewQuery};
 use bevy::render::sync_world::RenderEntity;
 use bevy::render::view::ExtractedView;
@@ -173,13 +174,15 @@ fn resample_environment(
     view: ViewQuery<ResamplingViewData>,
     samplers: Res<EnvSamplers>,
     shadows: (Option<Res<ShadowGeometry>>, Option<Res<GpuShadowGeometry>>),
-    (res, counters, queue): (
+    (res, counters, timings, queue): (
         Option<Res<ResamplingResources>>,
         Res<EnvisCounters>,
+        Res<EnvisTimings>,
         Res<RenderQueue>,
     ),
     mut ctx: RenderContext,
 ) {
+    let t0 = std::time::Instant::now();
     let entity = view.entity();
     let (ev, prepass, sampling, env, vs, settings, layers, jitter) = view.into_inner();
     let (Some(res), Some(slot)) = (res, samplers.slots.get(&vs.key)) else {
@@ -220,7 +223,11 @@ fn resample_environment(
         bvh: geometry.map(|g| (g.nodes.clone(), g.triangles.clone(), g.node_count)),
     };
     write_uniforms(&queue, state, &frame, &shade);
+    let diagnostics = ctx.diagnostic_recorder();
+    let diagnostics = diagnostics.as_deref();
     let enc = ctx.command_encoder();
+    // Timed in Bevy's render diagnostics (`render/envis_resampling/elapsed_gpu`).
+    let span = diagnostics.time_span(enc, "envis_resampling");
     record(
         enc,
         &device,
@@ -229,7 +236,10 @@ fn resample_environment(
         (&slot.sampler, textures),
         &frame,
     );
+    span.end(enc);
     counters.bump(|c| &c.resampling_passes);
+    let ms = t0.elapsed().as_secs_f64() * 1e3;
+    timings.set(|t| t.resampling_cpu_ms = Some(ms));
     if state.prev.is_some() {
         counters.bump(|c| &c.resampling_histories);
     }

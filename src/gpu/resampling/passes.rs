@@ -154,14 +154,10 @@ impl ResamplingPasses {
             b.color.as_entire_binding(),
             b.stats.as_entire_binding(),
         ];
-        let entries: Vec<wgpu::BindGroupEntry> = (0u32..)
-            .zip(resources)
-            .map(|(binding, resource)| wgpu::BindGroupEntry { binding, resource })
-            .collect();
         device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some(PASSES[pass]),
             layout: &self.layout,
-            entries: &entries,
+            entries: &super::super::sequential_entries(resources),
         })
     }
 }
