@@ -273,6 +273,9 @@ pub struct Counters {
     /// those, the frames that had a history to reuse (not the first, not after a reset).
     pub resampling_passes: AtomicU64,
     pub resampling_histories: AtomicU64,
+    /// Cameras whose resampling buffers the render world keeps (a gauge): those gone or no
+    /// longer resampling are dropped.
+    pub resampling_views: AtomicU64,
 }
 
 /// Frames each accumulating camera (main-world entity) has averaged so far, written by the

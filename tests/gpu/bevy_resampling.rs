@@ -196,6 +196,7 @@ fn bevy_resampling_removed_gives_the_plain_image() {
     let want = plain.capture(&plain_target).unwrap();
     let (mut h, target, cam) = sphere_app(candidates(), Some(EnvironmentResampling::default()));
     h.capture(&target).unwrap();
+    assert_eq!(h.counters().get(|c| &c.resampling_views), 1);
     h.app
         .world_mut()
         .entity_mut(cam)
@@ -205,6 +206,8 @@ fn bevy_resampling_removed_gives_the_plain_image() {
     let before = h.counters().get(|c| &c.resampling_passes);
     let got = h.capture(&target).unwrap();
     assert_eq!(h.counters().get(|c| &c.resampling_passes), before);
+    let kept = h.counters().get(|c| &c.resampling_views);
+    assert_eq!(kept, 0, "the removed camera's resampling buffers were kept");
     let worst = got
         .iter()
         .zip(&want)

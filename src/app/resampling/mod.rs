@@ -36,7 +36,7 @@ use bevy::render::diagnostic::RecordDiagnostics;
 use bevy::render::renderer::{RenderContext, RenderQueue, ViewQuery};
 use bevy::render::sync_world::RenderEntity;
 use bevy::render::view::ExtractedView;
-use bevy::render::{ExtractSchedule, MainWorld, RenderApp};
+use bevy::render::{ExtractSchedule, MainWorld, Render, RenderApp, RenderSystems};
 use gather::{GatherInputs, GatherPipelines, GatherView};
 use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
@@ -90,6 +90,7 @@ impl Plugin for EnvisResamplingPlugin {
         render_app
             .init_resource::<ResamplingResources>()
             .add_systems(ExtractSchedule, extract_resampling)
+            .add_systems(Render, drop_stale_views.in_set(RenderSystems::Prepare))
             .add_systems(
                 Core3d,
                 resample_environment
@@ -118,6 +119,23 @@ fn extract_resampling(mut commands: Commands, mut main_world: ResMut<MainWorld>)
                 target.remove::<EnvironmentResampling>();
             }
         }
+    }
+}
+
+/// The buffers of views that are gone or stopped resampling are freed (and their history with
+/// them: adding the component again starts afresh).
+fn drop_stale_views(
+    res: Option<Res<ResamplingResources>>,
+    views: Query<Entity, With<EnvironmentResampling>>,
+    counters: Res<EnvisCounters>,
+) {
+    if let Some(res) = res
+        && let Ok(mut kept) = res.views.lock()
+    {
+        kept.retain(|e, _| views.contains(*e));
+        counters
+            .resampling_views
+            .store(kept.len() as u64, std::sync::atomic::Ordering::Relaxed);
     }
 }
 
