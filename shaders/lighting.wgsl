@@ -34,8 +34,8 @@ struct LightingView {
     source_layout: u32,
     // The camera's RenderLayers as visibility::Layers: the shadow casters it sees.
     render_layers: u32,
-    // 1 where the camera resamples (EnvironmentResampling): the image is `resampled`'s, made by
-    // the resampling passes before this one.
+    // 1 where the camera resamples (EnvironmentResampling): the image is the one the
+    // resampling passes made before this one, bound as `accum`.
     resampled: u32,
 }
 // The shadow BVH's node count is sp.bvh_nodes (shade.wgsl's ShadeParams; 0: no shadow rays).
@@ -61,7 +61,10 @@ const HISTORY_FULL_SCALE: f32 = 20.0;
 // 1), (world position, 1 when shadow rays were cast).
 @group(0) @binding(7) var<storage, read_write> probe: array<vec4<f32>, 7>;
 // Running mean of the accumulated frames and how many each pixel averaged (w), one per viewport
-// pixel (bound only when accumulating; cleared at each restart).
+// pixel (bound only when accumulating; cleared at each restart). Where the camera resamples
+// (lv.resampled) it is the resampling passes' image instead, read only (w: the reservoir's
+// confidence M): one binding for both keeps the fragment stage at 8 storage buffers, WebGPU's
+// default limit.
 @group(0) @binding(8) var<storage, read_write> accum: array<vec4<f32>>;
 // The `global` distribution (global_layout.wgsl); a dummy unless the strategy is global.
 @group(0) @binding(9) var<storage, read> cdfs: array<f32>;
@@ -72,9 +75,6 @@ const HISTORY_FULL_SCALE: f32 = 20.0;
 // The scene's shadow-casting meshes as a BVH (visibility.wgsl; placeholders when off).
 @group(0) @binding(12) var<storage, read> bvh_nodes: array<BvhNode>;
 @group(0) @binding(13) var<storage, read> bvh_triangles: array<array<vec4<f32>, 3>>;
-// The resampling passes' image, one per viewport pixel (w: the reservoir's confidence M); a
-// placeholder unless lv.resampled.
-@group(0) @binding(14) var<storage, read> resampled: array<vec4<f32>>;
 
 // Sample radiance comes from the full-resolution image (the texel a direction falls in); the
 // texel table gives only densities (render::FrameData::fine is the CPU twin).
@@ -159,12 +159,12 @@ fn lighting(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
     let local = vec2<u32>(max(pos.xy - lv.viewport.xy, vec2(0.0)));
     let pixel_index = local.y * u32(lv.viewport.z) + local.x;
     if (lv.overlay == OVERLAY_HISTORY) {
-        return vec4(heat(select(0.0, resampled[pixel_index].w, lv.resampled != 0u) / HISTORY_FULL_SCALE), 1.0);
+        return vec4(heat(select(0.0, accum[pixel_index].w, lv.resampled != 0u) / HISTORY_FULL_SCALE), 1.0);
     }
     if (lv.resampled != 0u && lv.overlay == OVERLAY_NONE) {
         // The resampled image replaces this pass's estimate (and its accumulation: reuse
         // across frames is the resampling's own).
-        return vec4(resampled[pixel_index].xyz * scale, 0.0);
+        return vec4(accum[pixel_index].xyz * scale, 0.0);
     }
     let r = shade(px, pixel_index);
     if (all(vec2<f32>(local) == lv.probe_pixel)) {
@@ -193,7 +193,7 @@ fn lighting(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
         return vec4(heat(d * 4.0), 1.0);
     }
     var color = r.color;
-    if (lv.accumulate != 0u) {
+    if (lv.accumulate != 0u && lv.resampled == 0u) {
         // The pixel's own count (w) of the frames it averaged since the restart (the buffer is
         // cleared then): a pixel not shaded in some frame (no geometry yet) is not averaged
         // with a zero for it.

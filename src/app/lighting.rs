@@ -204,13 +204,13 @@ pub(crate) fn mis_lighting(
         (sampling.accumulate, vp),
         (bytemuck::bytes_of(&params), bytemuck::bytes_of(&lv)),
     );
+    // The resampled image takes the accumulation's binding (`shaders/lighting.wgsl`).
     let bind = lighting_bind_group(
         (&device, &cache, &layout),
         (slot, &res),
         prepass_views,
-        [&pbuf, &vbuf, &accum],
+        [&pbuf, &vbuf, resampled.as_ref().unwrap_or(&accum)],
         (bvh_nodes, bvh_triangles),
-        resampled.as_ref().unwrap_or(&res.no_shadows),
     );
     encode_lighting(
         &mut ctx,
@@ -351,15 +351,13 @@ pub(super) fn shade_params(
 
 /// The lighting pass's bind group, in binding order (`lighting_layout`): the prepass views
 /// (deferred G-buffer, depth, lighting-pass ids), the sampler's tables, the per-view buffers
-/// (params, view, accumulation), the source image, the shadow BVH and the resampled image (a
-/// placeholder where the view does not resample).
+/// (params, view, accumulation or the resampled image), the source image and the shadow BVH.
 fn lighting_bind_group(
     (device, cache, layout): (&RenderDevice, &PipelineCache, &LightingPipeline),
     (slot, res): (&SamplerSlot, &LightingResources),
     (deferred, depth, ids): (&TextureView, &TextureView, &TextureView),
     [pbuf, vbuf, accum]: [&wgpu::Buffer; 3],
     (bvh_nodes, bvh_triangles): (&wgpu::Buffer, &wgpu::Buffer),
-    resampled: &wgpu::Buffer,
 ) -> BindGroup {
     use wgpu::BindingResource as R;
     let sampler = &slot.sampler;
@@ -378,7 +376,6 @@ fn lighting_bind_group(
         R::TextureView(&slot.source),
         bvh_nodes.as_entire_binding(),
         bvh_triangles.as_entire_binding(),
-        resampled.as_entire_binding(),
     ));
     device.create_bind_group(
         "envis lighting",

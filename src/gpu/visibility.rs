@@ -64,8 +64,11 @@ fn storage_init(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffe
     device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some(label),
         contents: if bytes.is_empty() { &zeros } else { bytes },
-        // COPY_DST: the top part is rewritten in place when instances move (`write_top`).
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        // COPY_DST: the top part is rewritten in place when instances move (`write_top`);
+        // COPY_SRC: the Bevy resampling pass keeps a copy as the previous frame's geometry.
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_DST
+            | wgpu::BufferUsages::COPY_SRC,
     })
 }
 

@@ -19,7 +19,7 @@ pub(super) fn run(
     let ctx = GpuContext::new()?;
     let (shadows, _) = scene.shadows(o.visibility);
     let mut plain = GpuRenderer::new(&ctx);
-    let mut resampler = o.resampling.map(|_| GpuResampler::new(&ctx));
+    let mut resampler = o.resampling.map(|_| GpuResampler::new(&ctx)).transpose()?;
     let mut prev: Option<(Posed, Split)> = None;
     for k in 0..o.frames {
         let cur = Posed::new(scene, scene.frame_time(k), o.size)?;

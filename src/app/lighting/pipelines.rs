@@ -41,7 +41,7 @@ impl LightingPipeline {
     }
 }
 
-/// The bind group layout, in binding order (`@binding(0)` ... `@binding(14)` of
+/// The bind group layout, in binding order (`@binding(0)` ... `@binding(13)` of
 /// `shaders/lighting.wgsl`; `mis_lighting` binds the resources in the same order).
 pub fn lighting_layout() -> BindGroupLayoutDescriptor {
     let ro = || storage_buffer_read_only_sized(false, None);
@@ -56,13 +56,12 @@ pub fn lighting_layout() -> BindGroupLayoutDescriptor {
             uniform_buffer_sized(false, None),   // 5: ShadeParams
             uniform_buffer_sized(false, None),   // 6: LightingView
             storage_buffer_sized(false, None),   // 7: probe record
-            storage_buffer_sized(false, None),   // 8: accumulation
+            storage_buffer_sized(false, None),   // 8: accumulation / resampled image
             ro(),                                // 9: global CDFs
             texture_2d(TextureSampleType::Uint), // 10: deferred lighting pass ids
             crate::gpu::resample::source_binding(), // 11: the environment image
             ro(),                                // 12: BVH nodes
             ro(),                                // 13: BVH triangles
-            ro(),                                // 14: the resampled image
         ),
     );
     BindGroupLayoutDescriptor::new("envis lighting layout", &entries)

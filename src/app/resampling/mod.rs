@@ -40,7 +40,7 @@ use bevy::render::{ExtractSchedule, MainWorld, Render, RenderApp, RenderSystems}
 use gather::{GatherInputs, GatherPipelines, GatherView};
 use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
-use view::{PreviousFrame, ViewResampling};
+use view::{BvhCopy, PreviousFrame, ViewResampling};
 
 /// Reservoir resampling of the environment light on this camera: with it,
 /// [`EnvironmentSampling`]'s `light_samples` / `brdf_samples` are the candidates each pixel
@@ -113,7 +113,11 @@ fn extract_resampling(mut commands: Commands, mut main_world: ResMut<MainWorld>)
         match settings {
             Some(mut settings) if camera.is_active => {
                 target.insert(*settings);
-                settings.reset = false;
+                // Only when set: an unconditional write would mark the component changed
+                // every frame.
+                if settings.reset {
+                    settings.reset = false;
+                }
             }
             _ => {
                 target.remove::<EnvironmentResampling>();
@@ -123,16 +127,23 @@ fn extract_resampling(mut commands: Commands, mut main_world: ResMut<MainWorld>)
 }
 
 /// The buffers of views that are gone or stopped resampling are freed (and their history with
-/// them: adding the component again starts afresh).
+/// them: adding the component again starts afresh); a view the pass skipped last frame (its
+/// map or prepass not ready) loses its history, which the motion vectors no longer reach.
 fn drop_stale_views(
     res: Option<Res<ResamplingResources>>,
-    views: Query<Entity, With<EnvironmentResampling>>,
+    views: Query<Entity, (With<EnvironmentResampling>, With<ViewSampling>)>,
     counters: Res<EnvisCounters>,
 ) {
     if let Some(res) = res
         && let Ok(mut kept) = res.views.lock()
     {
         kept.retain(|e, _| views.contains(*e));
+        for v in kept.values_mut() {
+            if !std::mem::take(&mut v.ran) {
+                v.prev = None;
+            }
+            v.ready = false;
+        }
         counters
             .resampling_views
             .store(kept.len() as u64, std::sync::atomic::Ordering::Relaxed);
@@ -206,13 +217,17 @@ fn resample_environment(
     let (Some(res), Some(slot)) = (res, samplers.slots.get(&vs.key)) else {
         return;
     };
+    let device = ctx.render_device().wgpu_device().clone();
+    if let Err(e) = ResamplingPasses::supported(&device.limits()) {
+        bevy::log::warn_once!("envis resampling is off: {e}");
+        return;
+    }
     let (Some(textures), Some(shade)) = (
         prepass_views(prepass),
         lighting::shade_params(sampling, vs.seed, &slot.sampler, ev.viewport),
     ) else {
         return;
     };
-    let device = ctx.render_device().wgpu_device().clone();
     let (passes, gather) = res.pipelines.get_or_init(|| {
         (
             ResamplingPasses::new(&device),
@@ -226,10 +241,7 @@ fn resample_environment(
     let Some(state) = view_state(&mut views, &device, entity, ev.viewport.zw(), 6 * n * n) else {
         return;
     };
-    if settings.reset || !settings.temporal || state.prev.as_ref().is_some_and(|p| p.face_size != n)
-    {
-        state.prev = None;
-    }
+    state.ran = true;
     let geometry = lighting::shadow_geometry(&shadows, sampling).0;
     let frame = FrameInputs {
         ev,
@@ -240,6 +252,9 @@ fn resample_environment(
         seed: vs.seed,
         bvh: geometry.map(|g| (g.nodes.clone(), g.triangles.clone(), g.node_count)),
     };
+    if !history_valid(state.prev.as_ref(), &frame, n) {
+        state.prev = None;
+    }
     write_uniforms(&queue, state, &frame, &shade);
     let diagnostics = ctx.diagnostic_recorder();
     let diagnostics = diagnostics.as_deref();
@@ -254,6 +269,18 @@ fn resample_environment(
         (&slot.sampler, textures),
         &frame,
     );
+    // The next frame's previous geometry (see `BvhCopy`).
+    let bvh = geometry.map(|g| {
+        let key = (g.generation, g.placement);
+        let c = BvhCopy::update(
+            &mut state.bvh_copy,
+            &device,
+            enc,
+            (&g.nodes, &g.triangles),
+            key,
+        );
+        (c.nodes.clone(), c.triangles.clone(), g.node_count)
+    });
     span.end(enc);
     counters.bump(|c| &c.resampling_passes);
     let ms = t0.elapsed().as_secs_f64() * 1e3;
@@ -265,8 +292,22 @@ fn resample_environment(
         camera: ev.world_from_view.translation(),
         forward: ev.world_from_view.forward().as_vec3(),
         face_size: n,
-        bvh: frame.bvh,
+        rotation: env.rotation,
+        layers: frame.layers,
+        bvh,
     });
+}
+
+/// Whether this frame may reuse the previous one: temporal reuse on, no reset, and the same
+/// map size, map rotation and render layers.
+fn history_valid(prev: Option<&PreviousFrame>, f: &FrameInputs, face_size: u32) -> bool {
+    prev.is_some_and(|p| {
+        f.settings.temporal
+            && !f.settings.reset
+            && p.face_size == face_size
+            && p.rotation == f.env.rotation
+            && p.layers == f.layers
+    })
 }
 
 /// The view's buffers, made anew when its viewport or map size changed (the history is lost

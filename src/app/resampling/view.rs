@@ -19,8 +19,52 @@ pub(super) struct PreviousFrame {
     pub forward: Vec3,
     /// The map's face size (the split map's indexing).
     pub face_size: u32,
-    /// Its shadow BVH (nodes, triangles, node count), when it cast shadow rays.
+    /// The map's rotation and the camera's render layers: a change drops the history (the
+    /// split map is indexed in map space; other layers cast other shadows).
+    pub rotation: Quat,
+    pub layers: u32,
+    /// Its shadow BVH (nodes, triangles, node count), when it cast shadow rays: the view's
+    /// copy ([`BvhCopy`]), not the live buffers, which moving instances rewrite in place.
     pub bvh: Option<(wgpu::Buffer, wgpu::Buffer, u32)>,
+}
+
+/// The shadow BVH as the last frame traversed it. `upload_shadow_geometry` rewrites the live
+/// buffers in place when instances move (before the frame's passes run), so the previous
+/// frame's geometry, which `history_targets` traces, survives only as a copy, made on the
+/// device after a frame whose geometry (generation, placement) differs from the copy's: every
+/// frame while something moves, never while nothing does.
+pub(super) struct BvhCopy {
+    pub nodes: wgpu::Buffer,
+    pub triangles: wgpu::Buffer,
+    /// The geometry's (generation, placement) the copy holds.
+    pub key: (u64, u64),
+}
+
+impl BvhCopy {
+    /// Record the copy of `live` (nodes, triangles) into `enc` unless `copy` already holds
+    /// `key`; new buffers where the sizes changed. Returns the copy.
+    pub(super) fn update<'a>(
+        copy: &'a mut Option<BvhCopy>,
+        device: &wgpu::Device,
+        enc: &mut wgpu::CommandEncoder,
+        (nodes, triangles): (&wgpu::Buffer, &wgpu::Buffer),
+        key: (u64, u64),
+    ) -> &'a BvhCopy {
+        let fits =
+            |c: &BvhCopy| c.nodes.size() == nodes.size() && c.triangles.size() == triangles.size();
+        let c = match copy.take() {
+            Some(c) if c.key == key => return copy.insert(c),
+            Some(c) if fits(&c) => c,
+            _ => BvhCopy {
+                nodes: storage(device, "envis previous bvh nodes", nodes.size()),
+                triangles: storage(device, "envis previous bvh triangles", triangles.size()),
+                key,
+            },
+        };
+        enc.copy_buffer_to_buffer(nodes, 0, &c.nodes, 0, None);
+        enc.copy_buffer_to_buffer(triangles, 0, &c.triangles, 0, None);
+        copy.insert(BvhCopy { key, ..c })
+    }
 }
 
 /// A resampling camera's buffers.
@@ -47,6 +91,10 @@ pub(super) struct ViewResampling {
     pub stats: wgpu::Buffer,
     /// Recorded this frame and not yet shown by the lighting pass.
     pub ready: bool,
+    /// The pass ran for this view since the last `Prepare` (a frame it skipped breaks the
+    /// history: the motion vectors reach one frame back).
+    pub ran: bool,
+    pub bvh_copy: Option<BvhCopy>,
     parity: usize,
     /// The previous frame, while its history is valid.
     pub prev: Option<PreviousFrame>,
@@ -95,6 +143,8 @@ impl ViewResampling {
             color: storage(device, "envis resampled color", px * 16),
             stats: storage(device, "envis candidate stats", px * 16),
             ready: false,
+            ran: false,
+            bvh_copy: None,
             parity: 0,
             prev: None,
         })

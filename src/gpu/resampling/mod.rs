@@ -13,7 +13,7 @@ mod layout;
 mod passes;
 
 pub use layout::{GpuReservoir, GpuSurface, ResampleParams};
-pub use passes::{BvhBuffers, PASSES, PassBuffers, ResamplingPasses};
+pub use passes::{BvhBuffers, PASSES, PassBuffers, ResamplingPasses, STORAGE_BUFFERS};
 
 use frame::{FrameBuffers, Readback};
 
@@ -78,15 +78,17 @@ pub struct GpuResampler {
 }
 
 impl GpuResampler {
-    pub fn new(ctx: &GpuContext) -> Self {
+    /// The pipelines on `ctx`'s device; an error (one line) where it cannot bind what they need.
+    pub fn new(ctx: &GpuContext) -> Result<Self> {
         let device = &ctx.device;
-        GpuResampler {
+        ResamplingPasses::supported(&device.limits())?;
+        Ok(GpuResampler {
             passes: ResamplingPasses::new(device),
             shade_params: super::uniform_buffer::<ShadeParams>(device, "envis resampling shade"),
             params: super::uniform_buffer::<ResampleParams>(device, "envis resampling params"),
             sampler: None,
             prev: None,
-        }
+        })
     }
 
     /// Forget the history: the next frame starts afresh.

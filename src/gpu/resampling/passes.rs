@@ -4,6 +4,11 @@
 
 use super::super::sampler::EnvSampler;
 use super::super::{buffer_layout, compute_pipeline, dispatch_size, one_group_layout, shaders};
+use crate::error::{Error, Result};
+
+/// Storage buffers one pass binds (bindings 0..=21 less the two uniforms): above WebGPU's
+/// default of 8 per stage, within what desktop Vulkan, Metal and DX12 offer.
+pub const STORAGE_BUFFERS: u32 = 20;
 
 /// The entry points, in dispatch order.
 pub const PASSES: [&str; 5] = [
@@ -62,7 +67,7 @@ impl ResamplingPasses {
             Kind::Storage { read_only: false },
         );
         // Bindings 0..=21 as in `shaders/resampling.wgsl`.
-        let mut kinds = vec![ro; 22];
+        let mut kinds = vec![ro; STORAGE_BUFFERS as usize + 2];
         kinds[4] = Kind::Uniform;
         kinds[5] = Kind::Uniform;
         for b in [16, 18, 19, 20, 21] {
@@ -90,6 +95,18 @@ impl ResamplingPasses {
             pipelines,
             placeholder,
         }
+    }
+
+    /// Whether a device with `limits` can run the passes: an error (one line) where it binds
+    /// fewer storage buffers per stage than they need.
+    pub fn supported(limits: &wgpu::Limits) -> Result<()> {
+        let have = limits.max_storage_buffers_per_shader_stage;
+        if have < STORAGE_BUFFERS {
+            return Err(Error::invalid(format!(
+                "GPU: resampling binds {STORAGE_BUFFERS} storage buffers per shader stage, this device {have}"
+            )));
+        }
+        Ok(())
     }
 
     /// Record the frame's passes into `enc` (`history_targets` only with a history; without
