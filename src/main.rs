@@ -94,7 +94,8 @@ struct SequenceArgs {
     #[arg(long)]
     biased: bool,
     /// `cpu`: the oracle; `wgpu`: the WGSL passes on a headless device, the same frames to float
-    /// rounding; `gpu` (the Bevy pass) is not built yet for sequences.
+    /// rounding; `gpu`: the scene's meshes in a headless Bevy app, resampled by the
+    /// `EnvironmentResampling` pass (Bevy's G-buffer and motion vectors; no per-pixel counts).
     #[arg(long, value_enum, default_value_t = BackendArg::Cpu)]
     backend: BackendArg,
     /// Image width and height in pixels.

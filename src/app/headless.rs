@@ -22,7 +22,7 @@ use bevy::window::ExitCondition;
 use std::sync::{Arc, Mutex};
 
 /// Frames to wait for a screenshot of the render target before giving up.
-const CAPTURE_FRAMES: usize = 20;
+pub const CAPTURE_FRAMES: usize = 20;
 
 /// A windowless Bevy app with envis, driven by [`HeadlessApp::update`].
 pub struct HeadlessApp {
@@ -113,49 +113,81 @@ impl HeadlessApp {
 
     /// [`Self::capture`] without the set-up frames: the first frame rendered from now.
     pub fn capture_next(&mut self, target: &Handle<Image>) -> crate::error::Result<Vec<Vec3>> {
-        use crate::error::Error;
-        let got: Arc<Mutex<Option<Image>>> = Arc::default();
-        let sink = got.clone();
+        let got = Captures::default();
+        self.request_capture(target, 0, &got);
+        for _ in 0..CAPTURE_FRAMES {
+            self.update();
+            if let Some((_, img)) = got.take_next(0) {
+                return img;
+            }
+        }
+        Err(no_capture())
+    }
+
+    /// Ask for `target` as the next update renders it: its pixels arrive in `sink` under
+    /// `tag` (a frame or two later: the readback is asynchronous), so a caller can ask every
+    /// frame and take them in order ([`Captures::take_next`]).
+    pub fn request_capture(&mut self, target: &Handle<Image>, tag: u32, sink: &Captures) {
+        let sink = sink.0.clone();
         self.app
             .world_mut()
             .spawn(Screenshot::image(target.clone()))
             .observe(move |ev: On<ScreenshotCaptured>| {
-                if let Ok(mut slot) = sink.lock() {
-                    *slot = Some(ev.image.clone());
+                if let Ok(mut got) = sink.lock() {
+                    got.push((tag, decode_capture(ev.image.clone())));
                 }
             });
-        for _ in 0..CAPTURE_FRAMES {
-            self.update();
-            let img = got.lock().ok().and_then(|mut slot| slot.take());
-            let Some(img) = img else { continue };
-            let (w, h) = (img.width(), img.height());
-            let data = img.data.unwrap_or_default();
-            let want = (w * h * 4) as usize;
-            // Decoded byte by byte: the capture's bytes need not be aligned for f32.
-            let px: Vec<f32> = data
-                .chunks_exact(4)
-                .map(|b| f32::from_ne_bytes([b[0], b[1], b[2], b[3]]))
-                .collect();
-            if px.len() != want {
-                return Err(Error::invalid(format!(
-                    "the GPU capture has {} floats, expected {want} ({w}x{h} RGBA32F)",
-                    px.len()
-                )));
-            }
-            return Ok(px
-                .chunks_exact(4)
-                .map(|c| Vec3::new(c[0], c[1], c[2]))
-                .collect());
-        }
-        Err(Error::invalid(format!(
-            "the GPU render produced no image after {CAPTURE_FRAMES} frames (the render \
-             target was never captured)"
-        )))
     }
 
     pub fn counters(&self) -> EnvisCounters {
         self.app.world().resource::<EnvisCounters>().clone()
     }
+}
+
+/// Captures asked for with [`HeadlessApp::request_capture`], each tagged, as they arrive.
+#[derive(Clone, Default)]
+pub struct Captures(Arc<Mutex<Vec<Capture>>>);
+
+/// One capture's pixels or why there are none.
+type Capture = (u32, crate::error::Result<Vec<Vec3>>);
+
+impl Captures {
+    /// The capture tagged `tag`, once it arrived.
+    pub fn take_next(&self, tag: u32) -> Option<Capture> {
+        let mut got = self.0.lock().ok()?;
+        let i = got.iter().position(|(t, _)| *t == tag)?;
+        Some(got.swap_remove(i))
+    }
+}
+
+/// The error when a capture never arrives.
+pub fn no_capture() -> crate::error::Error {
+    crate::error::Error::invalid(format!(
+        "the GPU render produced no image after {CAPTURE_FRAMES} frames (the render target \
+         was never captured)"
+    ))
+}
+
+/// A captured Rgba32Float image as linear RGB, row-major; an error where its size is wrong.
+fn decode_capture(img: Image) -> crate::error::Result<Vec<Vec3>> {
+    let (w, h) = (img.width(), img.height());
+    let data = img.data.unwrap_or_default();
+    let want = (w * h * 4) as usize;
+    // Decoded byte by byte: the capture's bytes need not be aligned for f32.
+    let px: Vec<f32> = data
+        .chunks_exact(4)
+        .map(|b| f32::from_ne_bytes([b[0], b[1], b[2], b[3]]))
+        .collect();
+    if px.len() != want {
+        return Err(crate::error::Error::invalid(format!(
+            "the GPU capture has {} floats, expected {want} ({w}x{h} RGBA32F)",
+            px.len()
+        )));
+    }
+    Ok(px
+        .chunks_exact(4)
+        .map(|c| Vec3::new(c[0], c[1], c[2]))
+        .collect())
 }
 
 /// A camera rendering HDR radiance as it is (no tonemapping, exposure multiplier 1, black where
@@ -312,6 +344,11 @@ impl HeadlessSphere {
         self.app.capture(&self.target)
     }
 
+    /// See [`HeadlessApp::request_capture`].
+    pub fn request_capture(&mut self, tag: u32, sink: &Captures) {
+        self.app.request_capture(&self.target.clone(), tag, sink);
+    }
+
     pub fn counters(&self) -> EnvisCounters {
         self.app.counters()
     }
@@ -328,7 +365,7 @@ impl HeadlessSphere {
     }
 
     /// The scene's one envis camera.
-    fn camera(&mut self) -> Entity {
+    pub fn camera(&mut self) -> Entity {
         let world = self.app.app.world_mut();
         world
             .query_filtered::<Entity, With<EnvironmentSampling>>()

@@ -13,6 +13,11 @@ pub struct SceneObject {
     pub handle: Handle<EnvisMaterial>,
 }
 
+/// Which of the scene file's objects an entity is (its index in `Scene::objects`): what
+/// `envis sequence --backend gpu` moves.
+#[derive(Component, Clone, Copy, Debug)]
+pub struct SceneIndex(pub usize);
+
 /// The scene file's camera.
 pub struct SceneCamera {
     pub eye: Vec3,
@@ -55,18 +60,20 @@ pub fn spawn_object(
     mesh: Handle<Mesh>,
     material: EnvisBrdf,
     transform: Transform,
-) {
+) -> Entity {
     let handle = materials.add(EnvisMaterial::from(material));
-    commands.spawn((
-        Mesh3d(mesh),
-        MeshMaterial3d(handle.clone()),
-        transform,
-        SceneObject {
-            name: name.into(),
-            material,
-            handle,
-        },
-    ));
+    commands
+        .spawn((
+            Mesh3d(mesh),
+            MeshMaterial3d(handle.clone()),
+            transform,
+            SceneObject {
+                name: name.into(),
+                material,
+                handle,
+            },
+        ))
+        .id()
 }
 
 /// Spawn every object of `sc` (spheres and planes as Bevy primitives, tori and glTF meshes as the
@@ -77,33 +84,40 @@ pub fn spawn_scene_objects(
     materials: &mut Assets<EnvisMaterial>,
     sc: &Scene,
 ) -> SceneCamera {
-    for o in &sc.objects {
+    for (i, o) in sc.objects.iter().enumerate() {
         let material = EnvisBrdf::from_material(&o.material);
-        let (mesh, transform) = match &o.shape {
-            Shape::Sphere { center, radius } => (
-                meshes.add(Sphere::new(*radius).mesh().ico(6).expect("icosphere")),
-                Transform::from_translation(*center),
-            ),
-            Shape::Plane {
-                center,
-                normal,
-                u,
-                half,
-                ..
-            } => {
-                let rot = Quat::from_mat3(&Mat3::from_cols(*u, *normal, u.cross(*normal)));
-                (
-                    meshes.add(Plane3d::default().mesh().size(2.0 * half, 2.0 * half)),
-                    Transform::from_translation(*center).with_rotation(rot),
-                )
-            }
-            Shape::Mesh(m) => (
-                meshes.add(bevy_mesh(&m.mesh)),
-                Transform::from_matrix(Mat4::from(m.world_from_object)),
-            ),
-        };
-        spawn_object(commands, materials, &o.name, mesh, material, transform);
+        let mesh = meshes.add(match &o.shape {
+            Shape::Sphere { radius, .. } => Sphere::new(*radius).mesh().ico(6).expect("icosphere"),
+            Shape::Plane { half, .. } => Plane3d::default()
+                .mesh()
+                .size(2.0 * half, 2.0 * half)
+                .into(),
+            Shape::Mesh(m) => bevy_mesh(&m.mesh),
+        });
+        let transform = object_transform(&o.shape);
+        let e = spawn_object(commands, materials, &o.name, mesh, material, transform);
+        commands.entity(e).insert(SceneIndex(i));
     }
+    scene_camera(sc)
+}
+
+/// Where an object of the scene file is: spheres and planes as Bevy's primitives are placed,
+/// meshes by their world-from-object transform.
+pub fn object_transform(shape: &Shape) -> Transform {
+    match shape {
+        Shape::Sphere { center, .. } => Transform::from_translation(*center),
+        Shape::Plane {
+            center, normal, u, ..
+        } => {
+            let rot = Quat::from_mat3(&Mat3::from_cols(*u, *normal, u.cross(*normal)));
+            Transform::from_translation(*center).with_rotation(rot)
+        }
+        Shape::Mesh(m) => Transform::from_matrix(Mat4::from(m.world_from_object)),
+    }
+}
+
+/// The scene file's camera.
+pub fn scene_camera(sc: &Scene) -> SceneCamera {
     let c = &sc.file.camera;
     SceneCamera {
         eye: Vec3::from(c.position),

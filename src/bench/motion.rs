@@ -228,10 +228,7 @@ impl Motion {
         };
         let mut row = MotionRow {
             name: name.into(),
-            backend: match backend {
-                SequenceBackend::Cpu => "cpu",
-                SequenceBackend::Wgpu => "wgpu",
-            },
+            backend: backend.name(),
             relmse: 0.0,
             flip: 0.0,
             frame_ms: 0.0,
@@ -253,7 +250,7 @@ impl Motion {
             row.flip +=
                 super::flip::hdr_flip(&rf.data, &f.image.data, self.size, self.size).1 as f64;
             row.frame_ms += f.stats.build_ms + f.stats.shade_ms;
-            row.shadow_rays_per_pixel += f.stats.shadow_rays_per_pixel;
+            row.shadow_rays_per_pixel += f.stats.shadow_rays_per_pixel.unwrap_or(f64::NAN);
             Ok(())
         })?;
         let m = (self.frames - self.first) as f64;

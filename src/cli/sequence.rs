@@ -24,7 +24,8 @@ pub fn sequence(a: SequenceArgs) -> Result<()> {
         visibility: vis,
         backend: match a.backend {
             BackendArg::Wgpu => SequenceBackend::Wgpu,
-            _ => SequenceBackend::Cpu,
+            BackendArg::Gpu => SequenceBackend::Bevy,
+            BackendArg::Cpu => SequenceBackend::Cpu,
         },
     };
     std::fs::create_dir_all(&a.out)
@@ -47,11 +48,6 @@ pub fn sequence(a: SequenceArgs) -> Result<()> {
 
 /// The flags `sequence` checks before loading anything.
 fn check_args(a: &SequenceArgs) -> Result<()> {
-    if matches!(a.backend, BackendArg::Gpu) {
-        return Err(Error::invalid(
-            "--backend gpu: the Bevy pass of resampling is not built yet; --backend wgpu runs the same WGSL headless",
-        ));
-    }
     if a.frames == 0 || a.frames > 100_000 {
         return Err(Error::invalid(format!(
             "--frames {} out of range 1..=100000",
@@ -81,9 +77,10 @@ fn write_stats(
         &serde_json::json!({
             "scene": a.scene.display().to_string(),
             "size": a.size,
-            "backend": match o.backend {
-                SequenceBackend::Cpu => "cpu",
-                SequenceBackend::Wgpu => "wgpu",
+            "backend": o.backend.name(),
+            "counts": match o.backend {
+                SequenceBackend::Bevy => "not read back (the Bevy pass keeps its counts on the GPU); build_ms and shade_ms are the latest GPU timestamps when the frame arrived",
+                _ => "counted",
             },
             "resampling": a.resampling.to_string(),
             "unbiased": !a.biased,

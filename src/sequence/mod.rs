@@ -5,6 +5,8 @@
 //! point, moved back by its object's velocity, seen by the previous frame's camera. On the CPU
 //! (the oracle) or, with the `gpu` feature, on a headless wgpu device (module `gpu`: the WGSL twins).
 
+#[cfg(feature = "app")]
+mod bevy;
 #[cfg(feature = "gpu")]
 mod gpu;
 
@@ -42,6 +44,20 @@ pub enum SequenceBackend {
     Cpu,
     /// The WGSL passes on a headless wgpu device (`envis sequence --backend wgpu`).
     Wgpu,
+    /// The Bevy pipeline in a headless app (`envis sequence --backend gpu`): the scene's meshes,
+    /// Bevy's G-buffer and motion vectors, `EnvironmentResampling` on the camera.
+    Bevy,
+}
+
+impl SequenceBackend {
+    /// The `--backend` value that picks it.
+    pub fn name(self) -> &'static str {
+        match self {
+            SequenceBackend::Cpu => "cpu",
+            SequenceBackend::Wgpu => "wgpu",
+            SequenceBackend::Bevy => "gpu",
+        }
+    }
 }
 
 /// One rendered frame.
@@ -60,13 +76,14 @@ pub struct FrameStats {
     pub build_ms: f64,
     /// Candidates (or samples), reuse and shading, milliseconds.
     pub shade_ms: f64,
-    /// Shadow rays cast this frame, over all pixels.
-    pub shadow_rays: u64,
+    /// Shadow rays cast this frame, over all pixels (`None`: not counted, the Bevy backend's
+    /// counts stay on the GPU).
+    pub shadow_rays: Option<u64>,
     /// Per shaded pixel.
-    pub shadow_rays_per_pixel: f64,
+    pub shadow_rays_per_pixel: Option<f64>,
     /// Light samples used and BRDF samples drawn, over all pixels.
-    pub samples_evaluated: u64,
-    pub shaded_pixels: u64,
+    pub samples_evaluated: Option<u64>,
+    pub shaded_pixels: Option<u64>,
     /// What reuse did (zeros without resampling).
     pub reuse: ReuseStats,
 }
@@ -141,6 +158,12 @@ pub fn run(
         #[cfg(not(feature = "gpu"))]
         SequenceBackend::Wgpu => Err(crate::error::Error::invalid(
             "--backend wgpu: this build has no GPU support (built without the `gpu` feature)",
+        )),
+        #[cfg(feature = "app")]
+        SequenceBackend::Bevy => bevy::run(scene, o, each),
+        #[cfg(not(feature = "app"))]
+        SequenceBackend::Bevy => Err(crate::error::Error::invalid(
+            "--backend gpu: this build has no Bevy (built without the `app` feature)",
         )),
     }
 }
@@ -228,10 +251,10 @@ fn frame_stats(k: u32, time: f32, st: &render::RenderStats, reuse: ReuseStats) -
         time,
         build_ms: st.build_ms,
         shade_ms: st.shade_ms,
-        shadow_rays: st.shadow_rays,
-        shadow_rays_per_pixel: st.shadow_rays as f64 / st.shaded_pixels.max(1) as f64,
-        samples_evaluated: st.samples_evaluated,
-        shaded_pixels: st.shaded_pixels,
+        shadow_rays: Some(st.shadow_rays),
+        shadow_rays_per_pixel: Some(st.shadow_rays as f64 / st.shaded_pixels.max(1) as f64),
+        samples_evaluated: Some(st.samples_evaluated),
+        shaded_pixels: Some(st.shaded_pixels),
         reuse,
     }
 }

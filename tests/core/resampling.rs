@@ -278,13 +278,14 @@ fn shadow_ray_budget() {
     ] {
         for f in frames(&scene, 3, 1, r) {
             let st = &f.stats;
-            assert!(st.shadow_rays_per_pixel <= most, "{r:?}: {st:?}");
-            assert!(st.shadow_rays_per_pixel > 0.5, "{r:?}: {st:?}");
+            let rays = st.shadow_rays_per_pixel.expect("the CPU counts its rays");
+            assert!(rays <= most, "{r:?}: {st:?}");
+            assert!(rays > 0.5, "{r:?}: {st:?}");
         }
     }
     let plain = frames(&scene, 1, 1, None);
     assert!(
-        plain[0].stats.shadow_rays_per_pixel > 2.0,
+        plain[0].stats.shadow_rays_per_pixel.unwrap() > 2.0,
         "{:?}",
         plain[0].stats
     );

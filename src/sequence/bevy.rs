@@ -1,0 +1,152 @@
+//! A sequence through the Bevy pipeline (`envis sequence --backend gpu`): the scene file's
+//! objects and camera in a headless Bevy app ([`HeadlessSphere::from_scene`]), posed on the
+//! sequence clock before each update, so Bevy's motion vectors, G-buffer and the
+//! `EnvironmentResampling` pass see the motion as a game's frames would. One update is one
+//! frame; each frame's capture is asked for before its update and arrives a frame or two later
+//! (the readback is asynchronous), and frames are handed on in order.
+//!
+//! What this backend does not report: the per-pixel counts (shadow rays, samples), which stay in
+//! GPU buffers (no readback on the frame path), and exact per-frame times: `build_ms` and
+//! `shade_ms` are the GPU timestamps of the latest frame measured when the capture arrived
+//! (`PassTimes`, which arrive late too).
+
+use super::{FrameStats, SequenceFrame, SequenceOptions};
+use crate::app::headless::{CAPTURE_FRAMES, Captures, HeadlessSphere, no_capture};
+use crate::app::scene_objects::{SceneIndex, object_transform, scene_camera};
+use crate::app::{EnvMapStream, EnvironmentResampling, EnvisTimings};
+use crate::envmap::Image;
+use crate::error::Result;
+use crate::render::resampling::{Resampling, ReuseStats};
+use crate::scene::Scene;
+use crate::stream::EnvStream;
+use crate::visibility::ShadowRays;
+use bevy::prelude::*;
+
+/// [`super::run`] in a headless Bevy app.
+pub(super) fn run(
+    scene: &Scene,
+    o: &SequenceOptions,
+    mut each: impl FnMut(SequenceFrame) -> Result<()>,
+) -> Result<()> {
+    crate::gpu::context::check_adapter()?;
+    let mut settings = o.settings;
+    settings.shadows = match scene.shadows(o.visibility).0 {
+        true => ShadowRays::On,
+        false => ShadowRays::Off,
+    };
+    let mut app = HeadlessSphere::from_scene(scene, settings, o.size as u32)?;
+    // Set-up frames (meshes, materials, pipelines, the prepasses resampling requires) at
+    // time 0; a resampling camera then starts its history afresh at frame 0 (`reset`).
+    let cam = app.camera();
+    if let Some(r) = o.resampling {
+        app.app
+            .app
+            .world_mut()
+            .entity_mut(cam)
+            .insert(component(&r));
+    }
+    app.capture()?;
+    if let Some(mut r) = app
+        .app
+        .app
+        .world_mut()
+        .get_mut::<EnvironmentResampling>(cam)
+    {
+        r.reset = true;
+    }
+    let captures = Captures::default();
+    let mut env = scene.environment.clone();
+    let mut next = 0;
+    for k in 0..o.frames {
+        pose(&mut app, scene, scene.frame_time(k), &mut env)?;
+        app.request_capture(k, &captures);
+        app.update();
+        // Only what arrived: an update here would draw a frame the sequence did not pose.
+        while let Some(f) = arrived(&app, &captures, next, scene, o) {
+            each(f?)?;
+            next += 1;
+        }
+    }
+    // The last frames' captures: the updates now only flush the readback.
+    for _ in 0..CAPTURE_FRAMES {
+        while let Some(f) = arrived(&app, &captures, next, scene, o) {
+            each(f?)?;
+            next += 1;
+        }
+        if next == o.frames {
+            return Ok(());
+        }
+        app.update();
+    }
+    Err(no_capture())
+}
+
+/// `r` as the camera component.
+fn component(r: &Resampling) -> EnvironmentResampling {
+    EnvironmentResampling {
+        temporal: r.temporal,
+        spatial: r.spatial,
+        max_history: r.max_history,
+        unbiased: r.unbiased,
+        reset: false,
+    }
+}
+
+/// Pose the app at time `t`: the camera, every object, and the map where the scene's
+/// environment at `t` differs from `env` (the last one loaded).
+fn pose(app: &mut HeadlessSphere, scene: &Scene, t: f32, env: &mut String) -> Result<()> {
+    let posed = scene.at_time(t)?;
+    let cam = app.camera();
+    let world = app.app.app.world_mut();
+    *world.get_mut::<Transform>(cam).expect("camera") = scene_camera(&posed).transform();
+    let mut objects = world.query::<(&SceneIndex, &mut Transform)>();
+    for (i, mut tr) in objects.iter_mut(world) {
+        if let Some(o) = posed.objects.get(i.0) {
+            *tr = object_transform(&o.shape);
+        }
+    }
+    if posed.environment != *env {
+        let face = posed.file.environment.face_size;
+        let mut stream = EnvStream::open(posed.stream_source(0.0)?, face)?;
+        stream.playing = false;
+        world.resource_mut::<EnvMapStream>().stream = stream;
+        *env = posed.environment.clone();
+    }
+    Ok(())
+}
+
+/// Frame `k`, where its capture has arrived.
+fn arrived(
+    app: &HeadlessSphere,
+    captures: &Captures,
+    k: u32,
+    scene: &Scene,
+    o: &SequenceOptions,
+) -> Option<Result<SequenceFrame>> {
+    let (_, px) = captures.take_next(k)?;
+    Some(px.map(|data| SequenceFrame {
+        image: Image {
+            width: o.size,
+            height: o.size,
+            data,
+        },
+        stats: stats(app, k, scene.frame_time(k)),
+    }))
+}
+
+/// Frame `k`'s statistics: the latest GPU pass times; the counts are not read back.
+fn stats(app: &HeadlessSphere, k: u32, time: f32) -> FrameStats {
+    let t = app.app.app.world().resource::<EnvisTimings>().get();
+    let sum = |v: &[Option<f64>]| v.iter().flatten().sum::<f64>();
+    FrameStats {
+        frame: k,
+        time,
+        build_ms: sum(&[t.resample_gpu_ms, t.build_gpu_ms, t.pool_gpu_ms]),
+        shade_ms: sum(&[t.lighting_gpu_ms, t.resampling_gpu_ms]),
+        shadow_rays: None,
+        shadow_rays_per_pixel: None,
+        samples_evaluated: None,
+        shaded_pixels: None,
+        reuse: ReuseStats::default(),
+    }
+}
