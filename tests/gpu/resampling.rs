@@ -165,27 +165,25 @@ fn cli_sequence_on_the_gpu() {
             .output()
             .unwrap()
     };
-    let o = envis("wgpu");
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    for k in 0..2 {
-        let img = envis::envmap::load::read_exr(&dir.join(format!("wgpu/frame_000{k}.exr")));
-        assert_eq!(img.unwrap().data.len(), 64);
-    }
-    let text = std::fs::read_to_string(dir.join("wgpu.json")).unwrap();
-    let stats: serde_json::Value = serde_json::from_str(&text).unwrap();
-    assert_eq!(stats["backend"], "wgpu");
-    let frames = stats["frames"].as_array().unwrap();
-    assert_eq!(frames.len(), 2);
-    assert!(frames[1]["shadow_rays"].as_u64().unwrap() > 0, "{text}");
-    let o = envis("gpu");
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let img = envis::envmap::load::read_exr(&dir.join("gpu/frame_0001.exr"));
-    assert_eq!(img.unwrap().data.len(), 64);
-    let text = std::fs::read_to_string(dir.join("gpu.json")).unwrap();
-    let stats: serde_json::Value = serde_json::from_str(&text).unwrap();
-    assert_eq!(stats["backend"], "gpu");
-    let frames = stats["frames"].as_array().unwrap();
-    assert_eq!(frames.len(), 2);
-    assert!(frames[1]["shadow_rays"].is_null(), "{text}");
-    assert!(frames[1]["shade_ms"].as_f64().is_some(), "{text}");
+    // The run's frames (two 8² EXRs) and the JSON's `frames`.
+    let frames = |backend: &str| {
+        let o = envis(backend);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        for k in 0..2 {
+            let img =
+                envis::envmap::load::read_exr(&dir.join(format!("{backend}/frame_000{k}.exr")));
+            assert_eq!(img.unwrap().data.len(), 64);
+        }
+        let text = std::fs::read_to_string(dir.join(format!("{backend}.json"))).unwrap();
+        let stats: serde_json::Value = serde_json::from_str(&text).unwrap();
+        assert_eq!(stats["backend"], backend);
+        let frames = stats["frames"].as_array().unwrap().clone();
+        assert_eq!(frames.len(), 2);
+        frames
+    };
+    let f = frames("wgpu");
+    assert!(f[1]["shadow_rays"].as_u64().unwrap() > 0, "{f:?}");
+    let f = frames("gpu");
+    assert!(f[1]["shadow_rays"].is_null(), "{f:?}");
+    assert!(f[1]["shade_ms"].as_f64().is_some(), "{f:?}");
 }
