@@ -12,7 +12,9 @@
 //! With the `gpu` feature, a device (a machine without an adapter gets the CPU rows and a
 //! message) and without `--cpu-only`, the first four again on the WGSL passes
 //! (`wgpu ...`, a headless device: lavapipe in CI), each timed against `wgpu single 32+32` in the
-//! same sitting.
+//! same sitting; with the `app` feature, the first four once more through Bevy (`bevy ...`:
+//! `envis sequence --backend gpu`, the `EnvironmentResampling` pass, whose map is resampled whole
+//! and whose shadow rays are not counted: `null`; its cost is the GPU timestamps').
 //!
 //! Per configuration over the measured frames: mean relMSE and HDR-FLIP against the reference,
 //! lighting cost (build + shading, wall clock) and shadow rays per pixel, and each as a ratio to
@@ -109,7 +111,8 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
 type Config = (String, Option<Resampling>, usize, SequenceBackend);
 
 /// The configurations compared: [`cpu_configs`] on the CPU, and the first four of them on the
-/// WGSL passes where this build has them (each backend's first is its baseline).
+/// WGSL passes and through Bevy where this build has them (each backend's first is its
+/// baseline).
 fn configs(a: &BenchArgs) -> Vec<Config> {
     let cpu = cpu_configs();
     let mut v: Vec<Config> = (cpu.iter())
@@ -120,6 +123,12 @@ fn configs(a: &BenchArgs) -> Vec<Config> {
             (cpu.iter().take(4))
                 .map(|&(name, r, n)| (format!("wgpu {name}"), r, n, SequenceBackend::Wgpu)),
         );
+        if cfg!(feature = "app") {
+            v.extend(
+                (cpu.iter().take(4))
+                    .map(|&(name, r, n)| (format!("bevy {name}"), r, n, SequenceBackend::Bevy)),
+            );
+        }
     }
     v
 }
