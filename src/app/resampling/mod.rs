@@ -15,6 +15,7 @@
 //! read back. Unlike the CPU oracle the Bevy pass has no bright part (the map is resampled
 //! whole, as `split_bright: false`) and no object ids (the geometric tests are normal and depth).
 
+mod frame;
 mod gather;
 mod view;
 
@@ -22,9 +23,7 @@ use super::components::{EnvironmentSampling, EnvisEnvironment};
 use super::sampling::{EnvSamplers, ViewSampling};
 use super::shadows::{GpuShadowGeometry, ShadowGeometry};
 use super::{EnvisCounters, EnvisTimings, lighting};
-use crate::gpu::resampling::{
-    BvhBuffers, MAX_SPATIAL, PassBuffers, ResampleParams, ResamplingPasses,
-};
+use crate::gpu::resampling::ResamplingPasses;
 use bevy::camera::visibility::RenderLayers;
 use bevy::core_pipeline::prepass::{
     DeferredPrepass, DepthPrepass, MotionVectorPrepass, ViewPrepassTextures,
@@ -37,10 +36,11 @@ use bevy::render::renderer::{RenderContext, RenderQueue, ViewQuery};
 use bevy::render::sync_world::RenderEntity;
 use bevy::render::view::ExtractedView;
 use bevy::render::{ExtractSchedule, MainWorld, Render, RenderApp, RenderSystems};
-use gather::{GatherInputs, GatherPipelines, GatherView};
+use frame::{FrameInputs, hand_over, history_valid, record, write_uniforms};
+use gather::GatherPipelines;
 use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
-use view::{BvhCopy, PreviousFrame, ViewResampling};
+use view::ViewResampling;
 
 /// Reservoir resampling of the environment light on this camera: with it,
 /// [`EnvironmentSampling`]'s `light_samples` / `brdf_samples` are the candidates each pixel
@@ -159,6 +159,20 @@ pub struct ResamplingResources {
 }
 
 impl ResamplingResources {
+    /// The pipelines, compiled at the first resampled frame (a scene without resampling pays
+    /// nothing); `None`, with a warning once, where the device binds fewer storage buffers than
+    /// the passes need.
+    fn pipelines(&self, device: &wgpu::Device) -> Option<&(ResamplingPasses, GatherPipelines)> {
+        if let Err(e) = ResamplingPasses::supported(&device.limits()) {
+            bevy::log::warn_once!("envis resampling is off: {e}");
+            return None;
+        }
+        Some(
+            self.pipelines
+                .get_or_init(|| (ResamplingPasses::new(device), GatherPipelines::new(device))),
+        )
+    }
+
     /// The image view `entity` resampled this frame, for the lighting pass to show (taken once:
     /// `None` on a frame the pass did not run for it).
     pub(super) fn take_image(&self, entity: Entity) -> Option<wgpu::Buffer> {
@@ -218,22 +232,13 @@ fn resample_environment(
         return;
     };
     let device = ctx.render_device().wgpu_device().clone();
-    if let Err(e) = ResamplingPasses::supported(&device.limits()) {
-        bevy::log::warn_once!("envis resampling is off: {e}");
-        return;
-    }
-    let (Some(textures), Some(shade)) = (
+    let (Some((passes, gather)), Some(textures), Some(shade)) = (
+        res.pipelines(&device),
         prepass_views(prepass),
         lighting::shade_params(sampling, vs.seed, &slot.sampler, ev.viewport),
     ) else {
         return;
     };
-    let (passes, gather) = res.pipelines.get_or_init(|| {
-        (
-            ResamplingPasses::new(&device),
-            GatherPipelines::new(&device),
-        )
-    });
     let Ok(mut views) = res.views.lock() else {
         return;
     };
@@ -269,45 +274,15 @@ fn resample_environment(
         (&slot.sampler, textures),
         &frame,
     );
-    // The next frame's previous geometry (see `BvhCopy`).
-    let bvh = geometry.map(|g| {
-        let key = (g.generation, g.placement);
-        let c = BvhCopy::update(
-            &mut state.bvh_copy,
-            &device,
-            enc,
-            (&g.nodes, &g.triangles),
-            key,
-        );
-        (c.nodes.clone(), c.triangles.clone(), g.node_count)
-    });
+    let histories = state.prev.is_some();
+    hand_over(state, &device, enc, geometry, &frame, n);
     span.end(enc);
     counters.bump(|c| &c.resampling_passes);
     let ms = t0.elapsed().as_secs_f64() * 1e3;
     timings.set(|t| t.resampling_cpu_ms = Some(ms));
-    if state.prev.is_some() {
+    if histories {
         counters.bump(|c| &c.resampling_histories);
     }
-    state.advance(PreviousFrame {
-        camera: ev.world_from_view.translation(),
-        forward: ev.world_from_view.forward().as_vec3(),
-        face_size: n,
-        rotation: env.rotation,
-        layers: frame.layers,
-        bvh,
-    });
-}
-
-/// Whether this frame may reuse the previous one: temporal reuse on, no reset, and the same
-/// map size, map rotation and render layers.
-fn history_valid(prev: Option<&PreviousFrame>, f: &FrameInputs, face_size: u32) -> bool {
-    prev.is_some_and(|p| {
-        f.settings.temporal
-            && !f.settings.reset
-            && p.face_size == face_size
-            && p.rotation == f.env.rotation
-            && p.layers == f.layers
-    })
 }
 
 /// The view's buffers, made anew when its viewport or map size changed (the history is lost
@@ -335,137 +310,4 @@ fn view_state<'a>(
         }
     }
     views.get_mut(&entity)
-}
-
-/// What of the view and its settings a frame's uniforms and passes take.
-struct FrameInputs<'a> {
-    ev: &'a ExtractedView,
-    env: &'a EnvisEnvironment,
-    settings: &'a EnvironmentResampling,
-    layers: u32,
-    jitter: Option<&'a TemporalJitter>,
-    seed: u32,
-    /// The shadow BVH (nodes, triangles, node count) when the camera casts shadow rays.
-    bvh: Option<(wgpu::Buffer, wgpu::Buffer, u32)>,
-}
-
-/// The gather's view, the shading's and the passes' parameters.
-fn write_uniforms(
-    queue: &RenderQueue,
-    state: &ViewResampling,
-    f: &FrameInputs,
-    shade: &crate::gpu::shading::ShadeParams,
-) {
-    let ev = f.ev;
-    let vp = ev.viewport;
-    let world_from_view = ev.world_from_view.to_matrix();
-    let clip_from_view = super::lighting_uniforms::rasterised_clip_from_view(ev, f.jitter);
-    let prev = state.prev.as_ref();
-    let camera = ev.world_from_view.translation();
-    let forward = ev.world_from_view.forward().as_vec3();
-    let gv = GatherView {
-        world_from_clip: (world_from_view * clip_from_view.inverse()).to_cols_array_2d(),
-        env_from_world: Mat4::from_quat(f.env.rotation.inverse()).to_cols_array_2d(),
-        camera: camera.to_array(),
-        orthographic: (ev.clip_from_view.w_axis.w == 1.0) as u32,
-        forward: forward.to_array(),
-        has_prev: prev.is_some() as u32,
-        prev_camera: prev.map_or(camera, |p| p.camera).to_array(),
-        texel_count: state.texels,
-        prev_forward: prev.map_or(forward, |p| p.forward).to_array(),
-        _pad: 0,
-        viewport: [vp.x as f32, vp.y as f32, vp.z as f32, vp.w as f32],
-    };
-    let r = f.settings;
-    let rot = Mat3::from_quat(f.env.rotation);
-    let params = ResampleParams {
-        width: vp.z,
-        height: vp.w,
-        n: (state.texels / 6).isqrt(),
-        prev_n: prev.map_or(0, |p| p.face_size),
-        bright_count: 0,
-        history: prev.is_some() as u32,
-        bright_history: 0,
-        temporal: r.temporal as u32,
-        spatial: r.spatial.min(MAX_SPATIAL),
-        max_history: r.max_history.max(1) as f32,
-        unbiased: r.unbiased as u32,
-        seed: f.seed,
-        bvh_nodes: f.bvh.as_ref().map_or(0, |b| b.2),
-        prev_bvh_nodes: prev.and_then(|p| p.bvh.as_ref()).map_or(0, |b| b.2),
-        layers: f.layers,
-        pad: 0,
-        world_from_map: [rot.x_axis, rot.y_axis, rot.z_axis].map(|c| c.extend(0.0).to_array()),
-    };
-    queue.write_buffer(&state.gather_view, 0, bytemuck::bytes_of(&gv));
-    queue.write_buffer(&state.shade_params, 0, bytemuck::bytes_of(shade));
-    queue.write_buffer(&state.params, 0, bytemuck::bytes_of(&params));
-}
-
-/// The gather and the resampling passes of one frame.
-fn record(
-    enc: &mut wgpu::CommandEncoder,
-    device: &wgpu::Device,
-    (passes, gather): (&ResamplingPasses, &GatherPipelines),
-    state: &mut ViewResampling,
-    (sampler, (gbuffer, depth, pass_ids, motion_vectors)): (
-        &crate::gpu::sampler::EnvSampler,
-        (
-            &wgpu::TextureView,
-            &wgpu::TextureView,
-            &wgpu::TextureView,
-            &wgpu::TextureView,
-        ),
-    ),
-    f: &FrameInputs,
-) {
-    let (surfaces, split, temporal) = state.current();
-    let pixels = state.size.x * state.size.y;
-    let inputs = GatherInputs {
-        gbuffer,
-        depth,
-        pass_ids,
-        motion_vectors,
-        view: &state.gather_view,
-        texels: &sampler.texels,
-        surfaces,
-        reproject: &state.reproject,
-        split,
-    };
-    gather.record(device, enc, &inputs, (pixels, state.texels));
-    let prev = state.prev.as_ref();
-    let (prev_surfaces, prev_split, history) = state.previous();
-    let buffers = PassBuffers {
-        sampler,
-        shade_params: &state.shade_params,
-        params: &state.params,
-        surfaces,
-        prev_surfaces: prev.map(|_| prev_surfaces),
-        split,
-        prev_split: prev.map(|_| prev_split),
-        bright: None,
-        bvh: bvh_buffers(&f.bvh),
-        prev_bvh: prev.and_then(|p| bvh_buffers(&p.bvh)),
-        // The shading's final reservoirs go to the candidates' buffer (read by no later pass).
-        res: [
-            &state.candidates,
-            temporal,
-            &state.spatial,
-            &state.candidates,
-        ],
-        history: prev.map(|_| history),
-        reproject: prev.map(|_| &state.reproject),
-        hist_targets: &state.hist_targets,
-        counters: &state.counters,
-        color: &state.color,
-        stats: &state.stats,
-        pixels,
-    };
-    passes.record(device, enc, &buffers);
-    state.ready = true;
-}
-
-/// A kept BVH (nodes, triangles, node count) as the passes bind it.
-fn bvh_buffers(b: &Option<(wgpu::Buffer, wgpu::Buffer, u32)>) -> Option<BvhBuffers<'_>> {
-    b.as_ref().map(|b| (&b.0, &b.1))
 }
