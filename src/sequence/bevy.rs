@@ -137,7 +137,11 @@ fn arrived(
 /// Frame `k`'s statistics: the latest GPU pass times; the counts are not read back.
 fn stats(app: &HeadlessSphere, k: u32, time: f32) -> FrameStats {
     let t = app.app.app.world().resource::<EnvisTimings>().get();
-    let sum = |v: &[Option<f64>]| v.iter().flatten().sum::<f64>();
+    // NaN (null in the JSON) where the device has no timestamp queries: not measured.
+    let sum = |v: &[Option<f64>]| match v.iter().flatten().sum::<f64>() {
+        _ if v.iter().all(Option::is_none) => f64::NAN,
+        ms => ms,
+    };
     FrameStats {
         frame: k,
         time,
