@@ -95,7 +95,7 @@ struct SequenceArgs {
     biased: bool,
     /// `cpu`: the oracle; `wgpu`: the WGSL passes on a headless device, the same frames to float
     /// rounding; `gpu`: the scene's meshes in a headless Bevy app, resampled by the
-    /// `EnvironmentResampling` pass (Bevy's G-buffer and motion vectors; no per-pixel counts).
+    /// `EnvironmentResampling` pass (Bevy's G-buffer and motion vectors; its counts read back).
     #[arg(long, value_enum, default_value_t = BackendArg::Cpu)]
     backend: BackendArg,
     /// Image width and height in pixels.

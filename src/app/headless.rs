@@ -152,6 +152,13 @@ pub struct Captures(Arc<Mutex<Vec<Capture>>>);
 type Capture = (u32, crate::error::Result<Vec<Vec3>>);
 
 impl Captures {
+    /// Whether the capture tagged `tag` arrived.
+    pub fn has(&self, tag: u32) -> bool {
+        self.0
+            .lock()
+            .is_ok_and(|got| got.iter().any(|(t, _)| *t == tag))
+    }
+
     /// The capture tagged `tag`, once it arrived.
     pub fn take_next(&self, tag: u32) -> Option<Capture> {
         let mut got = self.0.lock().ok()?;

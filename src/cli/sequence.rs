@@ -79,7 +79,7 @@ fn write_stats(
             "size": a.size,
             "backend": o.backend.name(),
             "counts": match o.backend {
-                SequenceBackend::Bevy => "not read back (the Bevy pass keeps its counts on the GPU); build_ms and shade_ms are the latest GPU timestamps when the frame arrived",
+                SequenceBackend::Bevy => "read back from the resampling pass (null without resampling: the plain lighting pass keeps none); build_ms and shade_ms are the latest GPU timestamps when the frame arrived",
                 _ => "counted",
             },
             "resampling": a.resampling.to_string(),

@@ -5,13 +5,15 @@
 //! frame; each frame's capture is asked for before its update and arrives a frame or two later
 //! (the readback is asynchronous), and frames are handed on in order.
 //!
-//! What this backend does not report: the per-pixel counts (shadow rays, samples), which stay in
-//! GPU buffers (no readback on the frame path), and exact per-frame times: `build_ms` and
-//! `shade_ms` are the GPU timestamps of the latest frame measured when the capture arrived
-//! (`PassTimes`, which arrive late too).
+//! With resampling, each frame's counts (shadow rays, samples, reuse) are read back too
+//! ([`ResamplingReadback`], tagged with the frame). What this backend does not report: counts
+//! without resampling (the plain lighting pass keeps none), and exact per-frame times:
+//! `build_ms` and `shade_ms` are the GPU timestamps of the latest frame measured when the
+//! capture arrived (`PassTimes`, which arrive late too).
 
 use super::{FrameStats, SequenceFrame, SequenceOptions};
 use crate::app::headless::{CAPTURE_FRAMES, Captures, HeadlessSphere, no_capture};
+use crate::app::resampling::{FrameCounts, ResamplingReadback};
 use crate::app::scene_objects::{SceneIndex, object_transform, scene_camera};
 use crate::app::{EnvMapStream, EnvironmentResampling, EnvisTimings};
 use crate::envmap::Image;
@@ -46,37 +48,43 @@ pub(super) fn run(
             .insert(component(&r));
     }
     app.capture()?;
-    if let Some(mut r) = app
-        .app
-        .app
-        .world_mut()
-        .get_mut::<EnvironmentResampling>(cam)
-    {
-        r.reset = true;
+    // The counts from frame 0 on (none of the set-up frames').
+    let readback = o.resampling.map(|_| ResamplingReadback::default());
+    if let Some(rb) = &readback {
+        let mut cam = app.app.app.world_mut().entity_mut(cam);
+        cam.insert(rb.clone());
+        if let Some(mut r) = cam.get_mut::<EnvironmentResampling>() {
+            r.reset = true;
+        }
     }
     let captures = Captures::default();
     let mut env = scene.environment.clone();
     let mut next = 0;
     for k in 0..o.frames {
         pose(&mut app, scene, scene.frame_time(k), &mut env)?;
+        if let Some(mut rb) = app.app.app.world_mut().get_mut::<ResamplingReadback>(cam) {
+            rb.tag = k;
+        }
         app.request_capture(k, &captures);
         app.update();
         // Only what arrived: an update here would draw a frame the sequence did not pose.
-        while let Some(f) = arrived(&app, &captures, next, scene, o) {
+        while let Some(f) = arrived(&app, (&captures, readback.as_ref()), next, scene, o) {
             each(f?)?;
             next += 1;
         }
     }
     // The last frames' captures: the updates now only flush the readback.
-    for _ in 0..CAPTURE_FRAMES {
-        while let Some(f) = arrived(&app, &captures, next, scene, o) {
+    for waited in 0..=CAPTURE_FRAMES {
+        while let Some(f) = arrived(&app, (&captures, readback.as_ref()), next, scene, o) {
             each(f?)?;
             next += 1;
         }
         if next == o.frames {
             return Ok(());
         }
-        app.update();
+        if waited < CAPTURE_FRAMES {
+            app.update();
+        }
     }
     Err(no_capture())
 }
@@ -115,14 +123,21 @@ fn pose(app: &mut HeadlessSphere, scene: &Scene, t: f32, env: &mut String) -> Re
     Ok(())
 }
 
-/// Frame `k`, where its capture has arrived.
+/// Frame `k`, where its capture (and with resampling its counts) arrived.
 fn arrived(
     app: &HeadlessSphere,
-    captures: &Captures,
+    (captures, readback): (&Captures, Option<&ResamplingReadback>),
     k: u32,
     scene: &Scene,
     o: &SequenceOptions,
 ) -> Option<Result<SequenceFrame>> {
+    if !captures.has(k) {
+        return None;
+    }
+    let counts = match readback {
+        Some(r) => Some(r.sink.take(k)?),
+        None => None,
+    };
     let (_, px) = captures.take_next(k)?;
     Some(px.map(|data| SequenceFrame {
         image: Image {
@@ -130,12 +145,12 @@ fn arrived(
             height: o.size,
             data,
         },
-        stats: stats(app, k, scene.frame_time(k)),
+        stats: stats(app, k, scene.frame_time(k), counts),
     }))
 }
 
-/// Frame `k`'s statistics: the latest GPU pass times; the counts are not read back.
-fn stats(app: &HeadlessSphere, k: u32, time: f32) -> FrameStats {
+/// Frame `k`'s statistics: the latest GPU pass times, and its counts where they were read back.
+fn stats(app: &HeadlessSphere, k: u32, time: f32, counts: Option<FrameCounts>) -> FrameStats {
     let t = app.app.app.world().resource::<EnvisTimings>().get();
     // NaN (null in the JSON) where the device has no timestamp queries: not measured.
     let sum = |v: &[Option<f64>]| match v.iter().flatten().sum::<f64>() {
@@ -147,10 +162,14 @@ fn stats(app: &HeadlessSphere, k: u32, time: f32) -> FrameStats {
         time,
         build_ms: sum(&[t.resample_gpu_ms, t.build_gpu_ms, t.pool_gpu_ms]),
         shade_ms: sum(&[t.lighting_gpu_ms, t.resampling_gpu_ms]),
-        shadow_rays: None,
-        shadow_rays_per_pixel: None,
-        samples_evaluated: None,
-        shaded_pixels: None,
-        reuse: ReuseStats::default(),
+        shadow_rays: counts.map(|c| c.shadow_rays),
+        shadow_rays_per_pixel: counts.map(|c| c.shadow_rays as f64 / c.shaded_pixels.max(1) as f64),
+        samples_evaluated: counts.map(|c| c.samples_evaluated),
+        shaded_pixels: counts.map(|c| c.shaded_pixels),
+        reuse: counts.map_or_else(ReuseStats::default, |c| ReuseStats {
+            temporal_accepted: c.temporal_accepted,
+            spatial_accepted: c.spatial_accepted,
+            mean_history: f64::NAN,
+        }),
     }
 }

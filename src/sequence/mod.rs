@@ -76,8 +76,8 @@ pub struct FrameStats {
     pub build_ms: f64,
     /// Candidates (or samples), reuse and shading, milliseconds.
     pub shade_ms: f64,
-    /// Shadow rays cast this frame, over all pixels (`None`: not counted, the Bevy backend's
-    /// counts stay on the GPU).
+    /// Shadow rays cast this frame, over all pixels (`None`: not counted: the Bevy backend
+    /// without resampling, whose plain lighting pass keeps no counts).
     pub shadow_rays: Option<u64>,
     /// Per shaded pixel.
     pub shadow_rays_per_pixel: Option<f64>,

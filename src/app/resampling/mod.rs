@@ -12,12 +12,15 @@
 //!    with one shadow ray for the selected sample (plus the unbiased reuse's visibility rays).
 //!
 //! The lighting pass then shows the resampled image instead of its own estimate. Nothing is
-//! read back. Unlike the CPU oracle the Bevy pass has no bright part (the map is resampled
+//! read back, but for a camera with [`ResamplingReadback`] (offline tools: the frame's counts). Unlike the CPU oracle the Bevy pass has no bright part (the map is resampled
 //! whole, as `split_bright: false`) and no object ids (the geometric tests are normal and depth).
 
 mod frame;
 mod gather;
+mod readback;
 mod view;
+
+pub use readback::{FrameCounts, ResamplingCounts, ResamplingReadback};
 
 use super::components::{EnvironmentSampling, EnvisEnvironment};
 use super::sampling::{EnvSamplers, ViewSampling};
@@ -90,7 +93,12 @@ impl Plugin for EnvisResamplingPlugin {
         render_app
             .init_resource::<ResamplingResources>()
             .add_systems(ExtractSchedule, extract_resampling)
-            .add_systems(Render, drop_stale_views.in_set(RenderSystems::Prepare))
+            .add_systems(
+                Render,
+                (drop_stale_views, poll_readbacks)
+                    .chain()
+                    .in_set(RenderSystems::Prepare),
+            )
             .add_systems(
                 Core3d,
                 resample_environment
@@ -101,14 +109,22 @@ impl Plugin for EnvisResamplingPlugin {
     }
 }
 
-/// Copy each active camera's [`EnvironmentResampling`] into the render world (removed there
-/// when it is removed here), then clear its `reset`, as TAA does.
+/// Copy each active camera's [`EnvironmentResampling`] (and [`ResamplingReadback`]) into the
+/// render world (removed there when it is removed here), then clear its `reset`, as TAA does.
 fn extract_resampling(mut commands: Commands, mut main_world: ResMut<MainWorld>) {
-    let mut cameras =
-        main_world.query::<(RenderEntity, &Camera, Option<&mut EnvironmentResampling>)>();
-    for (entity, camera, settings) in cameras.iter_mut(&mut main_world) {
+    let mut cameras = main_world.query::<(
+        RenderEntity,
+        &Camera,
+        Option<&mut EnvironmentResampling>,
+        Option<&ResamplingReadback>,
+    )>();
+    for (entity, camera, settings, readback) in cameras.iter_mut(&mut main_world) {
         let Ok(mut target) = commands.get_entity(entity) else {
             continue;
+        };
+        match readback {
+            Some(r) => target.insert(r.clone()),
+            None => target.remove::<ResamplingReadback>(),
         };
         match settings {
             Some(mut settings) if camera.is_active => {
@@ -152,6 +168,15 @@ fn drop_stale_views(
 
 /// What the resampling pass keeps: its pipelines (compiled when a camera first resamples) and
 /// each resampling camera's buffers.
+/// Collect the counts copied for [`ResamplingReadback`] (never waits).
+fn poll_readbacks(res: Option<Res<ResamplingResources>>) {
+    if let Some(res) = res
+        && let Ok(mut kept) = res.views.lock()
+    {
+        kept.values_mut().for_each(|v| v.reads.poll());
+    }
+}
+
 #[derive(Resource, Default)]
 pub struct ResamplingResources {
     pipelines: OnceLock<(ResamplingPasses, GatherPipelines)>,
@@ -192,6 +217,7 @@ type ResamplingViewData = (
     &'static EnvironmentResampling,
     Option<&'static RenderLayers>,
     Option<&'static TemporalJitter>,
+    Option<&'static ResamplingReadback>,
 );
 
 /// The prepass views the gather reads: G-buffer, depth, lighting-pass ids, motion vectors.
@@ -227,7 +253,7 @@ fn resample_environment(
 ) {
     let t0 = std::time::Instant::now();
     let entity = view.entity();
-    let (ev, prepass, sampling, env, vs, settings, layers, jitter) = view.into_inner();
+    let (ev, prepass, sampling, env, vs, settings, layers, jitter, readback) = view.into_inner();
     let (Some(res), Some(slot)) = (res, samplers.slots.get(&vs.key)) else {
         return;
     };
@@ -276,6 +302,10 @@ fn resample_environment(
     );
     let histories = state.prev.is_some();
     hand_over(state, &device, enc, geometry, &frame, n);
+    if let Some(r) = readback {
+        let buffers = (&state.counters, &state.stats);
+        state.reads.copy(&device, enc, r, buffers);
+    }
     span.end(enc);
     counters.bump(|c| &c.resampling_passes);
     let ms = t0.elapsed().as_secs_f64() * 1e3;

@@ -95,6 +95,8 @@ pub(super) struct ViewResampling {
     /// history: the motion vectors reach one frame back).
     pub ran: bool,
     pub bvh_copy: Option<BvhCopy>,
+    /// Counts copied for `ResamplingReadback`, in flight.
+    pub reads: super::readback::Readbacks,
     parity: usize,
     /// The previous frame, while its history is valid.
     pub prev: Option<PreviousFrame>,
@@ -145,6 +147,7 @@ impl ViewResampling {
             ready: false,
             ran: false,
             bvh_copy: None,
+            reads: Default::default(),
             parity: 0,
             prev: None,
         })
