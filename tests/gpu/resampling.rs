@@ -103,52 +103,56 @@ fn gpu_resampling_matches_cpu_sequence() {
 }
 
 /// The Bevy backend (`envis sequence --backend gpu`: the scene's meshes in a headless app,
-/// posed every frame, Bevy's G-buffer and motion vectors) gives the oracle's frames in the
-/// mean, with resampling and without, while the camera orbits, the sphere slides and the sun
-/// moves. 16 + 16 samples: every pixel draws from one light-sample pool a frame, so a small
-/// pool moves a whole frame's mean (at 2 + 2, frame 0 resampled was 9% low at 32² and at 64²
-/// alike, on another frame's pool than the oracle's).
+/// posed every frame, Bevy's G-buffer and motion vectors, the stream's map split into its
+/// bright part and the rest as the oracle splits it) gives the oracle's frames in the mean,
+/// with resampling and without, while the camera orbits and the sphere slides, with a moving
+/// sun and a still one (whose bright history is reused); resampled, it casts the oracle's
+/// shadow rays (the same passes on the same split: within 10%, measured 0-4.4%). 16 + 16
+/// samples: every pixel draws from one light-sample pool a frame, so a small pool moves a whole
+/// frame's mean (at 2 + 2, frame 0 resampled was 9% low at 32² and at 64² alike, on another
+/// frame's pool than the oracle's). Means within 7% (measured within 4.2%; with the sun left in
+/// the rest, counted twice, frame 0 was 93% high).
 #[test]
 fn bevy_sequence_has_the_oracles_mean() {
     if gpu().is_none() {
         return;
     }
     let dir = support::TempDir::new("bevy-sequence");
-    let scene = moving_scene(&dir, 1.0);
     let r = Resampling::for_mode(ResamplingMode::Spatiotemporal, true);
-    for r in [None, r] {
+    for (speed, r) in [(1.0, None), (1.0, r), (0.0, r)] {
+        let scene = moving_scene(&dir, speed);
         let bevy = run_sized(&scene, r, SequenceBackend::Bevy, (32, 16));
         let cpu = run_sized(&scene, r, SequenceBackend::Cpu, (32, 16));
         for (c, b) in cpu.iter().zip(&bevy) {
             let (mc, mb) = (mean_lum(&c.image.data), mean_lum(&b.image.data));
             let k = c.stats.frame;
-            eprintln!(
-                "bevy sequence, resampling {}, frame {k}: mean {mb:.5} vs {mc:.5}",
-                r.is_some()
-            );
+            let label = format!("sun speed {speed}, resampling {}, frame {k}", r.is_some());
+            eprintln!("bevy sequence, {label}: mean {mb:.5} vs {mc:.5}");
             assert_eq!(b.stats.frame, k);
-            // Counts are read back from the resampling pass only; its rays stay within the
-            // unbiased mode's bound (tests/core `shadow_ray_budget`: 18 a pixel).
-            let rays = b.stats.shadow_rays_per_pixel;
-            eprintln!(
-                "  rays per pixel {rays:?} vs {:?}",
-                c.stats.shadow_rays_per_pixel
-            );
+            assert!(rel(mb, mc) < 0.07, "{label}: mean {mb} vs {mc}");
             match r {
-                None => assert!(rays.is_none(), "the plain lighting pass counts no rays"),
-                Some(_) => {
-                    assert!(rays.is_some_and(|x| x > 0.5 && x <= 18.0), "{rays:?}");
-                    // Each frame's own counts: frame 0 has no history, the others take it.
-                    let (taken, shaded) = (b.stats.reuse.temporal_accepted, b.stats.shaded_pixels);
-                    let shaded = shaded.unwrap();
-                    match k {
-                        0 => assert_eq!(taken, 0, "frame 0 had a history"),
-                        _ => assert!(taken > shaded / 2, "frame {k}: {taken} of {shaded}"),
-                    }
-                }
+                None => assert!(
+                    b.stats.shadow_rays.is_none(),
+                    "the lighting pass counts none"
+                ),
+                Some(_) => bevy_counts_are_the_oracles(b, c, &label),
             }
-            assert!(rel(mb, mc) < 0.05, "frame {k}: mean {mb} vs {mc}");
         }
+    }
+}
+
+/// A resampled Bevy frame's counts, read back, against the oracle's: the same rays per pixel
+/// within 10%, and its own frame's reuse (no history in frame 0, most pixels' after).
+fn bevy_counts_are_the_oracles(b: &SequenceFrame, c: &SequenceFrame, label: &str) {
+    let (rb, rc) = (b.stats.shadow_rays_per_pixel, c.stats.shadow_rays_per_pixel);
+    eprintln!("  rays per pixel {rb:?} vs {rc:?}");
+    let (rb, rc) = (rb.expect("read back"), rc.unwrap());
+    assert!(rel(rb, rc) < 0.1, "{label}: rays {rb} vs {rc}");
+    let taken = b.stats.reuse.temporal_accepted;
+    let shaded = b.stats.shaded_pixels.unwrap();
+    match b.stats.frame {
+        0 => assert_eq!(taken, 0, "{label}: frame 0 had a history"),
+        _ => assert!(taken > shaded / 2, "{label}: {taken} of {shaded}"),
     }
 }
 

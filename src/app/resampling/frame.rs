@@ -55,14 +55,22 @@ pub(super) fn write_uniforms(
     };
     let r = f.settings;
     let rot = Mat3::from_quat(f.env.rotation);
+    // The bright part's tables replace the gather's whole map; its history is reused while
+    // it is the same light.
+    let bright = state.bright.as_ref();
+    if let Some(b) = bright {
+        b.write(queue, state.current().1);
+    }
+    let bright_history = (bright.zip(prev.and_then(|p| p.bright.as_ref())))
+        .is_some_and(|(b, p)| b.bright.same_light(p));
     let params = ResampleParams {
         width: vp.z,
         height: vp.w,
         n: (state.texels / 6).isqrt(),
         prev_n: prev.map_or(0, |p| p.face_size),
-        bright_count: 0,
+        bright_count: bright.map_or(0, |b| b.count),
         history: prev.is_some() as u32,
-        bright_history: 0,
+        bright_history: bright_history as u32,
         temporal: r.temporal as u32,
         spatial: r.spatial.min(MAX_SPATIAL),
         max_history: r.max_history.max(1) as f32,
@@ -109,18 +117,24 @@ pub(super) fn record(
         reproject: &state.reproject,
         split,
     };
-    gather.record(device, enc, &inputs, (pixels, state.texels));
+    let whole_map = if state.bright.is_some() {
+        0
+    } else {
+        state.texels
+    };
+    gather.record(device, enc, &inputs, (pixels, whole_map));
     let prev = state.prev.as_ref();
     let (prev_surfaces, prev_split, history) = state.previous();
+    let bright = state.bright.as_ref();
     let buffers = PassBuffers {
-        sampler,
+        sampler: bright.map_or(sampler, |b| &b.sampler),
         shade_params: &state.shade_params,
         params: &state.params,
         surfaces,
         prev_surfaces: prev.map(|_| prev_surfaces),
         split,
         prev_split: prev.map(|_| prev_split),
-        bright: None,
+        bright: bright.map(|b| (&b.cdf, &b.ids)),
         bvh: bvh_buffers(&f.bvh),
         prev_bvh: prev.and_then(|p| bvh_buffers(&p.bvh)),
         // The shading's final reservoirs go to the candidates' buffer (read by no later pass).
@@ -181,6 +195,7 @@ pub(super) fn hand_over(
         face_size,
         rotation: f.env.rotation,
         layers: f.layers,
+        bright: state.bright.as_ref().map(|b| b.bright.clone()),
         bvh,
     });
 }

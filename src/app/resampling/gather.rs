@@ -83,7 +83,8 @@ impl GatherPipelines {
         }
     }
 
-    /// Record the gather over `pixels` viewport pixels and `texels` cube texels.
+    /// Record the gather over `pixels` viewport pixels and `texels` cube texels (0: none, the
+    /// split map is written otherwise).
     pub(super) fn record(
         &self,
         device: &wgpu::Device,
@@ -113,7 +114,11 @@ impl GatherPipelines {
             timestamp_writes: None,
         });
         cp.set_bind_group(0, &bind, &[]);
+        // texels 0: the split map is written from the CPU (the bright part, `bright.rs`).
         for (pipeline, count) in [(&self.gather, pixels), (&self.split, texels)] {
+            if count == 0 {
+                continue;
+            }
             let (x, y) = dispatch_size(count, 64);
             cp.set_pipeline(pipeline);
             cp.dispatch_workgroups(x, y, 1);

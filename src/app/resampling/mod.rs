@@ -15,6 +15,7 @@
 //! read back, but for a camera with [`ResamplingReadback`] (offline tools: the frame's counts). Unlike the CPU oracle the Bevy pass has no bright part (the map is resampled
 //! whole, as `split_bright: false`) and no object ids (the geometric tests are normal and depth).
 
+mod bright;
 mod frame;
 mod gather;
 mod readback;
@@ -118,6 +119,7 @@ fn extract_resampling(mut commands: Commands, mut main_world: ResMut<MainWorld>)
         Option<&mut EnvironmentResampling>,
         Option<&ResamplingReadback>,
     )>();
+    bright::extract_stream_map(&mut commands, &main_world);
     for (entity, camera, settings, readback) in cameras.iter_mut(&mut main_world) {
         let Ok(mut target) = commands.get_entity(entity) else {
             continue;
@@ -249,6 +251,7 @@ fn resample_environment(
         Res<EnvisTimings>,
         Res<RenderQueue>,
     ),
+    stream: Option<Res<bright::StreamMap>>,
     mut ctx: RenderContext,
 ) {
     let t0 = std::time::Instant::now();
@@ -286,12 +289,19 @@ fn resample_environment(
     if !history_valid(state.prev.as_ref(), &frame, n) {
         state.prev = None;
     }
-    write_uniforms(&queue, state, &frame, &shade);
     let diagnostics = ctx.diagnostic_recorder();
     let diagnostics = diagnostics.as_deref();
     let enc = ctx.command_encoder();
     // Timed in Bevy's render diagnostics (`render/envis_resampling/elapsed_gpu`).
     let span = diagnostics.time_span(enc, "envis_resampling");
+    bright::view_split(
+        &mut state.bright,
+        (stream.as_deref(), env.image.id()),
+        &slot.sampler,
+        crate::render::pool_seed(vs.seed),
+        (&device, &queue, enc),
+    );
+    write_uniforms(&queue, state, &frame, &shade);
     record(
         enc,
         &device,

@@ -23,6 +23,9 @@ pub(super) struct PreviousFrame {
     /// split map is indexed in map space; other layers cast other shadows).
     pub rotation: Quat,
     pub layers: u32,
+    /// Its bright part, where it had one (`bright::BrightSplit`): the bright history is reused
+    /// only while it is the same light.
+    pub bright: Option<std::sync::Arc<crate::render::resampling::BrightLight>>,
     /// Its shadow BVH (nodes, triangles, node count), when it cast shadow rays: the view's
     /// copy ([`BvhCopy`]), not the live buffers, which moving instances rewrite in place.
     pub bvh: Option<(wgpu::Buffer, wgpu::Buffer, u32)>,
@@ -97,6 +100,8 @@ pub(super) struct ViewResampling {
     pub bvh_copy: Option<BvhCopy>,
     /// Counts copied for `ResamplingReadback`, in flight.
     pub reads: super::readback::Readbacks,
+    /// The stream map's split and the sampler on its rest, where the view is lit by the stream.
+    pub bright: Option<super::bright::BrightSplit>,
     parity: usize,
     /// The previous frame, while its history is valid.
     pub prev: Option<PreviousFrame>,
@@ -148,6 +153,7 @@ impl ViewResampling {
             ran: false,
             bvh_copy: None,
             reads: Default::default(),
+            bright: None,
             parity: 0,
             prev: None,
         })

@@ -12,7 +12,7 @@ mod frame;
 mod layout;
 mod passes;
 
-pub use layout::{GpuReservoir, GpuSurface, ResampleParams};
+pub use layout::{GpuReservoir, GpuSurface, ResampleParams, split_tables};
 pub use passes::{BvhBuffers, PASSES, PassBuffers, ResamplingPasses, STORAGE_BUFFERS};
 
 use frame::{FrameBuffers, Readback};

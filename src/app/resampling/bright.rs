@@ -1,0 +1,155 @@
+//! The map's bright part (a sun) in the Bevy pass, resampled apart from the rest as the CPU
+//! oracle does (`render::resampling::Split`). The split is a CPU step over the map, so it is
+//! made where the render world has the map on the CPU: a camera lit by the envis stream's image
+//! ([`EnvMapStream`], whose frame [`EnvFrame`] is extracted as [`StreamMap`]). Once per map
+//! change, per view: the stream's map resampled to the sampling face size by the CPU twin of the
+//! texel table (`SourceImage::to_cube` of the image's layers, which `gpu_resample_matches_cpu`
+//! ties to the GPU's), split, and its rest built into a sampler of the view's own (the camera's
+//! shared one is built on the whole map, whose light samples would land in the sun, where the
+//! rest is zero). Every frame: that sampler's pool drawn with the frame's seed, and the split
+//! tables written into the frame's split buffer in place of `gather_split`'s whole map. A
+//! camera lit by another image keeps the whole map (`split_bright: false`).
+
+use crate::app::{EnvFrame, EnvMapStream};
+use crate::envmap::CubeMap;
+use crate::envmap::resample::{SourceImage, bevy_cube_layers};
+use crate::gpu::EnvSampler;
+use crate::gpu::resampling::split_tables;
+use crate::render::resampling::{BrightLight, Split};
+use crate::sampling::TileGrid;
+use bevy::prelude::*;
+use bevy::render::MainWorld;
+use std::sync::Arc;
+use wgpu::util::DeviceExt;
+
+/// The envis stream's current frame in the render world: its image and map.
+#[derive(Resource, Clone)]
+pub struct StreamMap {
+    pub image: AssetId<Image>,
+    pub generation: u64,
+    pub map: Arc<CubeMap>,
+}
+
+/// Extract [`StreamMap`] where the app has an envis stream.
+pub(super) fn extract_stream_map(commands: &mut Commands, main_world: &MainWorld) {
+    let (Some(frame), Some(stream)) = (
+        main_world.get_resource::<EnvFrame>(),
+        main_world.get_resource::<EnvMapStream>(),
+    ) else {
+        return;
+    };
+    commands.insert_resource(StreamMap {
+        image: stream.image.id(),
+        generation: frame.generation,
+        map: frame.map.clone(),
+    });
+}
+
+/// A view's split of the stream's map, and the sampler built on its rest.
+pub(super) struct BrightSplit {
+    /// (generation, face size) of the map the tables hold.
+    map_key: (u64, usize),
+    /// Per texel the rest's radiance and the bright part's with its probability
+    /// (`split_tables`), written into each frame's split buffer.
+    tables: Vec<[f32; 4]>,
+    pub cdf: wgpu::Buffer,
+    pub ids: wgpu::Buffer,
+    pub count: u32,
+    pub bright: Arc<BrightLight>,
+    pub sampler: EnvSampler,
+}
+
+/// What the sampler is built for: face size, tiles, pool slots, blocks, `global` table.
+type SamplerShape = (usize, usize, usize, usize, bool);
+
+fn shape(s: &EnvSampler) -> SamplerShape {
+    (s.n, s.tiles, s.m, s.blocks, s.has_global())
+}
+
+/// This frame's split for a view lit by `image` whose camera samples with `like` (its shared
+/// sampler: face size, tiles, pool), its pool drawn with `pool_seed`; `None` (the whole map)
+/// where the image is not the stream's or the sampler cannot be made.
+pub(super) fn view_split<'a>(
+    split: &'a mut Option<BrightSplit>,
+    (stream, image): (Option<&StreamMap>, AssetId<Image>),
+    like: &EnvSampler,
+    pool_seed: u32,
+    (device, queue, enc): (&wgpu::Device, &wgpu::Queue, &mut wgpu::CommandEncoder),
+) -> Option<&'a BrightSplit> {
+    let Some(stream) = stream.filter(|s| s.image == image) else {
+        *split = None;
+        return None;
+    };
+    let map_key = (stream.generation, like.n);
+    let fresh = match split.take() {
+        Some(s) if shape(&s.sampler) == shape(like) && s.map_key == map_key => s,
+        old => {
+            let sampler = match old {
+                Some(s) if shape(&s.sampler) == shape(like) => s.sampler,
+                _ => new_sampler(device, queue, like)?,
+            };
+            let s = build(device, queue, &stream.map, map_key, sampler);
+            s.sampler.encode_distribution(enc, None);
+            s
+        }
+    };
+    fresh.sampler.set_seed(queue, pool_seed);
+    fresh.sampler.encode_pool(enc, None);
+    Some(split.insert(fresh))
+}
+
+/// A sampler shaped as `like`; `None`, with a warning once, where the device refuses.
+fn new_sampler(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    like: &EnvSampler,
+) -> Option<EnvSampler> {
+    let grid = TileGrid::new(like.n, like.tiles);
+    let made = EnvSampler::with_device(device, queue, grid, like.m, false).and_then(|mut s| {
+        s.set_blocks(like.blocks)?;
+        if like.has_global() {
+            s.enable_global(device, queue)?;
+        }
+        Ok(s)
+    });
+    made.map_err(|e| bevy::log::warn_once!("envis resampling: no bright part ({e})"))
+        .ok()
+}
+
+/// Split `map` at the sampler's face size and upload the rest and the bright part's tables.
+fn build(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    map: &CubeMap,
+    map_key: (u64, usize),
+    sampler: EnvSampler,
+) -> BrightSplit {
+    let cube = SourceImage::new_cube(bevy_cube_layers(map)).to_cube(sampler.n);
+    let split = Split::new(&cube);
+    sampler.upload(queue, &split.rest);
+    let (tables, cdf, ids) = split_tables(&split);
+    let init = |label, bytes: &[u8]| {
+        let zeros = [0u8; 16];
+        device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: if bytes.is_empty() { &zeros } else { bytes },
+            usage: wgpu::BufferUsages::STORAGE,
+        })
+    };
+    BrightSplit {
+        map_key,
+        cdf: init("envis bright cdf", bytemuck::cast_slice(&cdf)),
+        ids: init("envis bright texels", bytemuck::cast_slice(&ids)),
+        count: ids.len() as u32,
+        tables,
+        bright: Arc::new(split.bright),
+        sampler,
+    }
+}
+
+impl BrightSplit {
+    /// Write the split tables into this frame's split buffer.
+    pub(super) fn write(&self, queue: &wgpu::Queue, split: &wgpu::Buffer) {
+        queue.write_buffer(split, 0, bytemuck::cast_slice(&self.tables));
+    }
+}
