@@ -13,8 +13,9 @@
 //! message) and without `--cpu-only`, the first four again on the WGSL passes
 //! (`wgpu ...`, a headless device: lavapipe in CI), each timed against `wgpu single 32+32` in the
 //! same sitting; with the `app` feature, the first four once more through Bevy (`bevy ...`:
-//! `envis sequence --backend gpu`, the `EnvironmentResampling` pass, whose map is resampled whole
-//! and whose shadow rays are not counted: `null`; its cost is the GPU timestamps').
+//! `envis sequence --backend gpu`, the `EnvironmentResampling` pass on the stream's map split as
+//! the oracle splits it, its counts read back; the plain rows' rays are not counted, `null`;
+//! its cost is the GPU timestamps').
 //!
 //! Per configuration over the measured frames: mean relMSE and HDR-FLIP against the reference,
 //! lighting cost (build + shading, wall clock) and shadow rays per pixel, and each as a ratio to

@@ -12,8 +12,10 @@
 //!    with one shadow ray for the selected sample (plus the unbiased reuse's visibility rays).
 //!
 //! The lighting pass then shows the resampled image instead of its own estimate. Nothing is
-//! read back, but for a camera with [`ResamplingReadback`] (offline tools: the frame's counts). Unlike the CPU oracle the Bevy pass has no bright part (the map is resampled
-//! whole, as `split_bright: false`) and no object ids (the geometric tests are normal and depth).
+//! read back, but for a camera with [`ResamplingReadback`] (offline tools: the frame's counts).
+//! The map's bright part is resampled apart from the rest where the camera is lit by the envis
+//! stream (`bright.rs`); otherwise the map is resampled whole, as `split_bright: false`. Bevy's
+//! G-buffer has no object ids: the geometric tests are normal and depth.
 
 mod bright;
 mod frame;
