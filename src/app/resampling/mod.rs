@@ -315,7 +315,7 @@ fn resample_environment(
     let histories = state.prev.is_some();
     hand_over(state, &device, enc, geometry, &frame, n);
     if let Some(r) = readback {
-        let buffers = (&state.counters, &state.stats);
+        let buffers = [&state.counters, &state.stats, &state.color];
         state.reads.copy(&device, enc, r, buffers);
     }
     span.end(enc);

@@ -31,7 +31,7 @@ impl ResamplingCounts {
 
 /// One frame's totals over the viewport, as the headless twin counts them
 /// (`gpu::resampling::GpuResampler`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct FrameCounts {
     /// Shadow rays: the selected samples' and the unbiased reuse's visibility rays.
     pub shadow_rays: u64,
@@ -42,32 +42,36 @@ pub struct FrameCounts {
     /// Pixels whose history passed the geometric tests, and neighbours that did.
     pub temporal_accepted: u64,
     pub spatial_accepted: u64,
+    /// The rest's confidence `M` (the history overlay's) over the shaded pixels.
+    pub mean_history: f64,
 }
 
 impl FrameCounts {
-    /// Totals of the per-pixel `counters` (rays, history accepted, neighbours accepted, -) and
-    /// `stats` (light samples available, green, yellow, BRDF samples) of
-    /// `shaders/resampling.wgsl`.
-    fn sum(counters: &[[u32; 4]], stats: &[[u32; 4]]) -> Self {
+    /// Totals of the per-pixel `counters` (rays, history accepted, neighbours accepted, -),
+    /// `stats` (light samples available, green, yellow, BRDF samples) and `color` (image, `M`)
+    /// of `shaders/resampling.wgsl`.
+    fn sum(counters: &[[u32; 4]], stats: &[[u32; 4]], color: &[[f32; 4]]) -> Self {
         let mut c = FrameCounts::default();
-        for (r, s) in counters.iter().zip(stats) {
+        for ((r, s), px) in counters.iter().zip(stats).zip(color) {
+            let shaded = s[0] + s[3] > 0;
             c.shadow_rays += r[0] as u64;
             c.temporal_accepted += r[1] as u64;
             c.spatial_accepted += r[2] as u64;
-            c.shaded_pixels += (s[0] + s[3] > 0) as u64;
+            c.shaded_pixels += shaded as u64;
             c.samples_evaluated += (s[1] + s[2] + s[3]) as u64;
+            c.mean_history += if shaded { px[3] as f64 } else { 0.0 };
         }
+        c.mean_history /= c.shaded_pixels.max(1) as f64;
         c
     }
 }
 
-/// One frame's copies in flight: its tag and sink, and the counters' and stats' reads.
+/// One frame's copies in flight: its tag and sink, and the counters', stats' and image's reads.
 struct Pending {
     tag: u32,
     sink: ResamplingCounts,
-    counters: AsyncRead,
-    stats: AsyncRead,
-    got: [Option<Vec<u8>>; 2],
+    reads: [AsyncRead; 3],
+    got: [Option<Vec<u8>>; 3],
 }
 
 /// A view's reads in flight, oldest first.
@@ -75,27 +79,25 @@ struct Pending {
 pub(super) struct Readbacks(Vec<Pending>);
 
 impl Readbacks {
-    /// Record this frame's copies of `counters` and `stats` (per pixel, 16 bytes each).
+    /// Record this frame's copies of `counters`, `stats` and `color` (per pixel, 16 bytes
+    /// each).
     pub(super) fn copy(
         &mut self,
         device: &wgpu::Device,
         enc: &mut wgpu::CommandEncoder,
         r: &ResamplingReadback,
-        (counters, stats): (&wgpu::Buffer, &wgpu::Buffer),
+        buffers: [&wgpu::Buffer; 3],
     ) {
-        let mut read = |label, b: &wgpu::Buffer| {
-            let a = AsyncRead::new(device, label, b.size());
+        let reads = buffers.map(|b| {
+            let a = AsyncRead::new(device, "envis resampling readback", b.size());
             a.copy_from(enc, b);
             a
-        };
-        let counters = read("envis resampling counters readback", counters);
-        let stats = read("envis resampling stats readback", stats);
+        });
         self.0.push(Pending {
             tag: r.tag,
             sink: r.sink.clone(),
-            counters,
-            stats,
-            got: [None, None],
+            reads,
+            got: [None, None, None],
         });
     }
 
@@ -103,17 +105,18 @@ impl Readbacks {
     /// each frame whose bytes both arrived to its sink.
     pub(super) fn poll(&mut self) {
         self.0.retain_mut(|p| {
-            for (slot, read) in p.got.iter_mut().zip([&p.counters, &p.stats]) {
+            for (slot, read) in p.got.iter_mut().zip(&p.reads) {
                 if slot.is_none() {
                     *slot = read.poll();
                 }
             }
-            let [Some(c), Some(s)] = &p.got else {
+            let [Some(c), Some(s), Some(px)] = &p.got else {
                 return true;
             };
             let counts = FrameCounts::sum(
                 &bytemuck::pod_collect_to_vec(c),
                 &bytemuck::pod_collect_to_vec(s),
+                &bytemuck::pod_collect_to_vec(px),
             );
             if let Ok(mut got) = p.sink.0.lock() {
                 got.push((p.tag, counts));
