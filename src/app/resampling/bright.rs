@@ -14,13 +14,12 @@ use crate::app::{EnvFrame, EnvMapStream};
 use crate::envmap::CubeMap;
 use crate::envmap::resample::{SourceImage, bevy_cube_layers};
 use crate::gpu::EnvSampler;
-use crate::gpu::resampling::split_tables;
+use crate::gpu::resampling::{split_tables, storage_init};
 use crate::render::resampling::{BrightLight, Split};
 use crate::sampling::TileGrid;
 use bevy::prelude::*;
 use bevy::render::MainWorld;
 use std::sync::Arc;
-use wgpu::util::DeviceExt;
 
 /// The envis stream's current frame in the render world: its image and map.
 #[derive(Resource, Clone)]
@@ -66,27 +65,30 @@ fn shape(s: &EnvSampler) -> SamplerShape {
     (s.n, s.tiles, s.m, s.blocks, s.has_global())
 }
 
-/// This frame's split for a view lit by `image` whose camera samples with `like` (its shared
-/// sampler: face size, tiles, pool), its pool drawn with `pool_seed`; `None` (the whole map)
-/// where the image is not the stream's or the sampler cannot be made.
-pub(super) fn view_split<'a>(
-    split: &'a mut Option<BrightSplit>,
+/// Prepare `split`, this frame's split for a view lit by `image` whose camera samples with
+/// `like` (its shared sampler: face size, tiles, pool), its pool drawn with `pool_seed`; left
+/// `None` (the whole map) where the image is not the stream's or the sampler cannot be made.
+pub(super) fn view_split(
+    split: &mut Option<BrightSplit>,
     (stream, image): (Option<&StreamMap>, AssetId<Image>),
     like: &EnvSampler,
     pool_seed: u32,
     (device, queue, enc): (&wgpu::Device, &wgpu::Queue, &mut wgpu::CommandEncoder),
-) -> Option<&'a BrightSplit> {
+) {
+    let old = split.take();
     let Some(stream) = stream.filter(|s| s.image == image) else {
-        *split = None;
-        return None;
+        return;
     };
     let map_key = (stream.generation, like.n);
-    let fresh = match split.take() {
+    let fresh = match old {
         Some(s) if shape(&s.sampler) == shape(like) && s.map_key == map_key => s,
         old => {
             let sampler = match old {
                 Some(s) if shape(&s.sampler) == shape(like) => s.sampler,
-                _ => new_sampler(device, queue, like)?,
+                _ => match new_sampler(device, queue, like) {
+                    Some(s) => s,
+                    None => return,
+                },
             };
             let s = build(device, queue, &stream.map, map_key, sampler);
             s.sampler.encode_distribution(enc, None);
@@ -95,7 +97,7 @@ pub(super) fn view_split<'a>(
     };
     fresh.sampler.set_seed(queue, pool_seed);
     fresh.sampler.encode_pool(enc, None);
-    Some(split.insert(fresh))
+    *split = Some(fresh);
 }
 
 /// A sampler shaped as `like`; `None`, with a warning once, where the device refuses.
@@ -128,18 +130,10 @@ fn build(
     let split = Split::new(&cube);
     sampler.upload(queue, &split.rest);
     let (tables, cdf, ids) = split_tables(&split);
-    let init = |label, bytes: &[u8]| {
-        let zeros = [0u8; 16];
-        device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents: if bytes.is_empty() { &zeros } else { bytes },
-            usage: wgpu::BufferUsages::STORAGE,
-        })
-    };
     BrightSplit {
         map_key,
-        cdf: init("envis bright cdf", bytemuck::cast_slice(&cdf)),
-        ids: init("envis bright texels", bytemuck::cast_slice(&ids)),
+        cdf: storage_init(device, "envis bright cdf", &cdf),
+        ids: storage_init(device, "envis bright texels", &ids),
         count: ids.len() as u32,
         tables,
         bright: Arc::new(split.bright),

@@ -170,8 +170,6 @@ fn drop_stale_views(
     }
 }
 
-/// What the resampling pass keeps: its pipelines (compiled when a camera first resamples) and
-/// each resampling camera's buffers.
 /// Collect the counts copied for [`ResamplingReadback`] (never waits).
 fn poll_readbacks(res: Option<Res<ResamplingResources>>) {
     if let Some(res) = res
@@ -181,6 +179,8 @@ fn poll_readbacks(res: Option<Res<ResamplingResources>>) {
     }
 }
 
+/// What the resampling pass keeps: its pipelines (compiled when a camera first resamples) and
+/// each resampling camera's buffers.
 #[derive(Resource, Default)]
 pub struct ResamplingResources {
     pipelines: OnceLock<(ResamplingPasses, GatherPipelines)>,

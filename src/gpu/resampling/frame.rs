@@ -10,8 +10,12 @@ use crate::visibility::FlatBvh;
 use glam::Vec3;
 use wgpu::util::DeviceExt;
 
-/// A storage buffer holding `data` (at least `min` bytes).
-fn init<T: bytemuck::Pod>(device: &wgpu::Device, label: &str, data: &[T]) -> wgpu::Buffer {
+/// A storage buffer holding `data` (at least 256 bytes: an empty table still binds).
+pub(crate) fn storage_init<T: bytemuck::Pod>(
+    device: &wgpu::Device,
+    label: &str,
+    data: &[T],
+) -> wgpu::Buffer {
     let bytes: &[u8] = bytemuck::cast_slice(data);
     let mut v = bytes.to_vec();
     v.resize(bytes.len().max(256), 0);
@@ -53,17 +57,17 @@ impl FrameBuffers {
         let (tex, cdf, ids) = layout::split_tables(cur.split);
         let res = |label| storage(device, label, n_px as u64 * 96);
         FrameBuffers {
-            surfaces: init(device, "envis surfaces", &surfaces),
-            split: init(device, "envis split map", &tex),
-            bright_cdf: init(device, "envis bright cdf", &cdf),
-            bright_ids: init(device, "envis bright texels", &ids),
+            surfaces: storage_init(device, "envis surfaces", &surfaces),
+            split: storage_init(device, "envis split map", &tex),
+            bright_cdf: storage_init(device, "envis bright cdf", &cdf),
+            bright_ids: storage_init(device, "envis bright texels", &ids),
             bright_count: ids.len() as u32,
             bvh: bvh.map(|b| {
                 let (nodes, tris) = crate::gpu::visibility::upload_bvh(device, b);
                 (nodes, tris, b.tlas_nodes() as u32)
             }),
             reproject: reproject
-                .map(|m| init(device, "envis reprojection", &layout::reprojection(m))),
+                .map(|m| storage_init(device, "envis reprojection", &layout::reprojection(m))),
             res: [
                 res("envis candidates"),
                 res("envis temporal reservoirs"),

@@ -15,6 +15,7 @@ mod passes;
 pub use layout::{GpuReservoir, GpuSurface, ResampleParams, split_tables};
 pub use passes::{BvhBuffers, PASSES, PassBuffers, ResamplingPasses, STORAGE_BUFFERS};
 
+pub(crate) use frame::storage_init;
 use frame::{FrameBuffers, Readback};
 
 use super::GpuContext;
