@@ -150,13 +150,15 @@ fn broken_reuse_is_caught() {
     }
 }
 
-/// The biased option is measurably biased on a scene whose pixels' visibility differs (contact
-/// shadows): the harness has the power to see the bias it trades for fewer rays (|t| > 4), and
-/// prints it per region (docs/temporal.md).
+/// The biased option is measurably biased on a moving scene with contact shadows (its `1 / M`
+/// weights count history and neighbours whose visibility differs): the harness has the power to
+/// see the bias it trades for fewer rays (|t| > 4), and prints it per region
+/// (docs/temporal.md). Held still, since the bright part is no longer reused across pixels and
+/// its candidates see its visibility, the bias fell under what 512 seeds resolve (|t| 2.3).
 #[test]
 fn biased_reuse_bias_is_detected() {
     let dir = tempdir();
-    let scene = support::resampling_scene(&dir, "still-biased", 0.0, 0.0, 0.0, 30.0);
+    let scene = moving(&dir);
     let r = Resampling {
         unbiased: false,
         ..Default::default()
@@ -267,13 +269,15 @@ fn shadow_ray_budget() {
     let dir = tempdir();
     let scene = moving(&dir);
     for (r, most) in [
-        (Some(Resampling::default()), 18.0),
+        // At most 1 + 2 (1 + spatial) for the rest, BRIGHT_LIGHT_SAMPLES + 3 for the bright part.
+        (Some(Resampling::default()), 14.0),
         (
             Some(Resampling {
                 unbiased: false,
                 ..Default::default()
             }),
-            4.0,
+            // The candidates' (1 + BRIGHT_LIGHT_SAMPLES + 1) and a final sample's per part.
+            6.0,
         ),
     ] {
         for f in frames(&scene, 3, 1, r) {

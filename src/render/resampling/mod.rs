@@ -4,39 +4,46 @@
 //! reservoir per pixel ([`Part`]), and per frame, for every pixel and part:
 //! 1. **Candidates**: for the rest, the paper's face-weighted light samples (fractional counts,
 //!    on a distribution built from the rest) and the BRDF samples, exactly as the estimator
-//!    draws them but without shadow rays, streamed into one reservoir ([`CandidateSink`]); for
-//!    the bright part, one sample of its own table and one BRDF sample ([`bright_reservoir`]).
-//!    The target `p̂` is the luminance of the part's unshadowed integrand (BRDF x cosine x the
-//!    part's radiance). The selected sample gets one shadow ray; blocked, the reservoir is
-//!    culled (`W = 0`).
+//!    draws them but without shadow rays, streamed into one reservoir ([`CandidateSink`]); the
+//!    target `p̂` is the luminance of the rest's unshadowed integrand (BRDF x cosine x its
+//!    radiance), and the selected sample gets one shadow ray (blocked, the reservoir is culled:
+//!    `W = 0`). For the bright part, [`BRIGHT_LIGHT_SAMPLES`] samples of its own table and one
+//!    BRDF sample, each shadow-tested ([`bright_reservoir`]): its target is the shadowed
+//!    integrand.
 //! 2. **Temporal reuse**: the previous frame's reservoir at the reprojected pixel (the
 //!    caller's `reproject`), rejected on disocclusion ([`similar`]), its confidence capped at
-//!    `max_history`, its sample's target re-evaluated under this frame's map and geometry, and
-//!    combined with the candidates ([`combine`](combine::combine)). The bright part's history
-//!    only where the bright light has not changed ([`BrightLight::same_light`]). The result is
-//!    the next frame's history.
-//! 3. **Spatial reuse**: `spatial` neighbours' temporal reservoirs in a disc of
+//!    `max_history` and scaled by how far the two pixels' targets agree ([`lobe_agreement`]),
+//!    its sample's target re-evaluated under this frame's map and geometry, and combined with
+//!    the candidates ([`combine`](combine::combine)). The bright part's history only where the
+//!    bright light has not changed ([`BrightLight::same_light`]). The result is the next
+//!    frame's history.
+//! 3. **Spatial reuse** (the rest only): `spatial` neighbours' temporal reservoirs in a disc of
 //!    [`SPATIAL_RADIUS`] pixels, passing the same geometric tests, their confidence capped at
-//!    [`SPATIAL_CONFIDENCE`] of the pixel's, combined the same way. Shading only: fed back as
-//!    history, a neighbour's sample (made for another normal) stays at full confidence for
-//!    frames (measured on the still motion scene: 3.6x against 1.7x the error of today's 32 + 32
-//!    with the temporal result as history, before the cap).
+//!    [`SPATIAL_CONFIDENCE`] of the pixel's and scaled by [`lobe_agreement`], combined the same
+//!    way. Shading only: fed back as history, a neighbour's sample (made for another normal)
+//!    stays at full confidence for frames (measured on the still motion scene: 3.6x against
+//!    1.7x the error of today's 32 + 32 with the temporal result as history, before the cap).
 //! 4. The estimate: `f(Y) V(Y) W` summed over the parts.
 //!
 //! Unbiased by default (pairwise MIS, [`combine`](combine::combine)): shadow rays are the
-//! candidates', one per reused sample (the canonical pixel must see what it selects), and one
-//! per other domain for the canonical sample's MIS weight: at most `2 + 4 (1 + spatial)` per
-//! pixel (18 at the defaults; 7.1 on average on the motion scene, docs/temporal.md). The biased
-//! option spends at most 4. Deterministic: every pass draws from its own per-pixel stream.
+//! candidates' (one for the rest, up to `BRIGHT_LIGHT_SAMPLES + 1` for the bright part), one
+//! per reused sample (the canonical pixel must see what it selects), and one per other domain
+//! for the canonical sample's MIS weight: at most `1 + 2 (1 + spatial)` for the rest and
+//! `BRIGHT_LIGHT_SAMPLES + 3` for the bright part per pixel (14 at the defaults; 6.5 on
+//! average on the motion scene, docs/temporal.md). The biased option spends at most
+//! `BRIGHT_LIGHT_SAMPLES + 4` (the candidates', and a final sample's from elsewhere). Deterministic: every pass draws from its own per-pixel stream.
 
+mod agreement;
 mod bright;
 mod combine;
 mod passes;
 mod reservoir;
 mod settings;
 
+pub use agreement::{AGREEMENT_SCALE, lobe_agreement};
 pub use bright::{
-    BRIGHT_MAX_AREA, BRIGHT_OVER_MEAN, BrightLight, Part, Split, bright_reservoir, bright_threshold,
+    BRIGHT_LIGHT_SAMPLES, BRIGHT_MAX_AREA, BRIGHT_OVER_MEAN, BrightLight, Part, Split,
+    bright_reservoir, bright_threshold,
 };
 pub use combine::{Domain, DomainSurface, combine};
 pub use reservoir::{CandidateSink, Reservoir};
@@ -274,7 +281,9 @@ fn reuse_part(
     for (n, q) in next.iter_mut().zip(res.iter()) {
         n[part as usize] = q[part as usize];
     }
-    if r.spatial > 0 {
+    // The bright part is not reused across pixels: its candidates already see its visibility
+    // (two rays), and a neighbour's penumbra is not this pixel's (docs/temporal.md).
+    if r.spatial > 0 && part == Part::Rest {
         let out = per_pixel_pass(n_px, |i| spatial(cur, r, (res, part), i, stream(3, i)));
         accepted.1 = replace(res, part, rays, out);
     }

@@ -3,7 +3,7 @@
 
 use super::{
     Domain, History, Reproject, Resampling, Reservoir, SPATIAL_CONFIDENCE, SPATIAL_RADIUS, Screen,
-    Surface, combine, similar,
+    Surface, combine, lobe_agreement, similar,
 };
 use crate::render::estimator::{FrameData, shade_pixel_into};
 use crate::render::resampling::{CandidateSink, Part, Reservoirs, bright_reservoir};
@@ -60,7 +60,8 @@ pub(super) fn candidates(
 }
 
 /// Pixel `i` after temporal reuse: its reservoir, the rays cast, whether history was accepted
-/// (1 or 0).
+/// (1 or 0). The history's confidence is capped at `max_history` and scaled by how far the two
+/// pixels' targets agree ([`lobe_agreement`]).
 pub(super) fn temporal(
     cur: &Screen,
     h: &History,
@@ -86,7 +87,7 @@ pub(super) fn temporal(
         return (own, 0, 0);
     };
     let mut old = h.reservoirs[q][part as usize];
-    old.m = old.m.min(r.max_history as f32);
+    old.m = old.m.min(r.max_history as f32) * lobe_agreement(at.px, p.px);
     let domains = [
         Domain::own(own, at),
         Domain::reused(old, p, cur.split, at.px),
@@ -96,7 +97,9 @@ pub(super) fn temporal(
     (out, rays, 1)
 }
 
-/// Pixel `i` after spatial reuse: its reservoir, the rays cast, the neighbours accepted.
+/// Pixel `i` after spatial reuse: its reservoir, the rays cast, the neighbours accepted. A
+/// neighbour's confidence is capped at [`SPATIAL_CONFIDENCE`] of the pixel's and scaled by
+/// [`lobe_agreement`].
 pub(super) fn spatial(
     cur: &Screen,
     r: &Resampling,
@@ -130,7 +133,7 @@ pub(super) fn spatial(
             continue;
         }
         let mut q = res[j][part as usize];
-        q.m = q.m.min(SPATIAL_CONFIDENCE * own.m);
+        q.m = q.m.min(SPATIAL_CONFIDENCE * own.m) * lobe_agreement(at.px, nb.px);
         domains.push(Domain::reused(q, nb, cur.split, at.px));
     }
     let accepted = domains.len() as u32 - 1;
