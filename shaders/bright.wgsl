@@ -65,27 +65,39 @@ fn bright_pdf(d: vec3<f32>) -> f32 {
     return pmf / (h * h) * q * sqrt(q);
 }
 
-// bright_reservoir's `offer`: direction d, the bright light's sample (light) or the BRDF's, into
-// the sink with the power heuristic against the other technique.
-fn bright_offer(sink: Sink, fr: Frame, mat: Material, ol: vec3<f32>, d: vec3<f32>, light: bool) -> Sink {
-    let il = to_local(fr, d);
+// render::resampling::BRIGHT_LIGHT_SAMPLES (a test checks it against Rust).
+const BRIGHT_LIGHT_SAMPLES: u32 = 2u;
+
+// bright_reservoir's `offer`: direction d, one of the bright light's samples (light) or the
+// BRDF's, shadow-tested and into the sink with the power heuristic against the other technique.
+fn bright_offer(sink: Sink, at: BrightAt, d: vec3<f32>, light: bool, rays: ptr<function, u32>) -> Sink {
+    let il = to_local(at.fr, d);
     let l = bright_entry(d).xyz;
-    if (il.z <= 0.0 || all(l == vec3(0.0))) {
+    if (il.z <= 0.0 || all(l == vec3(0.0)) || !visible_from(at.px, at.point, d, rays)) {
         return sink;
     }
-    let p_light = bright_pdf(d);
-    let p_brdf = brdf_pdf(mat, ol, il);
+    let p_light = f32(BRIGHT_LIGHT_SAMPLES) * bright_pdf(d);
+    let p_brdf = brdf_pdf(at.mat, at.ol, il);
     var w = 0.0;
     if (light) {
         w = mis_weight_over_density(MIS_POWER, p_light, p_brdf);
     } else {
         w = mis_weight_over_density(MIS_POWER, p_brdf, p_light);
     }
-    return sink_add(sink, d, brdf_eval(mat, ol, il) * l, il.z, il.z * w);
+    return sink_add(sink, d, brdf_eval(at.mat, at.ol, il) * l, il.z, il.z * w);
 }
 
-// resampling::bright_reservoir: one sample of the bright light and one of the BRDF, one kept
-// and shadow-tested (culled where blocked).
+// The surface the bright part's candidates are drawn at.
+struct BrightAt {
+    px: GPixel,
+    point: vec3<f32>,
+    mat: Material,
+    fr: Frame,
+    ol: vec3<f32>,
+}
+
+// resampling::bright_reservoir: BRIGHT_LIGHT_SAMPLES samples of the bright light and one of the
+// BRDF, each shadow-tested, one kept.
 fn bright_reservoir(px: GPixel, point: vec3<f32>, rng: ptr<function, Rng>, rays: ptr<function, u32>) -> Reservoir {
     if (rp.bright_count == 0u) {
         return reservoir_empty(1.0);
@@ -97,26 +109,25 @@ fn bright_reservoir(px: GPixel, point: vec3<f32>, rng: ptr<function, Rng>, rays:
         return reservoir_empty(1.0);
     }
     let fr = frame_new(n);
-    let ol = to_local(fr, o);
-    let u0 = rng_next_f32(rng);
-    let u1 = rng_next_f32(rng);
-    let u2 = rng_next_f32(rng);
-    let u3 = rng_next_f32(rng);
+    let at = BrightAt(px, point, mat, fr, to_local(fr, o));
+    var u: array<f32, 2u * BRIGHT_LIGHT_SAMPLES + 2u>;
+    for (var k = 0u; k < 2u * BRIGHT_LIGHT_SAMPLES + 2u; k++) {
+        u[k] = rng_next_f32(rng);
+    }
     var sink = sink_new(rng_new(rng_next_u32(rng), 0u));
-    let ls = bright_sample(vec2(u0, u1));
-    if (ls.w > 0.0) {
-        sink = bright_offer(sink, fr, mat, ol, ls.xyz, true);
-    }
-    let bs = brdf_sample(mat, ol, vec2(u2, u3));
-    if (bs.w > 0.0) {
-        sink = bright_offer(sink, fr, mat, ol, normalize(to_world(fr, bs.xyz)), false);
-    }
-    var q = sink_finish(sink);
-    if (q.ucw > 0.0) {
-        q.visible = u32(visible_from(px, point, q.dir, rays));
-        if (q.visible == 0u) {
-            q.ucw = 0.0;
+    for (var k = 0u; k < BRIGHT_LIGHT_SAMPLES; k++) {
+        let ls = bright_sample(vec2(u[2u * k], u[2u * k + 1u]));
+        if (ls.w > 0.0) {
+            sink = bright_offer(sink, at, ls.xyz, true, rays);
         }
     }
+    let ub = 2u * BRIGHT_LIGHT_SAMPLES;
+    let bs = brdf_sample(mat, at.ol, vec2(u[ub], u[ub + 1u]));
+    if (bs.w > 0.0) {
+        sink = bright_offer(sink, at, normalize(to_world(fr, bs.xyz)), false, rays);
+    }
+    var q = sink_finish(sink);
+    // Every candidate was seen: what was kept is visible.
+    q.visible = u32(q.ucw > 0.0);
     return q;
 }

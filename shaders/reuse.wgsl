@@ -58,7 +58,7 @@ fn combine(dom: ptr<function, array<Domain, MAX_DOMAINS>>, count: u32, rng: ptr<
 }
 
 // Pass 2 (passes::temporal): each part's reservoir combined with the history pixel's, its
-// confidence capped at max_history.
+// confidence capped at max_history and scaled by lobe_agreement.
 @compute @workgroup_size(64)
 fn temporal(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let i = pixel_id(gid, nwg);
@@ -73,7 +73,7 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgrou
         let q = history_pixel(i, part);
         if (part_live(part) && s.px.n.w != 0.0 && q >= 0) {
             var old = res_hist[2u * u32(q) + part];
-            old.m = min(old.m, rp.max_history);
+            old.m = min(old.m, rp.max_history) * lobe_agreement(s.px, prev_surfaces[u32(q)].px);
             var dom: array<Domain, MAX_DOMAINS>;
             dom[0] = Domain(own, own.rgb, 0.0, 0.0);
             dom[1] = reused_domain(old, s, part);
@@ -102,8 +102,9 @@ fn round_away(x: f32) -> f32 {
     return select(t, t + sign(x), abs(x - t) >= 0.5);
 }
 
-// Pass 3 (passes::spatial): up to rp.spatial neighbours in a disc of SPATIAL_RADIUS pixels,
-// passing the geometric tests, their confidence capped at SPATIAL_CONFIDENCE of the pixel's.
+// Pass 3 (passes::spatial), for the rest only: up to rp.spatial neighbours in a disc of
+// SPATIAL_RADIUS pixels, passing the geometric tests, their confidence capped at
+// SPATIAL_CONFIDENCE of the pixel's and scaled by lobe_agreement.
 @compute @workgroup_size(64)
 fn spatial(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let i = pixel_id(gid, nwg);
@@ -115,7 +116,7 @@ fn spatial(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroup
     for (var part = 0u; part < 2u; part++) {
         let own = res_in[2u * i + part];
         var out = own;
-        if (part_live(part) && s.px.n.w != 0.0 && rp.spatial > 0u) {
+        if (part == 0u && s.px.n.w != 0.0 && rp.spatial > 0u) {
             var rng = pass_rng(3u + 4u * part, i);
             var dom: array<Domain, MAX_DOMAINS>;
             var at: array<u32, MAX_DOMAINS>;
@@ -164,7 +165,7 @@ fn spatial_domains(i: u32, part: u32, dom: ptr<function, array<Domain, MAX_DOMAI
             continue;
         }
         var q = res_in[2u * j + part];
-        q.m = min(q.m, SPATIAL_CONFIDENCE * own_m);
+        q.m = min(q.m, SPATIAL_CONFIDENCE * own_m) * lobe_agreement(s.px, nb.px);
         (*dom)[count] = reused_domain(q, s, part);
         (*at)[count] = j;
         count += 1u;
@@ -187,4 +188,37 @@ fn neighbour_targets(dom: ptr<function, array<Domain, MAX_DOMAINS>>, at: ptr<fun
         }
         (*dom)[j].p_at_c = t;
     }
+}
+
+// agreement::lobe_agreement: 1 where two pixels' targets are the same function of direction,
+// falling as their lobes (diffuse about the normal, glossy about the mirror direction) part,
+// mixed by a's albedos.
+fn lobe_agreement(a: GPixel, b: GPixel) -> f32 {
+    let na = normalize_or_zero(a.n.xyz);
+    let nb = normalize_or_zero(b.n.xyz);
+    let diffuse = agreement_near(na, nb, DIFFUSE_WIDTH);
+    let lobe = u32(a.kd.w);
+    if (lobe == LOBE_NONE) {
+        return diffuse;
+    }
+    var width = 2.0 * a.ks.w;
+    if (lobe == LOBE_PHONG) {
+        width = sqrt(2.0 / max(a.ks.w, 1e-3));
+    }
+    let kd = luminance(a.kd.xyz);
+    let ks = luminance(a.ks.xyz);
+    if (kd + ks <= 0.0) {
+        return diffuse;
+    }
+    let oa = normalize_or_zero(a.o.xyz);
+    let ob = normalize_or_zero(b.o.xyz);
+    let glossy = agreement_near(reflect_about(oa, na), reflect_about(ob, nb), width);
+    return (kd * diffuse + ks * glossy) / (kd + ks);
+}
+
+// exp(-(angle / (AGREEMENT_SCALE width))^2), the squared angle as the squared chord.
+fn agreement_near(x: vec3<f32>, y: vec3<f32>, width: f32) -> f32 {
+    let w = AGREEMENT_SCALE * width;
+    let d = x - y;
+    return exp(-dot(d, d) / (w * w));
 }

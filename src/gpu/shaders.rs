@@ -170,9 +170,15 @@ mod tests {
             ("SPATIAL_CONFIDENCE", r::SPATIAL_CONFIDENCE),
             ("NORMAL_COS", r::NORMAL_COS),
             ("DEPTH_REL", r::DEPTH_REL),
+            ("AGREEMENT_SCALE", r::AGREEMENT_SCALE),
+            ("DIFFUSE_WIDTH", r::DIFFUSE_WIDTH),
         ] {
             assert_eq!(wgsl_const(super::RESAMPLING, name), value, "{name}");
         }
+        let samples = (super::BRIGHT.lines())
+            .find_map(|l| l.strip_prefix("const BRIGHT_LIGHT_SAMPLES: u32 = "))
+            .expect("no BRIGHT_LIGHT_SAMPLES in bright.wgsl");
+        assert_eq!(samples, format!("{}u;", r::BRIGHT_LIGHT_SAMPLES));
         assert_eq!(
             wgsl_const(super::LIGHTING, "HISTORY_FULL_SCALE"),
             crate::gpu::resampling::HISTORY_FULL_SCALE

@@ -25,7 +25,7 @@ use glam::Vec3;
 pub const AGREEMENT_SCALE: f32 = 0.1;
 
 /// Angular width (radians) of the diffuse cosine lobe.
-const DIFFUSE_WIDTH: f32 = 1.0;
+pub const DIFFUSE_WIDTH: f32 = 1.0;
 
 /// `1` where pixels `a` and `b` have the same target (as a function of direction), falling
 /// towards `0` as their lobes part: per lobe (diffuse about the normal, glossy about the
