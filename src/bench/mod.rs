@@ -113,6 +113,11 @@ pub struct BenchArgs {
     /// Motion suite: the animated scene file (default: `assets/scenes/motion.toml`).
     #[arg(long)]
     pub scene: Option<PathBuf>,
+    /// Motion suite: run every configuration with this many seeds (the scene's, then the next
+    /// ones) and report the means: a few pixels far off their reference dominate a
+    /// sequence's relMSE, so one seed's figure can be 30% off another's.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    pub seeds: u32,
 }
 
 pub(crate) fn median(mut v: Vec<f64>) -> f64 {

@@ -17,7 +17,7 @@
 //! the oracle splits it, its counts read back; the plain rows' rays are not counted, `null`;
 //! its cost is the GPU timestamps').
 //!
-//! Per configuration over the measured frames: mean relMSE and HDR-FLIP against the reference,
+//! Per configuration over the measured frames (and `--seeds` seeds): mean relMSE and HDR-FLIP against the reference,
 //! lighting cost (build + shading, wall clock) and shadow rays per pixel, and each as a ratio to
 //! `single 32+32` on the same backend. The reference of a frame is today's estimator at `REF_SAMPLES` + `REF_SAMPLES`
 //! samples (unbiased; its own relMSE is printed, so the floor is known). Writes
@@ -52,7 +52,7 @@ pub struct MotionRow {
     pub relmse_ratio: f64,
     pub flip_ratio: f64,
     pub cost_ratio: f64,
-    /// Per measured frame: (frame, relMSE).
+    /// Per measured frame: (frame, relMSE, the mean over seeds).
     pub per_frame: Vec<(u32, f64)>,
 }
 
@@ -100,6 +100,7 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
         "size": m.size,
         "frames": [m.first, m.frames],
         "reference_samples": REF_SAMPLES,
+        "seeds": m.seeds,
         "threads": rayon::current_num_threads(),
         "rows": rows,
     });
@@ -189,6 +190,8 @@ struct Motion {
     first: u32,
     frames: u32,
     refs: Vec<Image>,
+    /// Seeds per configuration (`--seeds`).
+    seeds: u32,
 }
 
 impl Motion {
@@ -212,6 +215,7 @@ impl Motion {
             first,
             frames,
             refs,
+            seeds: a.seeds,
         })
     }
 
@@ -248,22 +252,37 @@ impl Motion {
             cost_ratio: 1.0,
             per_frame: Vec::new(),
         };
-        sequence::run(&self.scene, &o, |f| {
-            let k = f.stats.frame;
-            if k < self.first {
-                return Ok(());
-            }
-            let rf = &self.refs[(k - self.first) as usize];
-            let e = relmse(&f.image, rf);
-            row.per_frame.push((k, e));
-            row.relmse += e;
-            row.flip +=
-                super::flip::hdr_flip(&rf.data, &f.image.data, self.size, self.size).1 as f64;
-            row.frame_ms += f.stats.build_ms + f.stats.shade_ms;
-            row.shadow_rays_per_pixel += f.stats.shadow_rays_per_pixel.unwrap_or(f64::NAN);
-            Ok(())
-        })?;
-        let m = (self.frames - self.first) as f64;
+        let mut per_frame = vec![0.0; (self.frames - self.first) as usize];
+        for s in 0..self.seeds {
+            let o = SequenceOptions {
+                settings: Settings {
+                    seed: o.settings.seed.wrapping_add(s),
+                    ..o.settings
+                },
+                ..o
+            };
+            sequence::run(&self.scene, &o, |f| {
+                let k = f.stats.frame;
+                if k < self.first {
+                    return Ok(());
+                }
+                let rf = &self.refs[(k - self.first) as usize];
+                let e = relmse(&f.image, rf);
+                per_frame[(k - self.first) as usize] += e;
+                row.relmse += e;
+                row.flip +=
+                    super::flip::hdr_flip(&rf.data, &f.image.data, self.size, self.size).1 as f64;
+                row.frame_ms += f.stats.build_ms + f.stats.shade_ms;
+                row.shadow_rays_per_pixel += f.stats.shadow_rays_per_pixel.unwrap_or(f64::NAN);
+                Ok(())
+            })?;
+        }
+        let n = self.seeds as f64;
+        row.per_frame = (self.first..self.frames)
+            .zip(per_frame)
+            .map(|(k, e)| (k, e / n))
+            .collect();
+        let m = (self.frames - self.first) as f64 * n;
         row.relmse /= m;
         row.flip /= m;
         row.frame_ms /= m;

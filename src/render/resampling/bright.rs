@@ -10,12 +10,13 @@
 //! - **the rest** (the map with the bright texels zeroed, [`Split::rest`]) is smooth and mostly
 //!   seen where the sun is not: the paper's face-weighted sampler is built on it, and its
 //!   samples are resampled and reused across pixels and frames;
-//! - **the bright part** is tiny, so its samples share one visibility (one ray decides it, but
-//!   in a penumbra): one sample of its own table ([`BrightLight`], texels in proportion to
-//!   `Y Ω`) and one of the BRDF, balance heuristic, resampled to one shadow ray
-//!   ([`bright_estimate`]). Sampled from the paper's distribution instead, the sun would get a
-//!   random number of the pixel's few light samples (its face's fractional count, and the
-//!   face's sky beside it), the estimate's spread at 4 + 4 candidates.
+//! - **the bright part** is tiny, so its samples nearly share one visibility (except in a
+//!   penumbra): [`BRIGHT_LIGHT_SAMPLES`] samples of its own table ([`BrightLight`], texels in
+//!   proportion to `Y Ω`) and one of the BRDF, power heuristic, each shadow-tested, resampled
+//!   to one ([`bright_reservoir`]) and reused across frames. Sampled from the paper's
+//!   distribution instead, the sun would get a random number of the pixel's few light samples
+//!   (its face's fractional count, and the face's sky beside it), the estimate's spread at
+//!   4 + 4 candidates.
 //!
 //! The split is a fixed function of direction in each frame (a texel is bright or not), so the
 //! two estimates sum to an unbiased estimate of the whole.
