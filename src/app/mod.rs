@@ -273,6 +273,9 @@ pub struct Counters {
     /// those, the frames that had a history to reuse (not the first, not after a reset).
     pub resampling_passes: AtomicU64,
     pub resampling_histories: AtomicU64,
+    /// Of those, the frames that resampled the map's bright part apart (a map on the CPU: the
+    /// envis stream's, or an image with its texels in the main world; and a bright part in it).
+    pub resampling_bright: AtomicU64,
     /// Cameras whose resampling buffers the render world keeps (a gauge): those gone or no
     /// longer resampling are dropped.
     pub resampling_views: AtomicU64,

@@ -19,6 +19,22 @@ fn sphere_app(
     sampling: EnvironmentSampling,
     resampling: Option<EnvironmentResampling>,
 ) -> (HeadlessApp, Handle<Image>, Entity) {
+    let (env, _) = super::bevy_plugin::latlong_image(16, |d| {
+        let patch = d
+            .dot(Vec3::new(0.5, 0.7, 0.5).normalize())
+            .max(0.0)
+            .powi(16);
+        Vec3::new(0.3, 0.4, 0.6) * (0.5 + 0.5 * d.y.max(0.0)) + Vec3::splat(20.0 * patch)
+    });
+    sphere_app_lit(sampling, resampling, env)
+}
+
+/// [`sphere_app`] lit by the image `env`.
+fn sphere_app_lit(
+    sampling: EnvironmentSampling,
+    resampling: Option<EnvironmentResampling>,
+    env: Image,
+) -> (HeadlessApp, Handle<Image>, Entity) {
     let mut h = HeadlessApp::new();
     let mesh = h.add::<Mesh>(Sphere::new(1.0).mesh().ico(6).expect("icosphere"));
     let mat = h.add::<StandardMaterial>(StandardMaterial {
@@ -29,13 +45,6 @@ fn sphere_app(
     h.app
         .world_mut()
         .spawn((Mesh3d(mesh), MeshMaterial3d(mat), Transform::IDENTITY));
-    let (env, _) = super::bevy_plugin::latlong_image(16, |d| {
-        let patch = d
-            .dot(Vec3::new(0.5, 0.7, 0.5).normalize())
-            .max(0.0)
-            .powi(16);
-        Vec3::new(0.3, 0.4, 0.6) * (0.5 + 0.5 * d.y.max(0.0)) + Vec3::splat(20.0 * patch)
-    });
     let env = h.add::<Image>(env);
     let target = h.float_target(SIZE, SIZE);
     let (projection, transform) = sphere_view();
@@ -59,6 +68,18 @@ fn candidates() -> EnvironmentSampling {
         brdf_samples: 4,
         ..default()
     }
+}
+
+/// Mean luminance over the sphere's inside pixels in its upper and its lower half.
+fn half_means(img: &[Vec3]) -> [f64; 2] {
+    let inside = on_sphere(SIZE);
+    let half = |upper: bool| {
+        let idx: Vec<usize> = (0..img.len())
+            .filter(|&i| inside(i) && ((i as u32 / SIZE) < SIZE / 2) == upper)
+            .collect();
+        idx.iter().map(|&i| luminance(img[i]) as f64).sum::<f64>() / idx.len() as f64
+    };
+    [half(true), half(false)]
 }
 
 /// Mean luminance over the sphere's inside pixels.
@@ -222,4 +243,56 @@ fn bevy_resampling_removed_gives_the_plain_image() {
         worst <= 1e-5,
         "without resampling the image differs by {worst}"
     );
+}
+
+/// A camera lit by a user's image (not the envis stream) resamples the map's bright part apart
+/// where the image keeps its texels in the main world (`RenderAssetUsages::default()`, what
+/// Bevy's loaders give): `resampling_bright` counts its frames, and the means of the sphere's
+/// upper and lower halves are the plain estimator's (the split's tables are the radiance the
+/// passes read: a map read upside down lights the other half). Without main-world texels the
+/// map is resampled whole, and the means are right too.
+#[test]
+fn bevy_resampling_splits_a_user_image() {
+    let Some(_) = gpu() else { return };
+    let sun = Vec3::new(0.4, 0.8, 0.45).normalize();
+    let sky = |usage| {
+        let (mut img, _) = super::bevy_plugin::latlong_image(32, |d| {
+            let disc = if d.dot(sun) > 0.995 { 2000.0 } else { 0.0 };
+            Vec3::new(0.3, 0.4, 0.6) * (0.5 + 0.5 * d.y.max(0.0)) + Vec3::splat(disc)
+        });
+        img.asset_usage = usage;
+        img
+    };
+    let all = bevy::asset::RenderAssetUsages::default();
+    let reference = {
+        let s = EnvironmentSampling {
+            light_samples: 32,
+            brdf_samples: 32,
+            ..default()
+        };
+        let (mut h, target, _) = sphere_app_lit(s, None, sky(all));
+        half_means(&h.capture(&target).unwrap())
+    };
+    let gpu_only = bevy::asset::RenderAssetUsages::RENDER_WORLD;
+    for (usage, split) in [(all, true), (gpu_only, false)] {
+        let r = Some(EnvironmentResampling::default());
+        let (mut h, target, _) = sphere_app_lit(candidates(), r, sky(usage));
+        let a = half_means(&h.capture(&target).unwrap());
+        let b = half_means(&h.capture_next(&target).unwrap());
+        let c = h.counters();
+        let (passes, bright) = (
+            c.get(|c| &c.resampling_passes),
+            c.get(|c| &c.resampling_bright),
+        );
+        eprintln!(
+            "split {split}: halves {a:.4?}, {b:.4?}, reference {reference:.4?}; {bright} of {passes} frames split"
+        );
+        for (m, r) in a.into_iter().chain(b).zip(reference.into_iter().cycle()) {
+            assert!(rel(m, r) < 0.05, "split {split}: half mean {m} vs {r}");
+        }
+        match split {
+            true => assert!(bright + 1 >= passes && passes > 3, "{bright} of {passes}"),
+            false => assert_eq!(bright, 0),
+        }
+    }
 }

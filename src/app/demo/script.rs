@@ -248,6 +248,7 @@ fn script_report(
         "overlay_passes": counters.get(|c| &c.overlay_passes),
         "resampling_passes": counters.get(|c| &c.resampling_passes),
         "resampling_histories": counters.get(|c| &c.resampling_histories),
+        "resampling_bright": counters.get(|c| &c.resampling_bright),
         "probe": state.pixel.as_ref().map(|(d, g, gpu)| serde_json::json!({
             "normal": g.n, "gpu_estimate": gpu, "cpu_estimate": d.estimate,
             "red": d.samples.iter().filter(|s| s.kind == SampleKind::Discarded).count(),

@@ -1,52 +1,26 @@
 //! The map's bright part (a sun) in the Bevy pass, resampled apart from the rest as the CPU
-//! oracle does (`render::resampling::Split`). The split is a CPU step over the map, so it is
-//! made where the render world has the map on the CPU: a camera lit by the envis stream's image
-//! ([`EnvMapStream`], whose frame [`EnvFrame`] is extracted as [`StreamMap`]). Once per map
-//! change, per view: the stream's map resampled to the sampling face size by the CPU twin of the
-//! texel table (`SourceImage::to_cube` of the image's layers, which `gpu_resample_matches_cpu`
+//! oracle does (`render::resampling::Split`). The split is a CPU step over the map, made from
+//! the camera's map on the CPU ([`CpuEnvMaps`]: the envis stream's frame, or the texels of
+//! a user's image). Once per map change, per view: the map resampled to the sampling face size
+//! by the CPU twin of the texel table (`SourceImage::to_cube`, which `gpu_resample_matches_cpu`
 //! ties to the GPU's), split, and its rest built into a sampler of the view's own (the camera's
 //! shared one is built on the whole map, whose light samples would land in the sun, where the
 //! rest is zero). Every frame: that sampler's pool drawn with the frame's seed, and the split
 //! tables written into the frame's split buffer in place of `gather_split`'s whole map. A
-//! camera lit by another image keeps the whole map (`split_bright: false`).
+//! camera whose map has no CPU copy keeps the whole map (`split_bright: false`).
 
-use crate::app::{EnvFrame, EnvMapStream};
-use crate::envmap::CubeMap;
-use crate::envmap::resample::{SourceImage, bevy_cube_layers};
+use super::cpu_maps::CpuEnvMaps;
+use crate::envmap::resample::SourceImage;
 use crate::gpu::EnvSampler;
 use crate::gpu::resampling::{split_tables, storage_init};
 use crate::render::resampling::{BrightLight, Split};
 use crate::sampling::TileGrid;
 use bevy::prelude::*;
-use bevy::render::MainWorld;
 use std::sync::Arc;
 
-/// The envis stream's current frame in the render world: its image and map.
-#[derive(Resource, Clone)]
-pub struct StreamMap {
-    pub image: AssetId<Image>,
-    pub generation: u64,
-    pub map: Arc<CubeMap>,
-}
-
-/// Extract [`StreamMap`] where the app has an envis stream.
-pub(super) fn extract_stream_map(commands: &mut Commands, main_world: &MainWorld) {
-    let (Some(frame), Some(stream)) = (
-        main_world.get_resource::<EnvFrame>(),
-        main_world.get_resource::<EnvMapStream>(),
-    ) else {
-        return;
-    };
-    commands.insert_resource(StreamMap {
-        image: stream.image.id(),
-        generation: frame.generation,
-        map: frame.map.clone(),
-    });
-}
-
-/// A view's split of the stream's map, and the sampler built on its rest.
+/// A view's split of its map, and the sampler built on its rest.
 pub(super) struct BrightSplit {
-    /// (generation, face size) of the map the tables hold.
+    /// (`CpuEnvMap::revision`, face size) of the map the tables hold.
     map_key: (u64, usize),
     /// Per texel the rest's radiance and the bright part's with its probability
     /// (`split_tables`), written into each frame's split buffer.
@@ -67,19 +41,19 @@ fn shape(s: &EnvSampler) -> SamplerShape {
 
 /// Prepare `split`, this frame's split for a view lit by `image` whose camera samples with
 /// `like` (its shared sampler: face size, tiles, pool), its pool drawn with `pool_seed`; left
-/// `None` (the whole map) where the image is not the stream's or the sampler cannot be made.
+/// `None` (the whole map) where the image has no CPU copy or the sampler cannot be made.
 pub(super) fn view_split(
     split: &mut Option<BrightSplit>,
-    (stream, image): (Option<&StreamMap>, AssetId<Image>),
+    (maps, image): (Option<&CpuEnvMaps>, AssetId<Image>),
     like: &EnvSampler,
     pool_seed: u32,
     (device, queue, enc): (&wgpu::Device, &wgpu::Queue, &mut wgpu::CommandEncoder),
 ) {
     let old = split.take();
-    let Some(stream) = stream.filter(|s| s.image == image) else {
+    let Some(map) = maps.and_then(|m| m.maps.get(&image)) else {
         return;
     };
-    let map_key = (stream.generation, like.n);
+    let map_key = (map.revision, like.n);
     let fresh = match old {
         Some(s) if shape(&s.sampler) == shape(like) && s.map_key == map_key => s,
         old => {
@@ -90,7 +64,7 @@ pub(super) fn view_split(
                     None => return,
                 },
             };
-            let s = build(device, queue, &stream.map, map_key, sampler);
+            let s = build(device, queue, &map.source, map_key, sampler);
             s.sampler.encode_distribution(enc, None);
             s
         }
@@ -122,11 +96,11 @@ fn new_sampler(
 fn build(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
-    map: &CubeMap,
+    map: &SourceImage,
     map_key: (u64, usize),
     sampler: EnvSampler,
 ) -> BrightSplit {
-    let cube = SourceImage::new_cube(bevy_cube_layers(map)).to_cube(sampler.n);
+    let cube = map.to_cube(sampler.n);
     let split = Split::new(&cube);
     sampler.upload(queue, &split.rest);
     let (tables, cdf, ids) = split_tables(&split);

@@ -13,16 +13,19 @@
 //!
 //! The lighting pass then shows the resampled image instead of its own estimate. Nothing is
 //! read back, but for a camera with [`ResamplingReadback`] (offline tools: the frame's counts).
-//! The map's bright part is resampled apart from the rest where the camera is lit by the envis
-//! stream (`bright.rs`); otherwise the map is resampled whole, as `split_bright: false`. Bevy's
+//! The map's bright part is resampled apart from the rest (`bright.rs`) where the camera's map
+//! is on the CPU (`cpu_maps.rs`: the envis stream's frame, or a user image's texels); otherwise
+//! the map is resampled whole, as `split_bright: false`. Bevy's
 //! G-buffer has no object ids: the geometric tests are normal and depth.
 
 mod bright;
+mod cpu_maps;
 mod frame;
 mod gather;
 mod readback;
 mod view;
 
+pub use cpu_maps::source_from_image;
 pub use readback::{FrameCounts, ResamplingCounts, ResamplingReadback};
 
 use super::components::{EnvironmentSampling, EnvisEnvironment};
@@ -95,6 +98,7 @@ impl Plugin for EnvisResamplingPlugin {
         };
         render_app
             .init_resource::<ResamplingResources>()
+            .init_resource::<cpu_maps::CpuEnvMaps>()
             .add_systems(ExtractSchedule, extract_resampling)
             .add_systems(
                 Render,
@@ -114,14 +118,18 @@ impl Plugin for EnvisResamplingPlugin {
 
 /// Copy each active camera's [`EnvironmentResampling`] (and [`ResamplingReadback`]) into the
 /// render world (removed there when it is removed here), then clear its `reset`, as TAA does.
-fn extract_resampling(mut commands: Commands, mut main_world: ResMut<MainWorld>) {
+fn extract_resampling(
+    mut commands: Commands,
+    mut main_world: ResMut<MainWorld>,
+    mut maps: ResMut<cpu_maps::CpuEnvMaps>,
+) {
     let mut cameras = main_world.query::<(
         RenderEntity,
         &Camera,
         Option<&mut EnvironmentResampling>,
         Option<&ResamplingReadback>,
     )>();
-    bright::extract_stream_map(&mut commands, &main_world);
+    cpu_maps::extract_cpu_maps(&mut maps, &mut main_world);
     for (entity, camera, settings, readback) in cameras.iter_mut(&mut main_world) {
         let Ok(mut target) = commands.get_entity(entity) else {
             continue;
@@ -253,7 +261,7 @@ fn resample_environment(
         Res<EnvisTimings>,
         Res<RenderQueue>,
     ),
-    stream: Option<Res<bright::StreamMap>>,
+    maps: Option<Res<cpu_maps::CpuEnvMaps>>,
     mut ctx: RenderContext,
 ) {
     let t0 = std::time::Instant::now();
@@ -298,7 +306,7 @@ fn resample_environment(
     let span = diagnostics.time_span(enc, "envis_resampling");
     bright::view_split(
         &mut state.bright,
-        (stream.as_deref(), env.image.id()),
+        (maps.as_deref(), env.image.id()),
         &slot.sampler,
         crate::render::pool_seed(vs.seed),
         (&device, &queue, enc),
@@ -313,6 +321,7 @@ fn resample_environment(
         &frame,
     );
     let histories = state.prev.is_some();
+    let bright = state.bright.as_ref().is_some_and(|b| b.count > 0);
     hand_over(state, &device, enc, geometry, &frame, n);
     if let Some(r) = readback {
         let buffers = [&state.counters, &state.stats, &state.color];
@@ -324,6 +333,9 @@ fn resample_environment(
     timings.set(|t| t.resampling_cpu_ms = Some(ms));
     if histories {
         counters.bump(|c| &c.resampling_histories);
+    }
+    if bright {
+        counters.bump(|c| &c.resampling_bright);
     }
 }
 
