@@ -83,6 +83,7 @@ const NORMAL_COS: f32 = 0.9;
 const DEPTH_REL: f32 = 0.1;
 const AGREEMENT_SCALE: f32 = 0.1;
 const DIFFUSE_WIDTH: f32 = 1.0;
+const MIN_AGREEMENT_WIDTH: f32 = 0.001;
 const TAU: f32 = 6.28318530717959;
 
 // The candidates' sink (resample's CandidateSink); emit (shade.wgsl) streams into it.

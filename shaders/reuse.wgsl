@@ -218,7 +218,7 @@ fn lobe_agreement(a: GPixel, b: GPixel) -> f32 {
 
 // exp(-(angle / (AGREEMENT_SCALE width))^2), the squared angle as the squared chord.
 fn agreement_near(x: vec3<f32>, y: vec3<f32>, width: f32) -> f32 {
-    let w = AGREEMENT_SCALE * width;
+    let w = max(AGREEMENT_SCALE * width, MIN_AGREEMENT_WIDTH);
     let d = x - y;
     return exp(-dot(d, d) / (w * w));
 }

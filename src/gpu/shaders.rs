@@ -172,6 +172,7 @@ mod tests {
             ("DEPTH_REL", r::DEPTH_REL),
             ("AGREEMENT_SCALE", r::AGREEMENT_SCALE),
             ("DIFFUSE_WIDTH", r::DIFFUSE_WIDTH),
+            ("MIN_AGREEMENT_WIDTH", r::MIN_AGREEMENT_WIDTH),
         ] {
             assert_eq!(wgsl_const(super::RESAMPLING, name), value, "{name}");
         }

@@ -27,6 +27,10 @@ pub const AGREEMENT_SCALE: f32 = 0.1;
 /// Angular width (radians) of the diffuse cosine lobe.
 pub const DIFFUSE_WIDTH: f32 = 1.0;
 
+/// The scaled width never falls under this (radians): a mirror (GGX `alpha` 0, as a Bevy
+/// material of roughness 0 gives) would otherwise divide 0 by 0 where nothing moved.
+pub const MIN_AGREEMENT_WIDTH: f32 = 1e-3;
+
 /// `1` where pixels `a` and `b` have the same target (as a function of direction), falling
 /// towards `0` as their lobes part: per lobe (diffuse about the normal, glossy about the
 /// mirror direction) `exp(-(angle / (AGREEMENT_SCALE width))^2)`, mixed by the lobes' albedos
@@ -51,7 +55,7 @@ pub fn lobe_agreement(a: &GPixel, b: &GPixel) -> f32 {
 /// taken as the squared chord `|x - y|^2` (equal to fourth order; exactly 0 for equal vectors,
 /// and no `acos` for the WGSL twin to round otherwise).
 fn near(x: Vec3, y: Vec3, width: f32) -> f32 {
-    let w = AGREEMENT_SCALE * width;
+    let w = (AGREEMENT_SCALE * width).max(MIN_AGREEMENT_WIDTH);
     (-(x - y).length_squared() / (w * w)).exp()
 }
 
@@ -94,7 +98,7 @@ mod tests {
     #[test]
     fn same_geometry_agrees_fully() {
         let (n, o) = (Vec3::new(0.3, 1.0, 0.2).normalize(), Vec3::Z);
-        for m in [diffuse(), glossy(0.2)] {
+        for m in [diffuse(), glossy(0.2), glossy(0.0)] {
             assert_eq!(lobe_agreement(&px(n, o, m), &px(n, o, m)), 1.0);
         }
     }

@@ -40,7 +40,7 @@ mod passes;
 mod reservoir;
 mod settings;
 
-pub use agreement::{AGREEMENT_SCALE, DIFFUSE_WIDTH, lobe_agreement};
+pub use agreement::{AGREEMENT_SCALE, DIFFUSE_WIDTH, MIN_AGREEMENT_WIDTH, lobe_agreement};
 pub use bright::{
     BRIGHT_LIGHT_SAMPLES, BRIGHT_MAX_AREA, BRIGHT_OVER_MEAN, BrightLight, Part, Split,
     bright_reservoir, bright_threshold,
