@@ -50,10 +50,10 @@ pub(super) fn view_split(
     (device, queue, enc): (&wgpu::Device, &wgpu::Queue, &mut wgpu::CommandEncoder),
 ) {
     let old = split.take();
-    let Some(map) = maps.and_then(|m| m.maps.get(&image)) else {
+    let Some((revision, map)) = maps.and_then(|m| m.source(image)) else {
         return;
     };
-    let map_key = (map.revision, like.n);
+    let map_key = (revision, like.n);
     let fresh = match old {
         Some(s) if shape(&s.sampler) == shape(like) && s.map_key == map_key => s,
         old => {
@@ -64,7 +64,7 @@ pub(super) fn view_split(
                     None => return,
                 },
             };
-            let s = build(device, queue, &map.source, map_key, sampler);
+            let s = build(device, queue, map, map_key, sampler);
             s.sampler.encode_distribution(enc, None);
             s
         }

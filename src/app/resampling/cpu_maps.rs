@@ -35,7 +35,9 @@ pub struct CpuEnvMap {
     version: Version,
     /// Distinct for every content this cache has held: what a view's split is keyed by.
     pub revision: u64,
-    pub source: Arc<SourceImage>,
+    /// `None` where this version could not be read (said once; not tried again until the
+    /// image changes).
+    pub source: Option<Arc<SourceImage>>,
 }
 
 /// The render world's CPU copies of the maps resampling cameras are lit by, by image.
@@ -46,8 +48,14 @@ pub struct CpuEnvMaps {
 }
 
 impl CpuEnvMaps {
-    /// Keep `id`'s entry if it is at `version`, else make it with `make` (no entry where
-    /// `make` fails).
+    /// The map of `image`, where there is one on the CPU.
+    pub fn source(&self, image: AssetId<Image>) -> Option<(u64, &SourceImage)> {
+        let m = self.maps.get(&image)?;
+        Some((m.revision, m.source.as_deref()?))
+    }
+
+    /// Keep `id`'s entry if it is at `version`, else make it with `make` (an entry without a
+    /// map, and one warning, where `make` fails).
     fn refresh(
         &mut self,
         id: AssetId<Image>,
@@ -57,30 +65,27 @@ impl CpuEnvMaps {
         if self.maps.get(&id).is_some_and(|m| m.version == version) {
             return;
         }
-        self.maps.remove(&id);
-        match make() {
-            Ok(source) => {
-                self.revisions += 1;
-                let revision = self.revisions;
-                let source = Arc::new(source);
-                self.maps.insert(
-                    id,
-                    CpuEnvMap {
-                        version,
-                        revision,
-                        source,
-                    },
-                );
-            }
-            Err(e) => {
+        let source = make()
+            .map_err(|e| {
                 bevy::log::warn_once!("envis resampling: the map's bright part is not split ({e})")
-            }
-        }
+            })
+            .ok()
+            .map(Arc::new);
+        self.revisions += 1;
+        let revision = self.revisions;
+        self.maps.insert(
+            id,
+            CpuEnvMap {
+                version,
+                revision,
+                source,
+            },
+        );
     }
 }
 
 /// Bring [`CpuEnvMaps`] up to date with the maps the active resampling cameras are lit by,
-/// dropping the others.
+/// dropping the others. An image still loading (no version yet) is skipped in silence.
 pub(super) fn extract_cpu_maps(maps: &mut CpuEnvMaps, main_world: &mut MainWorld) {
     let mut cameras =
         main_world.query_filtered::<(&Camera, &EnvisEnvironment), With<EnvironmentResampling>>();
@@ -97,22 +102,22 @@ pub(super) fn extract_cpu_maps(maps: &mut CpuEnvMaps, main_world: &mut MainWorld
         main_world.get_resource::<EnvImageVersions>(),
     );
     for &(id, dynamic) in &used {
-        match stream {
-            Some((s, frame)) if s == id => {
+        let version = versions.and_then(|v| v.0.get(&id)).copied();
+        match (stream, version) {
+            (Some((s, frame)), _) if s == id => {
                 let map = frame.map.clone();
                 maps.refresh(id, Version::Stream(frame.generation), || {
                     Ok(SourceImage::new_cube(bevy_cube_layers(&map)))
                 });
             }
-            _ if dynamic => {
-                maps.maps.remove(&id);
+            (_, Some(version)) if !dynamic => {
+                maps.refresh(id, Version::Asset(version), || {
+                    let image = images.and_then(|a| a.get(id));
+                    source_from_image(image.ok_or("the image is not in the main world")?)
+                });
             }
             _ => {
-                let version = versions.and_then(|v| v.0.get(&id)).copied().unwrap_or(0);
-                maps.refresh(id, Version::Asset(version), || {
-                    let image = images.and_then(|a| a.get(id)).ok_or("no image asset")?;
-                    source_from_image(image)
-                });
+                maps.maps.remove(&id);
             }
         }
     }
