@@ -20,8 +20,8 @@ use glam::Vec3;
 
 /// A lobe may move by this fraction of its angular width before the reused confidence falls
 /// by `1/e`. Swept on the motion scene without shadows (frames 16..31 at 48², relMSE ratio
-/// to today's 32 + 32): 1.0 gave 3.5x, 0.3 2.2x, 0.1 0.64x, 0.03 0.68x; held still, 0.19x at
-/// 1.0 and 0.13x at 0.1 (spatial neighbours on curved surfaces weigh less).
+/// to today's 32 + 32): 1.0 gave 3.5x, 0.3 2.2x, 0.1 0.64x, 0.03 0.68x; the same scene held
+/// still, 0.19x at 1.0 and 0.13x at 0.1 (spatial neighbours on curved surfaces weigh less).
 pub const AGREEMENT_SCALE: f32 = 0.1;
 
 /// Angular width (radians) of the diffuse cosine lobe.
