@@ -326,6 +326,12 @@ fn usable_layout(
     }
 }
 
+/// The face size a camera's distribution is built at (its `face_size`, within what the passes
+/// allow).
+pub(crate) fn face_size_of(sampling: &EnvironmentSampling) -> usize {
+    sampling.face_size.clamp(1, 2048)
+}
+
 /// Which distribution a view uses: its image, face size, tiles and pool, and whose seed (the
 /// view's own when it accumulates or is jittered, `ticking`; else shared by every view with its
 /// seed).
@@ -335,7 +341,7 @@ fn sampler_key(
     entity: Entity,
     ticking: bool,
 ) -> SamplerKey {
-    let face_size = sampling.face_size.clamp(1, 2048);
+    let face_size = face_size_of(sampling);
     SamplerKey {
         image: env.image.id(),
         face_size,

@@ -247,7 +247,8 @@ fn bevy_resampling_removed_gives_the_plain_image() {
 
 /// A camera lit by a user's image (not the envis stream) resamples the map's bright part apart
 /// where the image keeps its texels in the main world (`RenderAssetUsages::default()`, what
-/// Bevy's loaders give): `resampling_bright` counts its frames, and the means of the sphere's
+/// Bevy's loaders give; read on the async compute pool, so most frames, not all):
+/// `resampling_bright` counts its frames, and the means of the sphere's
 /// upper and lower halves are the plain estimator's (the split's tables are the radiance the
 /// passes read: a map read upside down lights the other half). Without main-world texels the
 /// map is resampled whole, and the means are right too.
@@ -291,7 +292,8 @@ fn bevy_resampling_splits_a_user_image() {
             assert!(rel(m, r) < 0.05, "split {split}: half mean {m} vs {r}");
         }
         match split {
-            true => assert!(bright + 1 >= passes && passes > 3, "{bright} of {passes}"),
+            // The map is read on the async compute pool: the first frames may be whole.
+            true => assert!(2 * bright > passes && passes > 3, "{bright} of {passes}"),
             false => assert_eq!(bright, 0),
         }
     }

@@ -9,8 +9,7 @@
 //! tables written into the frame's split buffer in place of `gather_split`'s whole map. A
 //! camera whose map has no CPU copy keeps the whole map (`split_bright: false`).
 
-use super::cpu_maps::CpuEnvMaps;
-use crate::envmap::resample::SourceImage;
+use super::cpu_maps::{CpuEnvMaps, CpuMap};
 use crate::gpu::EnvSampler;
 use crate::gpu::resampling::{split_tables, storage_init};
 use crate::render::resampling::{BrightLight, Split};
@@ -50,7 +49,7 @@ pub(super) fn view_split(
     (device, queue, enc): (&wgpu::Device, &wgpu::Queue, &mut wgpu::CommandEncoder),
 ) {
     let old = split.take();
-    let Some((revision, map)) = maps.and_then(|m| m.source(image)) else {
+    let Some((revision, map)) = maps.and_then(|m| m.map(image)) else {
         return;
     };
     let map_key = (revision, like.n);
@@ -96,11 +95,11 @@ fn new_sampler(
 fn build(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
-    map: &SourceImage,
+    map: &CpuMap,
     map_key: (u64, usize),
     sampler: EnvSampler,
 ) -> BrightSplit {
-    let cube = map.to_cube(sampler.n);
+    let cube = map.cube(sampler.n);
     let split = Split::new(&cube);
     sampler.upload(queue, &split.rest);
     let (tables, cdf, ids) = split_tables(&split);

@@ -8,15 +8,21 @@
 //! user's `Image` keeps its texels in the main world as long as its `RenderAssetUsages` has
 //! `MAIN_WORLD` (the default of Bevy's loaders); one without them (render-world only, or written
 //! on the GPU: `EnvisEnvironment::dynamic`) is resampled whole, with one warning.
+//!
+//! A user's image is read, and resampled to the cameras' face sizes, on Bevy's async compute
+//! pool (for a 2048 x 1024 lat-long about 0.2 s, docs/temporal.md): the frames meanwhile
+//! resample the map whole (the previous version's split is dropped with it), so loading a map
+//! never stalls a frame. The stream's frame is a cube map already, copied at once.
 
 use super::EnvironmentResampling;
-use crate::app::components::EnvisEnvironment;
-use crate::app::sampling::EnvImageVersions;
+use crate::app::components::{EnvironmentSampling, EnvisEnvironment};
+use crate::app::sampling::{EnvImageVersions, face_size_of};
 use crate::app::{EnvFrame, EnvMapStream};
 use crate::envmap::resample::{SourceImage, SourceLayout, bevy_cube_layers};
 use crate::envmap::{CubeMap, Image as EnvImage};
 use bevy::prelude::*;
 use bevy::render::MainWorld;
+use bevy::tasks::{AsyncComputeTaskPool, Task, futures::check_ready};
 use std::collections::{HashMap, HashSet};
 use std::sync::Arc;
 
@@ -30,47 +36,70 @@ enum Version {
     Asset(u64),
 }
 
-/// One map on the CPU.
-pub struct CpuEnvMap {
+/// A map read on the CPU, and resampled to the face sizes asked for when it was read.
+pub struct CpuMap {
+    pub source: SourceImage,
+    cubes: Vec<CubeMap>,
+}
+
+impl CpuMap {
+    /// The map as the sampler's texel table of face size `n` (`SourceImage::to_cube`), made
+    /// now where it was not made with the map.
+    pub fn cube(&self, n: usize) -> std::borrow::Cow<'_, CubeMap> {
+        match self.cubes.iter().find(|c| c.size == n) {
+            Some(c) => std::borrow::Cow::Borrowed(c),
+            None => std::borrow::Cow::Owned(self.source.to_cube(n)),
+        }
+    }
+}
+
+/// One map's CPU copy, being read or read.
+enum Content {
+    Pending(Task<Result<CpuMap, String>>),
+    /// `None` where it could not be read (said once; not tried again until the image changes).
+    Ready(Option<Arc<CpuMap>>),
+}
+
+/// One image's entry.
+struct CpuEnvMap {
     version: Version,
     /// Distinct for every content this cache has held: what a view's split is keyed by.
-    pub revision: u64,
-    /// `None` where this version could not be read (said once; not tried again until the
-    /// image changes).
-    pub source: Option<Arc<SourceImage>>,
+    revision: u64,
+    content: Content,
 }
 
 /// The render world's CPU copies of the maps resampling cameras are lit by, by image.
 #[derive(Resource, Default)]
 pub struct CpuEnvMaps {
-    pub maps: HashMap<AssetId<Image>, CpuEnvMap>,
+    maps: HashMap<AssetId<Image>, CpuEnvMap>,
     revisions: u64,
 }
 
 impl CpuEnvMaps {
-    /// The map of `image`, where there is one on the CPU.
-    pub fn source(&self, image: AssetId<Image>) -> Option<(u64, &SourceImage)> {
+    /// The map of `image` with its revision, where one is on the CPU.
+    pub fn map(&self, image: AssetId<Image>) -> Option<(u64, &CpuMap)> {
         let m = self.maps.get(&image)?;
-        Some((m.revision, m.source.as_deref()?))
+        match &m.content {
+            Content::Ready(Some(map)) => Some((m.revision, map)),
+            _ => None,
+        }
     }
 
-    /// Keep `id`'s entry if it is at `version`, else make it with `make` (an entry without a
-    /// map, and one warning, where `make` fails).
-    fn refresh(
-        &mut self,
-        id: AssetId<Image>,
-        version: Version,
-        make: impl FnOnce() -> Result<SourceImage, String>,
-    ) {
-        if self.maps.get(&id).is_some_and(|m| m.version == version) {
-            return;
-        }
-        let source = make()
-            .map_err(|e| {
-                bevy::log::warn_once!("envis resampling: the map's bright part is not split ({e})")
-            })
-            .ok()
-            .map(Arc::new);
+    /// Keep `id`'s entry if it is at `version` (taking its result if it was being read), else
+    /// start it anew with `make`.
+    fn refresh(&mut self, id: AssetId<Image>, version: Version, make: impl FnOnce() -> Content) {
+        let entry = self.maps.get_mut(&id).filter(|m| m.version == version);
+        let content = match entry {
+            Some(CpuEnvMap {
+                content: Content::Pending(task),
+                ..
+            }) => match check_ready(task) {
+                Some(read) => ready(read),
+                None => return,
+            },
+            Some(_) => return,
+            None => make(),
+        };
         self.revisions += 1;
         let revision = self.revisions;
         self.maps.insert(
@@ -78,21 +107,34 @@ impl CpuEnvMaps {
             CpuEnvMap {
                 version,
                 revision,
-                source,
+                content,
             },
         );
     }
 }
 
+/// A read map as an entry's content (one warning where it could not be read).
+fn ready(read: Result<CpuMap, String>) -> Content {
+    let map = read.map_err(|e| {
+        bevy::log::warn_once!("envis resampling: the map's bright part is not split ({e})")
+    });
+    Content::Ready(map.ok().map(Arc::new))
+}
+
 /// Bring [`CpuEnvMaps`] up to date with the maps the active resampling cameras are lit by,
 /// dropping the others. An image still loading (no version yet) is skipped in silence.
 pub(super) fn extract_cpu_maps(maps: &mut CpuEnvMaps, main_world: &mut MainWorld) {
-    let mut cameras =
-        main_world.query_filtered::<(&Camera, &EnvisEnvironment), With<EnvironmentResampling>>();
-    let used: Vec<(AssetId<Image>, bool)> = (cameras.iter(main_world))
-        .filter(|(c, _)| c.is_active)
-        .map(|(_, e)| (e.image.id(), e.dynamic))
-        .collect();
+    let mut cameras = main_world.query_filtered::<
+        (&Camera, &EnvisEnvironment, &EnvironmentSampling),
+        With<EnvironmentResampling>,
+    >();
+    let mut used: HashMap<AssetId<Image>, (bool, Vec<usize>)> = HashMap::new();
+    for (_, env, sampling) in cameras.iter(main_world).filter(|(c, ..)| c.is_active) {
+        let e = used
+            .entry(env.image.id())
+            .or_insert((env.dynamic, Vec::new()));
+        e.1.push(face_size_of(sampling));
+    }
     let stream = main_world
         .get_resource::<EnvMapStream>()
         .map(|s| s.image.id())
@@ -101,19 +143,27 @@ pub(super) fn extract_cpu_maps(maps: &mut CpuEnvMaps, main_world: &mut MainWorld
         main_world.get_resource::<Assets<Image>>(),
         main_world.get_resource::<EnvImageVersions>(),
     );
-    for &(id, dynamic) in &used {
+    for (&id, (dynamic, sizes)) in &used {
         let version = versions.and_then(|v| v.0.get(&id)).copied();
         match (stream, version) {
             (Some((s, frame)), _) if s == id => {
                 let map = frame.map.clone();
                 maps.refresh(id, Version::Stream(frame.generation), || {
-                    Ok(SourceImage::new_cube(bevy_cube_layers(&map)))
+                    let source = SourceImage::new_cube(bevy_cube_layers(&map));
+                    ready(Ok(CpuMap {
+                        source,
+                        cubes: Vec::new(),
+                    }))
                 });
             }
             (_, Some(version)) if !dynamic => {
-                maps.refresh(id, Version::Asset(version), || {
-                    let image = images.and_then(|a| a.get(id));
-                    source_from_image(image.ok_or("the image is not in the main world")?)
+                let image = images.and_then(|a| a.get(id)).cloned();
+                let sizes = sizes.clone();
+                maps.refresh(id, Version::Asset(version), move || {
+                    Content::Pending(
+                        AsyncComputeTaskPool::get()
+                            .spawn(async move { read_map(image.as_ref(), &sizes) }),
+                    )
                 });
             }
             _ => {
@@ -121,8 +171,18 @@ pub(super) fn extract_cpu_maps(maps: &mut CpuEnvMaps, main_world: &mut MainWorld
             }
         }
     }
-    let used: HashSet<AssetId<Image>> = used.into_iter().map(|(id, _)| id).collect();
+    let used: HashSet<AssetId<Image>> = used.into_keys().collect();
     maps.maps.retain(|id, _| used.contains(id));
+}
+
+/// `image` read ([`source_from_image`]) and resampled to each face size of `sizes`.
+fn read_map(image: Option<&Image>, sizes: &[usize]) -> Result<CpuMap, String> {
+    let source = source_from_image(image.ok_or("the image is not in the main world")?)?;
+    let mut sizes = sizes.to_vec();
+    sizes.sort_unstable();
+    sizes.dedup();
+    let cubes = sizes.into_iter().map(|n| source.to_cube(n)).collect();
+    Ok(CpuMap { source, cubes })
 }
 
 /// A Bevy environment image's texels as the GPU's resample reads them: a 2:1 lat-long or a
@@ -228,6 +288,24 @@ mod tests {
             );
             assert_eq!(from_cube.radiance_nearest(d), cube.lookup(d), "{d}");
         }
+    }
+
+    /// A map read for face sizes 4 and 8 gives those cubes, and makes any other when asked:
+    /// each the source's `to_cube`.
+    #[test]
+    fn read_maps_have_the_cubes_asked_for() {
+        let layers = bevy_cube_layers(&CubeMap::from_fn(8, |d| Vec3::splat(1.0 + d.x)));
+        let image = bevy_image(8, 8, 6, &layers.data, RenderAssetUsages::default());
+        let map = read_map(Some(&image), &[8, 4, 8]).unwrap();
+        assert_eq!(map.cubes.len(), 2);
+        for n in [4, 8, 5] {
+            assert_eq!(
+                map.cube(n).data,
+                map.source.to_cube(n).data,
+                "face size {n}"
+            );
+        }
+        assert!(read_map(None, &[8]).is_err());
     }
 
     /// An image without main-world texels, or of no environment shape, is refused in words.
