@@ -54,6 +54,11 @@ pub struct MotionRow {
     pub cost_ratio: f64,
     /// Per measured frame: (frame, relMSE, the mean over seeds).
     pub per_frame: Vec<(u32, f64)>,
+    /// Where the scene switches its environment among the measured frames
+    /// (`[[animation.switch]]`): frames after the switch until the relMSE is back within 2x its
+    /// steady value (the mean of the last four measured frames); `None` without a switch, or
+    /// if it never gets back.
+    pub frames_to_follow: Option<u32>,
 }
 
 /// The relMSE of `img` against `rf` (luminance; `1e-2` keeps dark pixels from dominating, as
@@ -81,8 +86,17 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
             row.flip_ratio = row.flip / base.flip;
             row.cost_ratio = row.frame_ms / base.frame_ms;
         }
+        row.frames_to_follow = m
+            .switch_frame()
+            .and_then(|k| frames_to_follow(&row.per_frame, k));
+        let follow = m.switch_frame().map_or(String::new(), |k| {
+            let n = row
+                .frames_to_follow
+                .map_or("never".into(), |n| n.to_string());
+            format!("  back within 2x {n} frames after the switch at frame {k}")
+        });
         eprintln!(
-            "  {name:30} relMSE {:.4} ({:.2}x)  FLIP {:.4} ({:.2}x)  {:.1} ms ({:.2}x)  {:.2} rays/px",
+            "  {name:30} relMSE {:.4} ({:.2}x)  FLIP {:.4} ({:.2}x)  {:.1} ms ({:.2}x)  {:.2} rays/px{follow}",
             row.relmse,
             row.relmse_ratio,
             row.flip,
@@ -195,6 +209,16 @@ struct Motion {
 }
 
 impl Motion {
+    /// The first frame of the scene's first environment switch that falls among the measured
+    /// frames, after the first of them.
+    fn switch_frame(&self) -> Option<u32> {
+        let a = &self.scene.file.animation;
+        (self.first + 1..self.frames).find(|&k| {
+            let (t, before) = (self.scene.frame_time(k), self.scene.frame_time(k - 1));
+            a.switch.iter().any(|s| before < s.at && s.at <= t)
+        })
+    }
+
     /// Loads the scene (`--scene` or [`DEFAULT_SCENE`]) and renders the references.
     fn new(a: &BenchArgs) -> Result<Self> {
         let default = Path::new(env!("CARGO_MANIFEST_DIR")).join(DEFAULT_SCENE);
@@ -251,6 +275,7 @@ impl Motion {
             flip_ratio: 1.0,
             cost_ratio: 1.0,
             per_frame: Vec::new(),
+            frames_to_follow: None,
         };
         let mut per_frame = vec![0.0; (self.frames - self.first) as usize];
         for s in 0..self.seeds {
@@ -291,6 +316,16 @@ impl Motion {
     }
 }
 
+/// Frames from `switch` until a frame's relMSE is within 2x the steady value, the mean of the
+/// last four frames of `per_frame` ((frame, relMSE) in order); `None` if none is.
+fn frames_to_follow(per_frame: &[(u32, f64)], switch: u32) -> Option<u32> {
+    let tail = &per_frame[per_frame.len().saturating_sub(4)..];
+    let steady = tail.iter().map(|f| f.1).sum::<f64>() / tail.len().max(1) as f64;
+    (per_frame.iter())
+        .find(|&&(k, e)| k >= switch && e <= 2.0 * steady)
+        .map(|&(k, _)| k - switch)
+}
+
 /// The converged reference of frames `first..frames`.
 fn references(scene: &Scene, size: usize, first: u32, frames: u32) -> Result<Vec<Image>> {
     let (shadows, _) = scene.shadows(None);
@@ -313,4 +348,22 @@ fn references(scene: &Scene, size: usize, first: u32, frames: u32) -> Result<Vec
             Ok(r.image)
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::frames_to_follow;
+
+    /// Counted from the switch to the first frame within 2x the steady value (the mean of the
+    /// last four frames); `None` where none after the switch is.
+    #[test]
+    fn frames_to_follow_counts_from_the_switch() {
+        let run = |e: &[f64]| -> Vec<(u32, f64)> { (10..).zip(e.iter().copied()).collect() };
+        let settled = run(&[1.0, 1.0, 9.0, 5.0, 2.5, 1.5, 1.0, 1.0, 1.0, 1.0]);
+        assert_eq!(frames_to_follow(&settled, 12), Some(3));
+        assert_eq!(frames_to_follow(&settled, 10), Some(0));
+        // A switch at the last frame, far off: the steady value is (1 + 1 + 1 + 10) / 4.
+        let never = run(&[1.0, 1.0, 1.0, 1.0, 1.0, 10.0]);
+        assert_eq!(frames_to_follow(&never, 15), None);
+    }
 }

@@ -1,6 +1,6 @@
-//! A scene file's `[animation]`: the sequence clock, the camera's orbit, objects' velocities and
-//! the sky's clock, and the scene posed at a time `t` (what `envis sequence` renders frame by
-//! frame and `--time` renders once).
+//! A scene file's `[animation]`: the sequence clock, the camera's orbit, objects' velocities,
+//! the sky's clock and switches of the environment, and the scene posed at a time `t` (what
+//! `envis sequence` renders frame by frame and `--time` renders once).
 
 use super::{Scene, SceneFile};
 use crate::envmap::load::EnvSource;
@@ -18,6 +18,21 @@ pub struct AnimationSpec {
     /// The camera's orbit about `camera.target`, around +Y, in degrees per second.
     #[serde(default)]
     pub orbit: f32,
+    /// Switches of the environment (`[[animation.switch]]`): from `at` seconds on, the
+    /// environment is `source`, a built-in sky's clock then running from `at`. A sun that jumps
+    /// or a carousel's step: what `bench --suite motion` measures reuse following.
+    #[serde(default)]
+    pub switch: Vec<SwitchSpec>,
+}
+
+/// One `[[animation.switch]]`.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SwitchSpec {
+    /// Seconds, > 0.
+    pub at: f32,
+    /// As `environment.source`.
+    pub source: String,
 }
 
 impl Default for AnimationSpec {
@@ -25,7 +40,17 @@ impl Default for AnimationSpec {
         AnimationSpec {
             fps: default_fps(),
             orbit: 0.0,
+            switch: Vec::new(),
         }
+    }
+}
+
+impl AnimationSpec {
+    /// The time of the latest switch at or before `t`, and its source (`None` before any).
+    pub fn switch_at(&self, t: f32) -> Option<&SwitchSpec> {
+        (self.switch.iter())
+            .filter(|s| s.at <= t)
+            .max_by(|a, b| a.at.total_cmp(&b.at))
     }
 }
 
@@ -35,8 +60,9 @@ fn default_fps() -> f32 {
 
 impl SceneFile {
     /// The file's scene at time `t` seconds: the camera orbited, each object moved by its
-    /// velocity, a built-in sky's clock advanced by `environment.speed` (hours per second; a
-    /// map from a file does not move). `t = 0` is the file as written.
+    /// velocity, the environment the latest switch's, a built-in sky's clock advanced by
+    /// `environment.speed` (hours per second, from the switch; a map from a file does not
+    /// move). `t = 0` is the file as written.
     pub fn posed(&self, t: f32) -> SceneFile {
         let mut f = self.clone();
         if t == 0.0 {
@@ -51,9 +77,14 @@ impl SceneFile {
         for o in &mut f.objects {
             o.position = (Vec3::from(o.position) + Vec3::from(o.velocity) * t).to_array();
         }
+        let mut since = 0.0;
+        if let Some(s) = self.animation.switch_at(t) {
+            f.environment.source = s.source.clone();
+            since = s.at;
+        }
         let speed = self.environment.speed;
         if let (true, Ok(EnvSource::Sky { hours })) = (speed != 0.0, f.environment.source.parse()) {
-            let h: f32 = hours + speed * t;
+            let h: f32 = hours + speed * (t - since);
             f.environment.source = format!("builtin:sky:{}", h.rem_euclid(24.0));
         }
         f
@@ -86,5 +117,35 @@ impl Scene {
             .get(id as usize)
             .map_or(Vec3::ZERO, |o| Vec3::from(o.spec.velocity));
         p - v * dt
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A switch takes the environment over from its time on, a built-in sky's clock running from
+    /// the switch; the latest switch wins; before any, the file's own.
+    #[test]
+    fn switches_take_over_the_environment_from_their_time() {
+        let f: SceneFile = toml::from_str(
+            r#"
+[environment]
+source = "builtin:sky:15"
+speed = 1.0
+[[animation.switch]]
+at = 2.0
+source = "sky.exr"
+[[animation.switch]]
+at = 0.5
+source = "builtin:sky:10"
+"#,
+        )
+        .unwrap();
+        let at = |t: f32| f.posed(t).environment.source;
+        assert_eq!(at(0.25), "builtin:sky:15.25");
+        assert_eq!(at(0.5), "builtin:sky:10");
+        assert_eq!(at(1.0), "builtin:sky:10.5");
+        assert_eq!(at(3.0), "sky.exr");
     }
 }

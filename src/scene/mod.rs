@@ -39,7 +39,7 @@ mod spec;
 use crate::error::{Error, Result};
 use crate::render::{GPixel, Settings};
 use crate::sampling::Material;
-pub use animation::AnimationSpec;
+pub use animation::{AnimationSpec, SwitchSpec};
 pub use camera::Camera;
 pub use convert::material;
 use convert::sampling_settings;
@@ -263,6 +263,12 @@ fn check_animation(path: &Path, f: &SceneFile) -> Result<()> {
     }
     if !a.orbit.is_finite() || !f.environment.speed.is_finite() {
         return Err(err(path, "[animation]: orbit and speed must be finite"));
+    }
+    if let Some(s) = a.switch.iter().find(|s| !(s.at.is_finite() && s.at > 0.0)) {
+        return Err(err(
+            path,
+            format!("[[animation.switch]]: at {} must be > 0 seconds", s.at),
+        ));
     }
     if let Some((i, _)) = f
         .objects

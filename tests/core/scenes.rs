@@ -127,6 +127,11 @@ fn scene_files_load_render_and_report_errors() {
             &["samp.toml", "counts", "often"][..],
         ),
         (
+            "switch.toml",
+            "[environment]\nsource = \"builtin:sky\"\n[[animation.switch]]\nat = 0.0\nsource = \"builtin:sky:9\"\n",
+            &["switch.toml", "animation.switch", "at 0"][..],
+        ),
+        (
             "glb.toml",
             "[environment]\nsource = \"builtin:sky\"\n[[object]]\nshape = \"gltf\"\npath = \"broken.glb\"\nmaterial = { type = \"diffuse\" }\n",
             &["broken.glb", "glTF"][..],
