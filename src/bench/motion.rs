@@ -17,9 +17,11 @@
 //! the oracle splits it, its counts read back; the plain rows' rays are not counted, `null`;
 //! its cost is the GPU timestamps').
 //!
-//! Per configuration over the measured frames (and `--seeds` seeds): mean relMSE and HDR-FLIP against the reference,
-//! lighting cost (build + shading, wall clock) and shadow rays per pixel, and each as a ratio to
-//! `single 32+32` on the same backend. The reference of a frame is today's estimator at `REF_SAMPLES` + `REF_SAMPLES`
+//! Per configuration over the measured frames (and `--seeds` seeds): mean relMSE and HDR-FLIP
+//! against the reference, lighting cost (build + shading, wall clock) and shadow rays per
+//! pixel, and each as a ratio to `single 32+32` on the same backend; where the scene switches
+//! its environment among the measured frames (`[[animation.switch]]`), the frames reuse needs
+//! to follow (`frames_to_follow`). The reference of a frame is today's estimator at `REF_SAMPLES` + `REF_SAMPLES`
 //! samples (unbiased; its own relMSE is printed, so the floor is known). Writes
 //! `DIR/bench-motion.json`.
 
@@ -52,7 +54,7 @@ pub struct MotionRow {
     pub relmse_ratio: f64,
     pub flip_ratio: f64,
     pub cost_ratio: f64,
-    /// Per measured frame: (frame, relMSE, the mean over seeds).
+    /// Per measured frame: (frame, relMSE), the relMSE a mean over seeds.
     pub per_frame: Vec<(u32, f64)>,
     /// Where the scene switches its environment among the measured frames
     /// (`[[animation.switch]]`): frames after the switch until the relMSE is back within 2x its
