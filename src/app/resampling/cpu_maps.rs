@@ -157,9 +157,10 @@ pub(super) fn extract_cpu_maps(maps: &mut CpuEnvMaps, main_world: &mut MainWorld
                 });
             }
             (_, Some(version)) if !dynamic => {
-                let image = images.and_then(|a| a.get(id)).cloned();
-                let sizes = sizes.clone();
-                maps.refresh(id, Version::Asset(version), move || {
+                // The image is cloned (for the task) only when this version is new.
+                maps.refresh(id, Version::Asset(version), || {
+                    let image = images.and_then(|a| a.get(id)).cloned();
+                    let sizes = sizes.clone();
                     Content::Pending(
                         AsyncComputeTaskPool::get()
                             .spawn(async move { read_map(image.as_ref(), &sizes) }),

@@ -102,7 +102,7 @@ impl Readbacks {
     }
 
     /// Once per frame, after the copying frames were submitted: map what was copied, and hand
-    /// each frame whose bytes both arrived to its sink.
+    /// each frame whose three reads all arrived to its sink.
     pub(super) fn poll(&mut self) {
         self.0.retain_mut(|p| {
             for (slot, read) in p.got.iter_mut().zip(&p.reads) {

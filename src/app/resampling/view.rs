@@ -100,7 +100,7 @@ pub(super) struct ViewResampling {
     pub bvh_copy: Option<BvhCopy>,
     /// Counts copied for `ResamplingReadback`, in flight.
     pub reads: super::readback::Readbacks,
-    /// The stream map's split and the sampler on its rest, where the view is lit by the stream.
+    /// Its map's split and the sampler on its rest, where the map is on the CPU (`CpuEnvMaps`).
     pub bright: Option<super::bright::BrightSplit>,
     parity: usize,
     /// The previous frame, while its history is valid.
