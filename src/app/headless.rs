@@ -19,7 +19,6 @@ use bevy::render::RenderPlugin;
 use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat, TextureUsages};
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
 use bevy::window::ExitCondition;
-use std::sync::{Arc, Mutex};
 
 /// Frames to wait for a screenshot of the render target before giving up.
 pub const CAPTURE_FRAMES: usize = 20;
@@ -117,7 +116,7 @@ impl HeadlessApp {
         self.request_capture(target, 0, &got);
         for _ in 0..CAPTURE_FRAMES {
             self.update();
-            if let Some((_, img)) = got.take_next(0) {
+            if let Some(img) = got.take(0) {
                 return img;
             }
         }
@@ -126,16 +125,14 @@ impl HeadlessApp {
 
     /// Ask for `target` as the next update renders it: its pixels arrive in `sink` under
     /// `tag` (a frame or two later: the readback is asynchronous), so a caller can ask every
-    /// frame and take them in order ([`Captures::take_next`]).
+    /// frame and take them in order ([`super::tagged::Tagged::take`]).
     pub fn request_capture(&mut self, target: &Handle<Image>, tag: u32, sink: &Captures) {
-        let sink = sink.0.clone();
+        let sink = sink.clone();
         self.app
             .world_mut()
             .spawn(Screenshot::image(target.clone()))
             .observe(move |ev: On<ScreenshotCaptured>| {
-                if let Ok(mut got) = sink.lock() {
-                    got.push((tag, decode_capture(ev.image.clone())));
-                }
+                sink.push(tag, decode_capture(ev.image.clone()));
             });
     }
 
@@ -144,28 +141,9 @@ impl HeadlessApp {
     }
 }
 
-/// Captures asked for with [`HeadlessApp::request_capture`], each tagged, as they arrive.
-#[derive(Clone, Default)]
-pub struct Captures(Arc<Mutex<Vec<Capture>>>);
-
-/// One capture's pixels or why there are none.
-type Capture = (u32, crate::error::Result<Vec<Vec3>>);
-
-impl Captures {
-    /// Whether the capture tagged `tag` arrived.
-    pub fn has(&self, tag: u32) -> bool {
-        self.0
-            .lock()
-            .is_ok_and(|got| got.iter().any(|(t, _)| *t == tag))
-    }
-
-    /// The capture tagged `tag`, once it arrived.
-    pub fn take_next(&self, tag: u32) -> Option<Capture> {
-        let mut got = self.0.lock().ok()?;
-        let i = got.iter().position(|(t, _)| *t == tag)?;
-        Some(got.swap_remove(i))
-    }
-}
+/// Captures asked for with [`HeadlessApp::request_capture`], each tagged, as they arrive: the
+/// pixels, or why there are none.
+pub type Captures = super::tagged::Tagged<crate::error::Result<Vec<Vec3>>>;
 
 /// The error when a capture never arrives.
 pub fn no_capture() -> crate::error::Error {

@@ -51,6 +51,7 @@ pub mod setup;
 pub mod shader_reload;
 pub mod shadows;
 pub mod stream;
+pub mod tagged;
 pub mod timing;
 
 pub use crate::render::Overlay;

@@ -138,7 +138,7 @@ fn arrived(
         Some(r) => Some(r.sink.take(k)?),
         None => None,
     };
-    let (_, px) = captures.take_next(k)?;
+    let px = captures.take(k)?;
     Some(px.map(|data| SequenceFrame {
         image: Image {
             width: o.size,

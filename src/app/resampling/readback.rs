@@ -6,7 +6,6 @@
 
 use crate::app::timing::AsyncRead;
 use bevy::prelude::*;
-use std::sync::{Arc, Mutex};
 
 /// Read this resampling camera's counts back every frame (see the module docs). Set `tag`
 /// before a frame to recognise its counts in `sink`.
@@ -17,17 +16,7 @@ pub struct ResamplingReadback {
 }
 
 /// Where the counts arrive, each with its frame's tag.
-#[derive(Clone, Default)]
-pub struct ResamplingCounts(Arc<Mutex<Vec<(u32, FrameCounts)>>>);
-
-impl ResamplingCounts {
-    /// The counts of the frame tagged `tag`, once they arrived.
-    pub fn take(&self, tag: u32) -> Option<FrameCounts> {
-        let mut got = self.0.lock().ok()?;
-        let i = got.iter().position(|(t, _)| *t == tag)?;
-        Some(got.swap_remove(i).1)
-    }
-}
+pub type ResamplingCounts = crate::app::tagged::Tagged<FrameCounts>;
 
 /// One frame's totals over the viewport, as the headless twin counts them
 /// (`gpu::resampling::GpuResampler`).
@@ -118,9 +107,7 @@ impl Readbacks {
                 &bytemuck::pod_collect_to_vec(s),
                 &bytemuck::pod_collect_to_vec(px),
             );
-            if let Ok(mut got) = p.sink.0.lock() {
-                got.push((p.tag, counts));
-            }
+            p.sink.push(p.tag, counts);
             false
         });
     }
