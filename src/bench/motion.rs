@@ -21,9 +21,9 @@
 //! against the reference, lighting cost (build + shading, wall clock) and shadow rays per
 //! pixel, and each as a ratio to `single 32+32` on the same backend; where the scene switches
 //! its environment among the measured frames (`[[animation.switch]]`), the frames reuse needs
-//! to follow (`frames_to_follow`). The reference of a frame is today's estimator at `REF_SAMPLES` + `REF_SAMPLES`
-//! samples (unbiased; its own relMSE is printed, so the floor is known). Writes
-//! `DIR/bench-motion.json`.
+//! to follow (`frames_to_follow`). The reference of a frame is today's estimator at
+//! `REF_SAMPLES` + `REF_SAMPLES` samples (unbiased; its own relMSE is printed, so the floor is
+//! known). Writes `DIR/bench-motion.json`.
 
 use super::BenchArgs;
 use crate::envmap::{Image, luminance};

@@ -31,7 +31,8 @@
 //! for the canonical sample's MIS weight: at most `1 + 2 (1 + spatial)` for the rest and
 //! `BRIGHT_LIGHT_SAMPLES + 3` for the bright part per pixel (14 at the defaults; 6.5 on
 //! average on the motion scene, docs/temporal.md). The biased option spends at most
-//! `BRIGHT_LIGHT_SAMPLES + 4` (the candidates', and a final sample's from elsewhere). Deterministic: every pass draws from its own per-pixel stream.
+//! `BRIGHT_LIGHT_SAMPLES + 4` (the candidates', and a final sample's from elsewhere).
+//! Deterministic: every pass draws from its own per-pixel stream.
 
 mod agreement;
 mod bright;
