@@ -102,9 +102,10 @@ fn round_away(x: f32) -> f32 {
     return select(t, t + sign(x), abs(x - t) >= 0.5);
 }
 
-// Pass 3 (passes::spatial), for the rest only: up to rp.spatial neighbours in a disc of
-// SPATIAL_RADIUS pixels, passing the geometric tests, their confidence capped at
-// SPATIAL_CONFIDENCE of the pixel's and scaled by lobe_agreement.
+// Pass 3 (passes::spatial), for the rest only, where the pixel's confidence is under
+// SPATIAL_UNTIL_HISTORY: up to rp.spatial neighbours in a disc of SPATIAL_RADIUS pixels,
+// passing the geometric tests, their confidence capped at SPATIAL_CONFIDENCE of the pixel's
+// and scaled by lobe_agreement.
 @compute @workgroup_size(64)
 fn spatial(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let i = pixel_id(gid, nwg);
@@ -116,7 +117,7 @@ fn spatial(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroup
     for (var part = 0u; part < 2u; part++) {
         let own = res_in[2u * i + part];
         var out = own;
-        if (part == 0u && s.px.n.w != 0.0 && rp.spatial > 0u) {
+        if (part == 0u && s.px.n.w != 0.0 && rp.spatial > 0u && own.m < SPATIAL_UNTIL_HISTORY) {
             var rng = pass_rng(3u + 4u * part, i);
             var dom: array<Domain, MAX_DOMAINS>;
             var at: array<u32, MAX_DOMAINS>;

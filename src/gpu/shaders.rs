@@ -168,6 +168,7 @@ mod tests {
         for (name, value) in [
             ("SPATIAL_RADIUS", r::SPATIAL_RADIUS),
             ("SPATIAL_CONFIDENCE", r::SPATIAL_CONFIDENCE),
+            ("SPATIAL_UNTIL_HISTORY", r::SPATIAL_UNTIL_HISTORY),
             ("NORMAL_COS", r::NORMAL_COS),
             ("DEPTH_REL", r::DEPTH_REL),
             ("AGREEMENT_SCALE", r::AGREEMENT_SCALE),

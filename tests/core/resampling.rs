@@ -111,7 +111,8 @@ fn moving(dir: &Path) -> Scene {
 fn still_sequence_is_unbiased() {
     let dir = tempdir();
     let scene = support::resampling_scene(&dir, "still", 0.0, 0.0, 0.0, 30.0);
-    let mut t = sequence_checks(&scene, &[0, 3], 48, Resampling::default());
+    // By frame 9 the histories are long enough to skip the spatial pass.
+    let mut t = sequence_checks(&scene, &[0, 3, 9], 48, Resampling::default());
     t.name = "still_sequence_is_unbiased".into();
     t.assert();
 }
@@ -297,6 +298,29 @@ fn shadow_ray_budget() {
     let f = frames(&scene, 2, 1, Some(Resampling::default()));
     assert_eq!(f[0].stats.reuse.temporal_accepted, 0);
     assert!(f[1].stats.reuse.temporal_accepted > 0);
+}
+
+/// The spatial pass draws neighbours only where a pixel's history is short
+/// (`SPATIAL_UNTIL_HISTORY`): on a still scene, many in the first frames, few once the
+/// histories are long, and as many in every frame without temporal reuse.
+#[test]
+fn spatial_reuse_where_history_is_short() {
+    let dir = tempdir();
+    let scene = support::resampling_scene(&dir, "still", 0.0, 0.0, 0.0, 30.0);
+    let accepted = |r: Resampling| -> Vec<u64> {
+        (frames(&scene, 12, 1, Some(r)).iter())
+            .map(|f| f.stats.reuse.spatial_accepted)
+            .collect()
+    };
+    let st = accepted(Resampling::default());
+    assert!(st[1] > 0, "{st:?}");
+    assert!(st[11] * 4 < st[1], "{st:?}");
+    let spatial_only = accepted(Resampling {
+        temporal: false,
+        ..Default::default()
+    });
+    assert!(spatial_only[11] * 2 > spatial_only[1], "{spatial_only:?}");
+    assert!(spatial_only[11] > st[11] * 4, "{spatial_only:?} {st:?}");
 }
 
 /// The bright part's light ([`BrightLight`]) draws directions in proportion to its pdf: a

@@ -14,8 +14,10 @@ fn moving_scene(dir: &Path, speed: f32) -> Scene {
     support::resampling_scene(dir, "moving", 20.0, -0.1, speed, 1.0)
 }
 
-fn run(scene: &Scene, r: Resampling, backend: SequenceBackend) -> Vec<SequenceFrame> {
-    run_sized(scene, Some(r), backend, (16, scene.settings.light_samples))
+/// `frames` frames of `scene` at 16², its own sample counts.
+fn run(scene: &Scene, r: Resampling, backend: SequenceBackend, frames: u32) -> Vec<SequenceFrame> {
+    let samples = scene.settings.light_samples;
+    run_frames(scene, Some(r), backend, (16, samples), frames)
 }
 
 /// Four frames of `scene` at `size`², seed 5, `samples` light and BRDF samples (candidates).
@@ -23,11 +25,21 @@ fn run_sized(
     scene: &Scene,
     r: Option<Resampling>,
     backend: SequenceBackend,
+    size_samples: (usize, usize),
+) -> Vec<SequenceFrame> {
+    run_frames(scene, r, backend, size_samples, 4)
+}
+
+fn run_frames(
+    scene: &Scene,
+    r: Option<Resampling>,
+    backend: SequenceBackend,
     (size, samples): (usize, usize),
+    frames: u32,
 ) -> Vec<SequenceFrame> {
     let o = SequenceOptions {
         size,
-        frames: 4,
+        frames,
         settings: Settings {
             seed: 5,
             light_samples: samples,
@@ -52,23 +64,34 @@ fn run_sized(
 /// threshold (and, through the history, their successors): at most 3% of them (on lavapipe, seeds
 /// 1 to 6 of the still sun: 0 to 8 of 660 over four frames, on the sphere's sharp sun-shadow
 /// edge); ray and reuse counts within 3%. A moving sun (unbiased and biased), and a still one,
-/// where the bright part reuses its history.
+/// where the bright part reuses its history; and a still scene for 10 frames, whose pixels'
+/// histories grow long enough to skip the spatial pass (`SPATIAL_UNTIL_HISTORY`).
 #[test]
 fn gpu_resampling_matches_cpu_sequence() {
     if gpu().is_none() {
         return;
     }
     let dir = support::TempDir::new("gpu-resampling");
-    for (speed, unbiased) in [(1.0, true), (1.0, false), (0.0, true)] {
-        let scene = moving_scene(&dir, speed);
+    let still = support::resampling_scene(&dir, "still", 0.0, 0.0, 0.0, 30.0);
+    let cases = [
+        ("sun speed 1", moving_scene(&dir, 1.0), true, 4),
+        ("sun speed 1", moving_scene(&dir, 1.0), false, 4),
+        ("sun still", moving_scene(&dir, 0.0), true, 4),
+        ("still scene", still, true, 10),
+    ];
+    for (name, scene, unbiased, frames) in cases {
         let r = Resampling::for_mode(ResamplingMode::Spatiotemporal, unbiased).unwrap();
-        let cpu = run(&scene, r, SequenceBackend::Cpu);
-        let gpu = run(&scene, r, SequenceBackend::Wgpu);
-        for (c, g) in cpu.iter().zip(&gpu) {
-            let label = format!(
-                "sun speed {speed}, unbiased {unbiased}, frame {}",
-                c.stats.frame
+        let cpu = run(&scene, r, SequenceBackend::Cpu, frames);
+        let gpu = run(&scene, r, SequenceBackend::Wgpu, frames);
+        if frames == 10 {
+            let sp = |f: &[SequenceFrame], k: usize| f[k].stats.reuse.spatial_accepted;
+            assert!(
+                sp(&gpu, 9) * 4 < sp(&gpu, 1),
+                "{name}: the spatial pass is not skipped"
             );
+        }
+        for (c, g) in cpu.iter().zip(&gpu) {
+            let label = format!("{name}, unbiased {unbiased}, frame {}", c.stats.frame);
             let shaded = c.stats.shaded_pixels.unwrap() as usize;
             assert_eq!(g.stats.shaded_pixels, c.stats.shaded_pixels, "{label}");
             let (cr, gr) = (c.stats.shadow_rays.unwrap(), g.stats.shadow_rays.unwrap());

@@ -61,7 +61,11 @@ use view::ViewResampling;
 pub struct EnvironmentResampling {
     /// Reuse the previous frame's reservoirs (found through the motion vectors).
     pub temporal: bool,
-    /// Spatial neighbours reused per pixel (at most 8: more are clamped).
+    /// Spatial neighbours reused per pixel (at most 8: more are clamped), drawn where the
+    /// pixel's history is short (under [`SPATIAL_UNTIL_HISTORY`] frames: a disocclusion, the
+    /// first frames after a reset, `temporal: false`).
+    ///
+    /// [`SPATIAL_UNTIL_HISTORY`]: crate::render::resampling::SPATIAL_UNTIL_HISTORY
     pub spatial: u32,
     /// The cap on a reservoir's confidence from its history (frames' worth of candidates).
     pub max_history: u32,

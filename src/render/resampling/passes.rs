@@ -2,8 +2,8 @@
 //! reuse against the reprojected history, spatial reuse among neighbours.
 
 use super::{
-    Domain, History, Reproject, Resampling, Reservoir, SPATIAL_CONFIDENCE, SPATIAL_RADIUS, Screen,
-    Surface, combine, lobe_agreement, similar,
+    Domain, History, Reproject, Resampling, Reservoir, SPATIAL_CONFIDENCE, SPATIAL_RADIUS,
+    SPATIAL_UNTIL_HISTORY, Screen, Surface, combine, lobe_agreement, similar,
 };
 use crate::render::estimator::{FrameData, shade_pixel_into};
 use crate::render::resampling::{CandidateSink, Part, Reservoirs, bright_reservoir};
@@ -114,7 +114,12 @@ pub(super) fn spatial(
     let (w, h) = (cur.width as i64, cur.height as i64);
     let (x, y) = ((i % cur.width) as i64, (i / cur.width) as i64);
     let mut domains = vec![Domain::own(own, at)];
-    for _ in 0..r.spatial {
+    let wanted = if own.m < SPATIAL_UNTIL_HISTORY {
+        r.spatial
+    } else {
+        0
+    };
+    for _ in 0..wanted {
         let (u1, u2) = (rng.next_f32(), rng.next_f32());
         let rad = SPATIAL_RADIUS * u1.sqrt();
         let (sin, cos) = (std::f32::consts::TAU * u2).sin_cos();

@@ -29,7 +29,8 @@ crate::vocab::display_as_value_enum!(ResamplingMode);
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct Resampling {
     pub temporal: bool,
-    /// Neighbours of the spatial pass (0: none).
+    /// Neighbours of the spatial pass (0: none), for pixels whose confidence after temporal
+    /// reuse is under [`SPATIAL_UNTIL_HISTORY`](super::SPATIAL_UNTIL_HISTORY).
     pub spatial: u32,
     /// The history's confidence is capped at this many frames of candidates.
     pub max_history: u32,
