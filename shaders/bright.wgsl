@@ -65,18 +65,25 @@ fn bright_pdf(d: vec3<f32>) -> f32 {
     return pmf / (h * h) * q * sqrt(q);
 }
 
-// render::resampling::BRIGHT_LIGHT_SAMPLES (a test checks it against Rust).
+// render::resampling::BRIGHT_LIGHT_SAMPLES and BRIGHT_LIGHT_SAMPLES_BIASED (a test checks them
+// against Rust).
 const BRIGHT_LIGHT_SAMPLES: u32 = 2u;
+const BRIGHT_LIGHT_SAMPLES_BIASED: u32 = 1u;
+
+// resampling::bright_light_samples: fewer in the biased mode.
+fn bright_light_samples() -> u32 {
+    return select(BRIGHT_LIGHT_SAMPLES_BIASED, BRIGHT_LIGHT_SAMPLES, rp.unbiased != 0u);
+}
 
 // bright_reservoir's `offer`: direction d, one of the bright light's samples (light) or the
 // BRDF's, shadow-tested and into the sink with the power heuristic against the other technique.
-fn bright_offer(sink: Sink, at: BrightAt, d: vec3<f32>, light: bool, rays: ptr<function, u32>) -> Sink {
+fn bright_offer(sink: Sink, at: BrightAt, d: vec3<f32>, light: bool, count: u32, rays: ptr<function, u32>) -> Sink {
     let il = to_local(at.fr, d);
     let l = bright_entry(d).xyz;
     if (il.z <= 0.0 || all(l == vec3(0.0)) || !visible_from(at.px, at.point, d, rays)) {
         return sink;
     }
-    let p_light = f32(BRIGHT_LIGHT_SAMPLES) * bright_pdf(d);
+    let p_light = f32(count) * bright_pdf(d);
     let p_brdf = brdf_pdf(at.mat, at.ol, il);
     var w = 0.0;
     if (light) {
@@ -96,8 +103,8 @@ struct BrightAt {
     ol: vec3<f32>,
 }
 
-// resampling::bright_reservoir: BRIGHT_LIGHT_SAMPLES samples of the bright light and one of the
-// BRDF, each shadow-tested, one kept.
+// resampling::bright_reservoir: bright_light_samples() samples of the bright light and one of
+// the BRDF, each shadow-tested, one kept.
 fn bright_reservoir(px: GPixel, point: vec3<f32>, rng: ptr<function, Rng>, rays: ptr<function, u32>) -> Reservoir {
     if (rp.bright_count == 0u) {
         return reservoir_empty(1.0);
@@ -110,21 +117,22 @@ fn bright_reservoir(px: GPixel, point: vec3<f32>, rng: ptr<function, Rng>, rays:
     }
     let fr = frame_new(n);
     let at = BrightAt(px, point, mat, fr, to_local(fr, o));
+    let count = bright_light_samples();
     var u: array<f32, 2u * BRIGHT_LIGHT_SAMPLES + 2u>;
-    for (var k = 0u; k < 2u * BRIGHT_LIGHT_SAMPLES + 2u; k++) {
+    for (var k = 0u; k < 2u * count + 2u; k++) {
         u[k] = rng_next_f32(rng);
     }
     var sink = sink_new(rng_new(rng_next_u32(rng), 0u));
-    for (var k = 0u; k < BRIGHT_LIGHT_SAMPLES; k++) {
+    for (var k = 0u; k < count; k++) {
         let ls = bright_sample(vec2(u[2u * k], u[2u * k + 1u]));
         if (ls.w > 0.0) {
-            sink = bright_offer(sink, at, ls.xyz, true, rays);
+            sink = bright_offer(sink, at, ls.xyz, true, count, rays);
         }
     }
-    let ub = 2u * BRIGHT_LIGHT_SAMPLES;
+    let ub = 2u * count;
     let bs = brdf_sample(mat, at.ol, vec2(u[ub], u[ub + 1u]));
     if (bs.w > 0.0) {
-        sink = bright_offer(sink, at, normalize(to_world(fr, bs.xyz)), false, rays);
+        sink = bright_offer(sink, at, normalize(to_world(fr, bs.xyz)), false, count, rays);
     }
     var q = sink_finish(sink);
     // Every candidate was seen: what was kept is visible.

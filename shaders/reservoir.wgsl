@@ -98,8 +98,9 @@ fn pick_offer(p: Pick, j: u32, w: f32, rng: ptr<function, Rng>) -> Pick {
     return q;
 }
 
-// Pick::finish: the selected sample re-evaluated here, W = sum w / (p̂(Y) norm); visible_own:
-// whether only the canonical sample counts as seen (the biased mode) or every one (pairwise).
+// Pick::finish: the selected sample re-evaluated here, W = sum w / (p̂(Y) norm); biased: the
+// selected domain's `visible` says whether it is known to be seen from here (pairwise: every
+// selectable sample was).
 fn pick_finish(p: Pick, dom: ptr<function, array<Domain, MAX_DOMAINS>>, m: f32, norm: f32, biased: bool) -> Reservoir {
     if (p.selected < 0) {
         var r = (*dom)[0].res;
@@ -116,7 +117,7 @@ fn pick_finish(p: Pick, dom: ptr<function, array<Domain, MAX_DOMAINS>>, m: f32, 
     }
     var visible = 1u;
     if (biased) {
-        visible = select(0u, (*dom)[0].res.visible, s == 0u);
+        visible = (*dom)[s].res.visible;
     }
     return Reservoir((*dom)[s].res.dir, ucw, here, t, m, visible, 0u, 0u);
 }

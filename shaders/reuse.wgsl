@@ -28,10 +28,12 @@ fn history_targets(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_w
     counters[i].x += rays;
 }
 
-// The domain of reservoir `res` made elsewhere, its sample re-evaluated at pixel s
-// (Domain::reused); p_c and p_at_c are set by the caller.
+// The domain of reservoir `res` made elsewhere, its sample re-evaluated at pixel s and not
+// known to be visible from it (Domain::reused); p_c and p_at_c are set by the caller.
 fn reused_domain(res: Reservoir, s: Surface, part: u32) -> Domain {
-    return Domain(res, target_rgb(s.px, false, part, res.dir), 0.0, 0.0);
+    var r = res;
+    r.visible = 0u;
+    return Domain(r, target_rgb(s.px, false, part, res.dir), 0.0, 0.0);
 }
 
 // combine::canonical_target for every domain: the canonical sample's own target where live; a
@@ -77,6 +79,10 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgrou
             var dom: array<Domain, MAX_DOMAINS>;
             dom[0] = Domain(own, own.rgb, 0.0, 0.0);
             dom[1] = reused_domain(old, s, part);
+            if (part == 0u) {
+                // passes::temporal: the biased mode trusts the rest's history's visibility.
+                dom[1].res.visible = old.visible;
+            }
             var rays = 0u;
             if (rp.unbiased != 0u) {
                 canonical_targets(&dom, 2u, s, &rays);

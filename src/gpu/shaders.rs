@@ -177,10 +177,18 @@ mod tests {
         ] {
             assert_eq!(wgsl_const(super::RESAMPLING, name), value, "{name}");
         }
-        let samples = (super::BRIGHT.lines())
-            .find_map(|l| l.strip_prefix("const BRIGHT_LIGHT_SAMPLES: u32 = "))
-            .expect("no BRIGHT_LIGHT_SAMPLES in bright.wgsl");
-        assert_eq!(samples, format!("{}u;", r::BRIGHT_LIGHT_SAMPLES));
+        for (name, value) in [
+            ("BRIGHT_LIGHT_SAMPLES", r::BRIGHT_LIGHT_SAMPLES),
+            (
+                "BRIGHT_LIGHT_SAMPLES_BIASED",
+                r::BRIGHT_LIGHT_SAMPLES_BIASED,
+            ),
+        ] {
+            let samples = (super::BRIGHT.lines())
+                .find_map(|l| l.strip_prefix(&format!("const {name}: u32 = ")))
+                .unwrap_or_else(|| panic!("no {name} in bright.wgsl"));
+            assert_eq!(samples, format!("{value}u;"), "{name}");
+        }
         assert_eq!(
             wgsl_const(super::LIGHTING, "HISTORY_FULL_SCALE"),
             crate::gpu::resampling::HISTORY_FULL_SCALE

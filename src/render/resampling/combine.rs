@@ -85,10 +85,14 @@ impl<'a> Domain<'a> {
     }
 
     /// Another pixel's (or frame's) reservoir `res`, made at `at`, its sample re-evaluated for
-    /// the canonical pixel `px` under this frame's map `split`.
+    /// the canonical pixel `px` under this frame's map `split`. Its sample is not known to be
+    /// visible from the canonical pixel (`res.visible` false; the caller may trust it).
     pub fn reused(res: Reservoir, at: DomainSurface<'a>, split: &Split, px: &GPixel) -> Self {
         Domain {
-            res,
+            res: Reservoir {
+                visible: false,
+                ..res
+            },
             at,
             here: target_rgb(split, at.part, px, res.dir),
         }
@@ -195,7 +199,7 @@ fn pairwise(
 }
 
 /// Biased: selection by `M_k p̂(X_k) W_k` and weights `1 / Σ M_k`, no rays; the final sample's
-/// visibility is tested by the caller where it came from another pixel.
+/// visibility is tested by the caller unless its domain's `visible` says it is known.
 fn biased(domains: &[Domain], mutation: Option<Mutation>, rng: &mut Rng) -> Reservoir {
     let m_total: f32 = domains.iter().map(|d| d.res.m).sum();
     let mut pick = Pick::default();
@@ -206,9 +210,7 @@ fn biased(domains: &[Domain], mutation: Option<Mutation>, rng: &mut Rng) -> Rese
         };
         pick.offer(k, d.res.m * here * d.res.ucw, rng);
     }
-    pick.finish(domains, m_total, m_total, |s| {
-        domains[s].res.visible && s == 0
-    })
+    pick.finish(domains, m_total, m_total, |s| domains[s].res.visible)
 }
 
 /// Weighted reservoir sampling over the domains' samples (the combination's selection).

@@ -44,8 +44,8 @@ mod settings;
 
 pub use agreement::{AGREEMENT_SCALE, DIFFUSE_WIDTH, MIN_AGREEMENT_WIDTH, lobe_agreement};
 pub use bright::{
-    BRIGHT_LIGHT_SAMPLES, BRIGHT_MAX_AREA, BRIGHT_OVER_MEAN, BrightLight, Part, Split,
-    bright_reservoir, bright_threshold,
+    BRIGHT_LIGHT_SAMPLES, BRIGHT_LIGHT_SAMPLES_BIASED, BRIGHT_MAX_AREA, BRIGHT_OVER_MEAN,
+    BrightLight, Part, Split, bright_light_samples, bright_reservoir, bright_threshold,
 };
 pub use combine::{Domain, DomainSurface, combine};
 pub use reservoir::{CandidateSink, Reservoir};

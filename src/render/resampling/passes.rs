@@ -6,7 +6,9 @@ use super::{
     SPATIAL_UNTIL_HISTORY, Screen, Surface, combine, lobe_agreement, similar,
 };
 use crate::render::estimator::{FrameData, shade_pixel_into};
-use crate::render::resampling::{CandidateSink, Part, Reservoirs, bright_reservoir};
+use crate::render::resampling::{
+    CandidateSink, Part, Reservoirs, bright_light_samples, bright_reservoir,
+};
 use crate::render::{PixelStats, Settings};
 use crate::sampling::rng::Rng;
 
@@ -51,7 +53,8 @@ pub(super) fn candidates(
             q.ucw = 0.0;
         }
     }
-    let bright = bright_reservoir(&cur.split.bright, &at, &mut bright_rng, &mut rays);
+    let n = bright_light_samples(r.unbiased);
+    let bright = bright_reservoir(&cur.split.bright, &at, n, (&mut bright_rng, &mut rays));
     Candidates {
         res: [q, bright],
         stats: Some(st),
@@ -88,10 +91,16 @@ pub(super) fn temporal(
     };
     let mut old = h.reservoirs[q][part as usize];
     old.m = old.m.min(r.max_history as f32) * lobe_agreement(at.px, p.px);
-    let domains = [
-        Domain::own(own, at),
-        Domain::reused(old, p, cur.split, at.px),
-    ];
+    let mut history = Domain::reused(old, p, cur.split, at.px);
+    // The biased mode shadow-tests a final sample from elsewhere, but trusts the rest's history
+    // (the sky, seen from half a pixel away a frame ago): 2.66 rays a pixel instead of 3.56 on
+    // the motion scene, and a lower error (4.2x against 4.9x: a sky sample found blocked
+    // from here at shading is lost, where the history knew it lit this spot). Not the bright
+    // part's: a sun sample seen last frame, now behind a moving object, measured 68x.
+    if part == Part::Rest {
+        history.res.visible = old.visible;
+    }
+    let domains = [Domain::own(own, at), history];
     let mut rays = 0;
     let out = combine(&domains, r.unbiased, r.mutation, &mut rng, &mut rays);
     (out, rays, 1)
