@@ -65,24 +65,35 @@ fn bright_pdf(d: vec3<f32>) -> f32 {
     return pmf / (h * h) * q * sqrt(q);
 }
 
-// render::resampling::BRIGHT_LIGHT_SAMPLES and BRIGHT_LIGHT_SAMPLES_BIASED (a test checks them
-// against Rust).
+// render::resampling::BRIGHT_LIGHT_SAMPLES, BRIGHT_LIGHT_SAMPLES_BIASED and
+// BRIGHT_PENUMBRA_SAMPLES (a test checks them against Rust).
 const BRIGHT_LIGHT_SAMPLES: u32 = 2u;
 const BRIGHT_LIGHT_SAMPLES_BIASED: u32 = 1u;
+const BRIGHT_PENUMBRA_SAMPLES: u32 = 8u;
 
-// resampling::bright_light_samples: fewer in the biased mode.
-fn bright_light_samples() -> u32 {
-    return select(BRIGHT_LIGHT_SAMPLES_BIASED, BRIGHT_LIGHT_SAMPLES, rp.unbiased != 0u);
+// resampling::bright_light_samples: fewer in the biased mode, more where the previous frame saw
+// a penumbra (unbiased mode).
+fn bright_light_samples(penumbra: bool) -> u32 {
+    if (rp.unbiased == 0u) {
+        return BRIGHT_LIGHT_SAMPLES_BIASED;
+    }
+    return select(BRIGHT_LIGHT_SAMPLES, BRIGHT_PENUMBRA_SAMPLES, penumbra);
 }
 
 // bright_reservoir's `offer`: direction d, one of the bright light's samples (light) or the
 // BRDF's, shadow-tested and into the sink with the power heuristic against the other technique.
-fn bright_offer(sink: Sink, at: BrightAt, d: vec3<f32>, light: bool, count: u32, rays: ptr<function, u32>) -> Sink {
+// `seen` gets bit 1 where d is seen, bit 2 where it is blocked (for the penumbra flag).
+fn bright_offer(sink: Sink, at: BrightAt, d: vec3<f32>, light: bool, count: u32, seen: ptr<function, u32>, rays: ptr<function, u32>) -> Sink {
     let il = to_local(at.fr, d);
     let l = bright_entry(d).xyz;
-    if (il.z <= 0.0 || all(l == vec3(0.0)) || !visible_from(at.px, at.point, d, rays)) {
+    if (il.z <= 0.0 || all(l == vec3(0.0))) {
         return sink;
     }
+    if (!visible_from(at.px, at.point, d, rays)) {
+        *seen |= 2u;
+        return sink;
+    }
+    *seen |= 1u;
     let p_light = f32(count) * bright_pdf(d);
     let p_brdf = brdf_pdf(at.mat, at.ol, il);
     var w = 0.0;
@@ -103,9 +114,9 @@ struct BrightAt {
     ol: vec3<f32>,
 }
 
-// resampling::bright_reservoir: bright_light_samples() samples of the bright light and one of
-// the BRDF, each shadow-tested, one kept.
-fn bright_reservoir(px: GPixel, point: vec3<f32>, rng: ptr<function, Rng>, rays: ptr<function, u32>) -> Reservoir {
+// resampling::bright_reservoir: bright_light_samples(penumbra) samples of the bright light and
+// one of the BRDF, each shadow-tested, one kept; flagged where some were seen and some not.
+fn bright_reservoir(px: GPixel, point: vec3<f32>, penumbra: bool, rng: ptr<function, Rng>, rays: ptr<function, u32>) -> Reservoir {
     if (rp.bright_count == 0u) {
         return reservoir_empty(1.0);
     }
@@ -117,25 +128,27 @@ fn bright_reservoir(px: GPixel, point: vec3<f32>, rng: ptr<function, Rng>, rays:
     }
     let fr = frame_new(n);
     let at = BrightAt(px, point, mat, fr, to_local(fr, o));
-    let count = bright_light_samples();
-    var u: array<f32, 2u * BRIGHT_LIGHT_SAMPLES + 2u>;
+    let count = bright_light_samples(penumbra);
+    var u: array<f32, 2u * BRIGHT_PENUMBRA_SAMPLES + 2u>;
     for (var k = 0u; k < 2u * count + 2u; k++) {
         u[k] = rng_next_f32(rng);
     }
     var sink = sink_new(rng_new(rng_next_u32(rng), 0u));
+    var seen = 0u;
     for (var k = 0u; k < count; k++) {
         let ls = bright_sample(vec2(u[2u * k], u[2u * k + 1u]));
         if (ls.w > 0.0) {
-            sink = bright_offer(sink, at, ls.xyz, true, count, rays);
+            sink = bright_offer(sink, at, ls.xyz, true, count, &seen, rays);
         }
     }
     let ub = 2u * count;
     let bs = brdf_sample(mat, at.ol, vec2(u[ub], u[ub + 1u]));
     if (bs.w > 0.0) {
-        sink = bright_offer(sink, at, normalize(to_world(fr, bs.xyz)), false, count, rays);
+        sink = bright_offer(sink, at, normalize(to_world(fr, bs.xyz)), false, count, &seen, rays);
     }
     var q = sink_finish(sink);
     // Every candidate was seen: what was kept is visible.
     q.visible = u32(q.ucw > 0.0);
+    q.penumbra = u32(seen == 3u);
     return q;
 }

@@ -181,6 +181,31 @@ fn history_pixel(i: u32, part: u32) -> i32 {
     return i32(r.x);
 }
 
+// passes::penumbra_before: whether the previous frame's bright candidates found a penumbra at
+// pixel i's place (no geometric test) or at a pixel beside it.
+fn penumbra_before(i: u32) -> bool {
+    if (rp.history == 0u || rp.temporal == 0u) {
+        return false;
+    }
+    let q = reproject[i].x;
+    if (q == 0xffffffffu) {
+        return false;
+    }
+    let x = i32(q % rp.width);
+    let y = i32(q / rp.width);
+    for (var dy = -1; dy <= 1; dy++) {
+        for (var dx = -1; dx <= 1; dx++) {
+            let a = x + dx;
+            let b = y + dy;
+            if (a >= 0 && b >= 0 && a < i32(rp.width) && b < i32(rp.height)
+                && res_hist[2u * u32(b * i32(rp.width) + a) + 1u].penumbra != 0u) {
+                return true;
+            }
+        }
+    }
+    return false;
+}
+
 // A pass's per-pixel random stream (resample_frame's `stream(pass, i)`).
 fn pass_rng(stage: u32, i: u32) -> Rng {
     return rng_new(hash3(rp.seed, stage, 0x5e57u), i);
@@ -219,7 +244,7 @@ fn candidates(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgr
         }
     }
     res_out[2u * i] = q;
-    res_out[2u * i + 1u] = bright_reservoir(s.px, s.p.xyz, &bright_rng, &rays);
+    res_out[2u * i + 1u] = bright_reservoir(s.px, s.p.xyz, penumbra_before(i), &bright_rng, &rays);
     counters[i] = vec4(rays, 0u, 0u, 0u);
     out_stats[i] = shaded.stats;
 }

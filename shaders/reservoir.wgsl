@@ -17,8 +17,9 @@ struct Reservoir {
     m: f32,
     // 1 where dir is known to be unblocked from the pixel's surface.
     visible: u32,
-    pad0: u32,
-    pad1: u32,
+    // 1 where the bright part's candidates here found it partly blocked (Reservoir::penumbra).
+    penumbra: u32,
+    pad: u32,
 }
 
 // An empty reservoir of confidence m (Reservoir { m, ..Default::default() }).
@@ -119,7 +120,7 @@ fn pick_finish(p: Pick, dom: ptr<function, array<Domain, MAX_DOMAINS>>, m: f32, 
     if (biased) {
         visible = (*dom)[s].res.visible;
     }
-    return Reservoir((*dom)[s].res.dir, ucw, here, t, m, visible, 0u, 0u);
+    return Reservoir((*dom)[s].res.dir, ucw, here, t, m, visible, (*dom)[0].res.penumbra, 0u);
 }
 
 // combine::pair_share: (the neighbour's weight, the canonical domain's) in the pair of the

@@ -183,6 +183,7 @@ mod tests {
                 "BRIGHT_LIGHT_SAMPLES_BIASED",
                 r::BRIGHT_LIGHT_SAMPLES_BIASED,
             ),
+            ("BRIGHT_PENUMBRA_SAMPLES", r::BRIGHT_PENUMBRA_SAMPLES),
         ] {
             let samples = (super::BRIGHT.lines())
                 .find_map(|l| l.strip_prefix(&format!("const {name}: u32 = ")))

@@ -63,9 +63,12 @@ fn run_frames(
 /// pixels where a selection, a neighbour's place or a shadow ray sits within rounding of its
 /// threshold (and, through the history, their successors): at most 3% of them (on lavapipe, seeds
 /// 1 to 6 of the still sun: 0 to 8 of 660 over four frames, on the sphere's sharp sun-shadow
-/// edge); ray and reuse counts within 3%. A moving sun (unbiased and biased), and a still one,
+/// edge); reuse counts within 3%, ray counts within 6%. A moving sun (unbiased and biased), and a still one,
 /// where the bright part reuses its history; and a still scene for 10 frames, whose pixels'
-/// histories grow long enough to skip the spatial pass (`SPATIAL_UNTIL_HISTORY`).
+/// histories grow long enough to skip the spatial pass (`SPATIAL_UNTIL_HISTORY`) and whose
+/// sun-shadow edges draw `BRIGHT_PENUMBRA_SAMPLES`: there such pixels stay in the history, and
+/// 1 to 5 of 163 differed from frame 2 to 9 (rays and reuse counts equal in every frame), so
+/// 5% may differ.
 #[test]
 fn gpu_resampling_matches_cpu_sequence() {
     if gpu().is_none() {
@@ -98,8 +101,10 @@ fn gpu_resampling_matches_cpu_sequence() {
             let off = (c.image.data.iter().zip(&g.image.data))
                 .filter(|(a, b)| (**a - **b).abs().max_element() > 1e-3 * a.max_element().max(1e-2))
                 .count();
+            // The long still sequence keeps such pixels in its history for frames: 5%.
+            let share = if frames > 4 { 20 } else { 33 };
             assert!(
-                off * 33 <= shaded,
+                off * share <= shaded,
                 "{label}: {off} of {shaded} pixels differ"
             );
             let (mc, mg) = (mean_lum(&c.image.data), mean_lum(&g.image.data));
@@ -110,7 +115,10 @@ fn gpu_resampling_matches_cpu_sequence() {
             // One pixel flipping in or out of the sun's shadow moves a 16² image's mean by ~1%.
             assert!((mc - mg).abs() <= 0.02 * mc, "{label}: mean {mg} vs {mc}");
             let close = |a: u64, b: u64| a.abs_diff(b) as f64 <= 0.03 * a.max(1) as f64;
-            assert!(close(cr, gr), "{label}: rays {gr} vs {cr}");
+            // A penumbra flag that flips on a shadow edge changes the bright candidates of the
+            // next frame's 3 x 3 pixels by 6 rays each (measured: 31 of 1089 in one frame).
+            let rays_close = |a: u64, b: u64| a.abs_diff(b) as f64 <= 0.06 * a.max(1) as f64;
+            assert!(rays_close(cr, gr), "{label}: rays {gr} vs {cr}");
             let (cr, gr) = (&c.stats.reuse, &g.stats.reuse);
             assert!(close(cr.temporal_accepted, gr.temporal_accepted), "{label}");
             assert!(close(cr.spatial_accepted, gr.spatial_accepted), "{label}");

@@ -17,7 +17,8 @@ pub struct GpuReservoir {
     pub p_hat: f32,
     pub m: f32,
     pub visible: u32,
-    pub pad: [u32; 2],
+    pub penumbra: u32,
+    pub pad: u32,
 }
 
 impl From<GpuReservoir> for Reservoir {
@@ -29,6 +30,7 @@ impl From<GpuReservoir> for Reservoir {
             target: q.p_hat,
             rgb: q.rgb.into(),
             visible: q.visible != 0,
+            penumbra: q.penumbra != 0,
         }
     }
 }

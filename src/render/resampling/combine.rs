@@ -259,6 +259,7 @@ impl Pick {
             target,
             rgb: chosen.here,
             visible: visible(s),
+            penumbra: domains[0].res.penumbra,
         }
     }
 }

@@ -9,7 +9,8 @@
 //!    radiance), and the selected sample gets one shadow ray (blocked, the reservoir is culled:
 //!    `W = 0`). For the bright part, [`BRIGHT_LIGHT_SAMPLES`] samples of its own table and one
 //!    BRDF sample, each shadow-tested ([`bright_reservoir`]): its target is the shadowed
-//!    integrand.
+//!    integrand. Where the previous frame's candidates found the bright part partly blocked at
+//!    the pixel's place or beside it (a penumbra), [`BRIGHT_PENUMBRA_SAMPLES`] of them.
 //! 2. **Temporal reuse**: the previous frame's reservoir at the reprojected pixel (the
 //!    caller's `reproject`), rejected on disocclusion ([`similar`]), its confidence capped at
 //!    `max_history` and scaled by how far the two pixels' targets agree ([`lobe_agreement`]),
@@ -27,12 +28,13 @@
 //! 4. The estimate: `f(Y) V(Y) W` summed over the parts.
 //!
 //! Unbiased by default (pairwise MIS, [`combine`](combine::combine)): shadow rays are the
-//! candidates' (one for the rest, up to `BRIGHT_LIGHT_SAMPLES + 1` for the bright part), one
-//! per reused sample (the canonical pixel must see what it selects), and one per other domain
-//! for the canonical sample's MIS weight: at most `1 + 2 (1 + spatial)` for the rest and
-//! `BRIGHT_LIGHT_SAMPLES + 3` for the bright part per pixel (14 at the defaults; 4.6 on
-//! average on the motion scene, docs/temporal.md). The biased option spends at most
-//! `BRIGHT_LIGHT_SAMPLES + 4` (the candidates', and a final sample's from elsewhere).
+//! candidates' (one for the rest, up to `BRIGHT_LIGHT_SAMPLES + 1` for the bright part, or
+//! `BRIGHT_PENUMBRA_SAMPLES + 1` in a penumbra), one per reused sample (the canonical pixel
+//! must see what it selects), and one per other domain for the canonical sample's MIS weight:
+//! at most `1 + 2 (1 + spatial)` for the rest and `BRIGHT_PENUMBRA_SAMPLES + 3` for the bright
+//! part per pixel (18 at the defaults; 5.0 on average on the motion scene, docs/temporal.md).
+//! The biased option spends at most `BRIGHT_LIGHT_SAMPLES_BIASED + 4` (the candidates', and a
+//! final sample's from elsewhere, but for the rest's history, whose visibility it trusts).
 //! Deterministic: every pass draws from its own per-pixel stream.
 
 mod agreement;
@@ -45,13 +47,14 @@ mod settings;
 pub use agreement::{AGREEMENT_SCALE, DIFFUSE_WIDTH, MIN_AGREEMENT_WIDTH, lobe_agreement};
 pub use bright::{
     BRIGHT_LIGHT_SAMPLES, BRIGHT_LIGHT_SAMPLES_BIASED, BRIGHT_MAX_AREA, BRIGHT_OVER_MEAN,
-    BrightLight, Part, Split, bright_light_samples, bright_reservoir, bright_threshold,
+    BRIGHT_PENUMBRA_SAMPLES, BrightLight, Part, Split, bright_light_samples, bright_reservoir,
+    bright_threshold,
 };
 pub use combine::{Domain, DomainSurface, combine};
 pub use reservoir::{CandidateSink, Reservoir};
 pub use settings::{Mutation, Resampling, ResamplingMode};
 
-use passes::{Candidates, candidates, spatial, temporal};
+use passes::{Candidates, candidates, penumbra_before, spatial, temporal};
 
 use super::estimator::{FrameData, shading_directions};
 use super::{GPixel, PixelStats, RenderStats, Settings};
@@ -76,8 +79,9 @@ pub const SPATIAL_CONFIDENCE: f32 = 0.25;
 /// reset, `temporal: false`). Where the history holds more, the neighbours' samples changed the
 /// error little and cost two shadow rays each: on the motion scene (4 seeds, frames 16..31 at
 /// 48²) drawing them everywhere measured 5.41x the relMSE of today's 32 + 32 at 6.45 rays a
-/// pixel, only under 8 frames 5.72x at 4.57 (the same at 4 and 12); held still 0.79x against
-/// 0.71x (neighbours at a converged pixel add their integrands' difference). The threshold
+/// pixel, only under 8 frames 5.72x at 4.57 (the same at 4 and 12; before the penumbra
+/// samples); held still 0.79x against 0.71x (neighbours at a converged pixel add their
+/// integrands' difference). The threshold
 /// reads the confidences only, never the samples: unbiased.
 pub const SPATIAL_UNTIL_HISTORY: f32 = 8.0;
 /// Two pixels' surfaces may share samples when their normals are within this cosine...
@@ -212,7 +216,7 @@ pub fn resample_frame(
     let t1 = std::time::Instant::now();
     let stream = |pass: u32, i: usize| Rng::new(hash_combine(&[s.seed, pass, 0x5e57]), i as u32);
     // 1. Candidates, and the selected ones' shadow rays.
-    let (mut res, mut rays, per_pixel) = candidate_pass(cur, &fd, &s, r, stream);
+    let (mut res, mut rays, per_pixel) = candidate_pass(cur, history, &fd, &s, r, stream);
     let mut reuse = ReuseStats::default();
     // The next frame's history: the temporal pass's reservoirs, not the spatial pass's (below).
     let mut next = res.clone();
@@ -253,6 +257,7 @@ pub fn resample_frame(
 /// Pass 1 over every pixel: its reservoirs, its shadow rays so far and its sample counts.
 fn candidate_pass(
     cur: &Screen,
+    history: Option<(History, Reproject)>,
     fd: &FrameData,
     s: &Settings,
     r: &Resampling,
@@ -260,7 +265,11 @@ fn candidate_pass(
 ) -> (Vec<Reservoirs>, Vec<u32>, Vec<Option<PixelStats>>) {
     let first: Vec<Candidates> = (0..cur.width * cur.height)
         .into_par_iter()
-        .map(|i| candidates(cur, fd, s, r, i, stream(1, i)))
+        .map(|i| {
+            let penumbra = (history.filter(|_| r.temporal))
+                .is_some_and(|(h, reproject)| penumbra_before(&h, reproject, i));
+            candidates(cur, fd, s, (r, penumbra), i, stream(1, i))
+        })
         .collect();
     let rays: Vec<u32> = first.iter().map(|f| f.rays).collect();
     let per_pixel: Vec<Option<PixelStats>> = first.iter().map(|f| f.stats).collect();

@@ -21,12 +21,13 @@ pub(super) struct Candidates {
 }
 
 /// Pixel `i`'s candidates: the rest's reservoir (the paper's samples) and the bright part's
-/// ([`bright_reservoir`]), the sample statistics and the shadow rays cast.
+/// ([`bright_reservoir`], more of them where the previous frame saw a `penumbra`), the sample
+/// statistics and the shadow rays cast.
 pub(super) fn candidates(
     cur: &Screen,
     fd: &FrameData,
     s: &Settings,
-    r: &Resampling,
+    (r, penumbra): (&Resampling, bool),
     i: usize,
     mut rng: Rng,
 ) -> Candidates {
@@ -53,13 +54,28 @@ pub(super) fn candidates(
             q.ucw = 0.0;
         }
     }
-    let n = bright_light_samples(r.unbiased);
+    let n = bright_light_samples(r.unbiased, penumbra);
     let bright = bright_reservoir(&cur.split.bright, &at, n, (&mut bright_rng, &mut rays));
     Candidates {
         res: [q, bright],
         stats: Some(st),
         rays,
     }
+}
+
+/// Whether the previous frame's bright candidates found a penumbra at pixel `i`'s place
+/// (`reproject`, no geometric test: any surface there will do) or at a pixel beside it: a
+/// penumbra is a band, and two or three candidates see both sides of it only some of the time.
+pub(super) fn penumbra_before(h: &History, reproject: Reproject, i: usize) -> bool {
+    let Some((q, _)) = reproject(i) else {
+        return false;
+    };
+    let (w, ht) = (h.screen.width as i64, h.screen.height as i64);
+    let (x, y) = ((q % h.screen.width) as i64, (q / h.screen.width) as i64);
+    (-1..=1)
+        .flat_map(|dy| (-1..=1).map(move |dx| (x + dx, y + dy)))
+        .filter(|&(a, b)| a >= 0 && b >= 0 && a < w && b < ht)
+        .any(|(a, b)| h.reservoirs[(b * w + a) as usize][Part::Bright as usize].penumbra)
 }
 
 /// Pixel `i` after temporal reuse: its reservoir, the rays cast, whether history was accepted

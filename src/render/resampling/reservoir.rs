@@ -24,6 +24,12 @@ pub struct Reservoir {
     /// Whether `dir` is known to be unblocked from the pixel's surface (a shadow ray was cast,
     /// or nothing occludes). A reservoir found blocked has `ucw = 0`.
     pub visible: bool,
+    /// The bright part's candidates here found it partly blocked (one seen, another not): a
+    /// penumbra, where the next frame draws more of them ([`bright_light_samples`]). Carried
+    /// through the combinations from the canonical pixel's candidates.
+    ///
+    /// [`bright_light_samples`]: super::bright_light_samples
+    pub penumbra: bool,
 }
 
 impl Reservoir {
@@ -72,6 +78,7 @@ impl CandidateSink {
                 target,
                 rgb,
                 visible: false,
+                penumbra: false,
             },
             _ => Reservoir {
                 m: 1.0,
