@@ -277,7 +277,7 @@ fn bevy_resampling_splits_a_user_image() {
     let gpu_only = bevy::asset::RenderAssetUsages::RENDER_WORLD;
     for (usage, split) in [(all, true), (gpu_only, false)] {
         let r = Some(EnvironmentResampling::default());
-        let (mut h, target, _) = sphere_app_lit(candidates(), r, sky(usage));
+        let (mut h, target, cam) = sphere_app_lit(candidates(), r, sky(usage));
         let a = half_means(&h.capture(&target).unwrap());
         let b = half_means(&h.capture_next(&target).unwrap());
         let c = h.counters();
@@ -295,6 +295,19 @@ fn bevy_resampling_splits_a_user_image() {
             // The map is read on the async compute pool: the first frames may be whole.
             true => assert!(2 * bright > passes && passes > 3, "{bright} of {passes}"),
             false => assert_eq!(bright, 0),
+        }
+        if split {
+            // A face size the map was not read for is made from its texels on the async pool
+            // (never on the render thread): the frames split again once it is.
+            let world = h.app.world_mut();
+            let mut sampling = world.get_mut::<EnvironmentSampling>(cam).unwrap();
+            sampling.face_size /= 2;
+            let split_frames = |h: &HeadlessApp| h.counters().get(|c| &c.resampling_bright);
+            let resumed = (0..10).any(|_| {
+                h.update();
+                split_frames(&h) > bright + 1
+            });
+            assert!(resumed, "no split at the new face size");
         }
     }
 }

@@ -9,7 +9,8 @@
 //! tables written into the frame's split buffer in place of `gather_split`'s whole map. A
 //! camera whose map has no CPU copy keeps the whole map (`split_bright: false`).
 
-use super::cpu_maps::{CpuEnvMaps, CpuMap};
+use super::cpu_maps::CpuEnvMaps;
+use crate::envmap::CubeMap;
 use crate::gpu::EnvSampler;
 use crate::gpu::resampling::{split_tables, storage_init};
 use crate::render::resampling::{BrightLight, Split};
@@ -49,7 +50,11 @@ pub(super) fn view_split(
     (device, queue, enc): (&wgpu::Device, &wgpu::Queue, &mut wgpu::CommandEncoder),
 ) {
     let old = split.take();
+    // (A face size not yet made from a user's image is being made on the async pool.)
     let Some((revision, map)) = maps.and_then(|m| m.map(image)) else {
+        return;
+    };
+    let Some(cube) = map.cube(like.n) else {
         return;
     };
     let map_key = (revision, like.n);
@@ -63,7 +68,7 @@ pub(super) fn view_split(
                     None => return,
                 },
             };
-            let s = build(device, queue, map, map_key, sampler);
+            let s = build(device, queue, &cube, map_key, sampler);
             s.sampler.encode_distribution(enc, None);
             s
         }
@@ -95,12 +100,11 @@ fn new_sampler(
 fn build(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
-    map: &CpuMap,
+    cube: &CubeMap,
     map_key: (u64, usize),
     sampler: EnvSampler,
 ) -> BrightSplit {
-    let cube = map.cube(sampler.n);
-    let split = Split::new(&cube);
+    let split = Split::new(cube);
     sampler.upload(queue, &split.rest);
     let (tables, cdf, ids) = split_tables(&split);
     BrightSplit {

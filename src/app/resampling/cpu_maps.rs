@@ -12,7 +12,9 @@
 //! A user's image is read, and resampled to the cameras' face sizes, on Bevy's async compute
 //! pool (for a 2048 x 1024 lat-long about 0.2 s, docs/temporal.md): the frames meanwhile
 //! resample the map whole (the previous version's split is dropped with it), so loading a map
-//! never stalls a frame. The stream's frame is a cube map already, copied at once.
+//! never stalls a frame. A face size asked for later (a camera's `face_size` changed) is made
+//! there too, from the texels already read, the frames meanwhile resampling the map whole. The
+//! stream's frame is a cube map already, copied at once and resampled in the pass.
 
 use super::EnvironmentResampling;
 use crate::app::components::{EnvironmentSampling, EnvisEnvironment};
@@ -38,17 +40,46 @@ enum Version {
 
 /// A map read on the CPU, and resampled to the face sizes asked for when it was read.
 pub struct CpuMap {
-    pub source: SourceImage,
+    pub source: Arc<SourceImage>,
     cubes: Vec<CubeMap>,
+    /// Whether a face size not made with the map is made when asked: the stream's frame (a
+    /// cube already, copied in the extraction), not a user's image (a large lat-long's
+    /// resampling would stall the render thread; [`extract_cpu_maps`] makes it on the async
+    /// pool instead).
+    on_demand: bool,
 }
 
 impl CpuMap {
     /// The map as the sampler's texel table of face size `n` (`SourceImage::to_cube`), made
-    /// now where it was not made with the map.
-    pub fn cube(&self, n: usize) -> std::borrow::Cow<'_, CubeMap> {
+    /// now where it was not made with the map and the map allows it; `None` until then.
+    pub fn cube(&self, n: usize) -> Option<std::borrow::Cow<'_, CubeMap>> {
         match self.cubes.iter().find(|c| c.size == n) {
-            Some(c) => std::borrow::Cow::Borrowed(c),
-            None => std::borrow::Cow::Owned(self.source.to_cube(n)),
+            Some(c) => Some(std::borrow::Cow::Borrowed(c)),
+            None if self.on_demand => Some(std::borrow::Cow::Owned(self.source.to_cube(n))),
+            None => None,
+        }
+    }
+
+    /// Whether every face size of `sizes` is made (or made when asked).
+    fn has_cubes(&self, sizes: &[usize]) -> bool {
+        self.on_demand
+            || sizes
+                .iter()
+                .all(|&n| self.cubes.iter().any(|c| c.size == n))
+    }
+
+    /// This map with the cubes of `sizes` it lacks made (the work of an async task).
+    fn with_cubes(&self, sizes: &[usize]) -> CpuMap {
+        let mut cubes = self.cubes.clone();
+        for &n in sizes {
+            if !cubes.iter().any(|c| c.size == n) {
+                cubes.push(self.source.to_cube(n));
+            }
+        }
+        CpuMap {
+            source: self.source.clone(),
+            cubes,
+            on_demand: self.on_demand,
         }
     }
 }
@@ -85,9 +116,15 @@ impl CpuEnvMaps {
         }
     }
 
-    /// Keep `id`'s entry if it is at `version` (taking its result if it was being read), else
-    /// start it anew with `make`.
-    fn refresh(&mut self, id: AssetId<Image>, version: Version, make: impl FnOnce() -> Content) {
+    /// Keep `id`'s entry if it is at `version` and has the cubes of `sizes` (taking its result
+    /// if it was being read), else start it anew with `make`, given the map read at this
+    /// version where one lacks cubes (so that only they are made).
+    fn refresh(
+        &mut self,
+        (id, version): (AssetId<Image>, Version),
+        sizes: &[usize],
+        make: impl FnOnce(Option<Arc<CpuMap>>) -> Content,
+    ) {
         let entry = self.maps.get_mut(&id).filter(|m| m.version == version);
         let content = match entry {
             Some(CpuEnvMap {
@@ -97,8 +134,12 @@ impl CpuEnvMaps {
                 Some(read) => ready(read),
                 None => return,
             },
+            Some(CpuEnvMap {
+                content: Content::Ready(Some(map)),
+                ..
+            }) if !map.has_cubes(sizes) => make(Some(map.clone())),
             Some(_) => return,
-            None => make(),
+            None => make(None),
         };
         self.revisions += 1;
         let revision = self.revisions;
@@ -148,23 +189,29 @@ pub(super) fn extract_cpu_maps(maps: &mut CpuEnvMaps, main_world: &mut MainWorld
         match (stream, version) {
             (Some((s, frame)), _) if s == id => {
                 let map = frame.map.clone();
-                maps.refresh(id, Version::Stream(frame.generation), || {
+                maps.refresh((id, Version::Stream(frame.generation)), sizes, |_| {
                     let source = SourceImage::new_cube(bevy_cube_layers(&map));
                     ready(Ok(CpuMap {
-                        source,
+                        source: Arc::new(source),
                         cubes: Vec::new(),
+                        on_demand: true,
                     }))
                 });
             }
             (_, Some(version)) if !dynamic => {
-                // The image is cloned (for the task) only when this version is new.
-                maps.refresh(id, Version::Asset(version), || {
-                    let image = images.and_then(|a| a.get(id)).cloned();
+                // The image is cloned (for the task) only when this version is new; a face
+                // size asked for later is made from the map already read.
+                maps.refresh((id, Version::Asset(version)), sizes, |read| {
+                    let image = read
+                        .is_none()
+                        .then(|| images.and_then(|a| a.get(id)).cloned());
                     let sizes = sizes.clone();
-                    Content::Pending(
-                        AsyncComputeTaskPool::get()
-                            .spawn(async move { read_map(image.as_ref(), &sizes) }),
-                    )
+                    Content::Pending(AsyncComputeTaskPool::get().spawn(async move {
+                        match read {
+                            Some(map) => Ok(map.with_cubes(&sizes)),
+                            None => read_map(image.flatten().as_ref(), &sizes),
+                        }
+                    }))
                 });
             }
             _ => {
@@ -179,11 +226,12 @@ pub(super) fn extract_cpu_maps(maps: &mut CpuEnvMaps, main_world: &mut MainWorld
 /// `image` read ([`source_from_image`]) and resampled to each face size of `sizes`.
 fn read_map(image: Option<&Image>, sizes: &[usize]) -> Result<CpuMap, String> {
     let source = source_from_image(image.ok_or("the image is not in the main world")?)?;
-    let mut sizes = sizes.to_vec();
-    sizes.sort_unstable();
-    sizes.dedup();
-    let cubes = sizes.into_iter().map(|n| source.to_cube(n)).collect();
-    Ok(CpuMap { source, cubes })
+    let read = CpuMap {
+        source: Arc::new(source),
+        cubes: Vec::new(),
+        on_demand: false,
+    };
+    Ok(read.with_cubes(sizes))
 }
 
 /// A Bevy environment image's texels as the GPU's resample reads them: a 2:1 lat-long or a
@@ -291,22 +339,56 @@ mod tests {
         }
     }
 
-    /// A map read for face sizes 4 and 8 gives those cubes, and makes any other when asked:
-    /// each the source's `to_cube`.
+    /// A map read for face sizes 4 and 8 gives those cubes, each the source's `to_cube`, and
+    /// no other until it is made with the map (on the async pool: never on the render thread);
+    /// the stream's frame makes any when asked.
     #[test]
     fn read_maps_have_the_cubes_asked_for() {
         let layers = bevy_cube_layers(&CubeMap::from_fn(8, |d| Vec3::splat(1.0 + d.x)));
         let image = bevy_image(8, 8, 6, &layers.data, RenderAssetUsages::default());
         let map = read_map(Some(&image), &[8, 4, 8]).unwrap();
         assert_eq!(map.cubes.len(), 2);
-        for n in [4, 8, 5] {
-            assert_eq!(
-                map.cube(n).data,
-                map.source.to_cube(n).data,
-                "face size {n}"
-            );
+        let cube = |m: &CpuMap, n| m.cube(n).map(|c| c.data.clone());
+        for n in [4, 8] {
+            assert_eq!(cube(&map, n), Some(map.source.to_cube(n).data), "{n}");
         }
+        assert!(map.has_cubes(&[4, 8]) && !map.has_cubes(&[8, 5]));
+        assert_eq!(cube(&map, 5), None);
+        let more = map.with_cubes(&[5, 8]);
+        assert_eq!(more.cubes.len(), 3);
+        assert_eq!(cube(&more, 5), Some(map.source.to_cube(5).data));
+        let stream = CpuMap {
+            on_demand: true,
+            ..map.with_cubes(&[])
+        };
+        assert_eq!(cube(&stream, 5), Some(map.source.to_cube(5).data));
         assert!(read_map(None, &[8]).is_err());
+    }
+
+    /// An entry lacking a face size asked for is extended from the map it read (not read
+    /// again), and one that has them all is kept as it is.
+    #[test]
+    fn entries_lacking_a_face_size_are_extended() {
+        let layers = bevy_cube_layers(&CubeMap::from_fn(4, |_| Vec3::ONE));
+        let image = bevy_image(4, 4, 6, &layers.data, RenderAssetUsages::default());
+        let map = Arc::new(read_map(Some(&image), &[4]).unwrap());
+        let mut maps = CpuEnvMaps::default();
+        let (id, version) = (AssetId::<Image>::default(), Version::Asset(1));
+        let made = std::cell::Cell::new(0);
+        let refresh = |maps: &mut CpuEnvMaps, sizes: &[usize]| {
+            maps.refresh((id, version), sizes, |read| {
+                made.set(made.get() + 1);
+                let map = read.map_or_else(|| map.with_cubes(sizes), |m| m.with_cubes(sizes));
+                Content::Ready(Some(Arc::new(map)))
+            })
+        };
+        refresh(&mut maps, &[4]);
+        refresh(&mut maps, &[4]);
+        assert_eq!(made.get(), 1, "a complete entry is kept");
+        refresh(&mut maps, &[4, 6]);
+        assert_eq!(made.get(), 2, "a missing face size is made");
+        let (_, m) = maps.map(id).unwrap();
+        assert!(m.cube(6).is_some() && m.cube(4).is_some());
     }
 
     /// An image without main-world texels, or of no environment shape, is refused in words.

@@ -39,6 +39,7 @@
 
 mod agreement;
 mod bright;
+mod bright_light;
 mod combine;
 mod passes;
 mod reservoir;
