@@ -61,7 +61,9 @@ struct ResampleParams {
     prev_bvh_nodes: u32,
     // The shadow casters the camera sees (visibility::Layers; ALL_LAYERS headless).
     layers: u32,
-    pad1: u32,
+    // How far this frame's map and the history's agree as light (agreement::map_agreement,
+    // computed on the CPU): the rest's history confidence is scaled by it.
+    map_agreement: f32,
     // Surfaces' normals and view directions, and samples' directions, are in the map's frame
     // (the Bevy pass rotates them there, as its lighting pass does); points and the shadow BVH
     // are in the world's. Identity headless.

@@ -60,7 +60,8 @@ fn combine(dom: ptr<function, array<Domain, MAX_DOMAINS>>, count: u32, rng: ptr<
 }
 
 // Pass 2 (passes::temporal): each part's reservoir combined with the history pixel's, its
-// confidence capped at max_history and scaled by lobe_agreement.
+// confidence capped at max_history and scaled by lobe_agreement, and the rest's by
+// map_agreement (the bright part's history is of the same light: bright_history).
 @compute @workgroup_size(64)
 fn temporal(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let i = pixel_id(gid, nwg);
@@ -76,6 +77,9 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgrou
         if (part_live(part) && s.px.n.w != 0.0 && q >= 0) {
             var old = res_hist[2u * u32(q) + part];
             old.m = min(old.m, rp.max_history) * lobe_agreement(s.px, prev_surfaces[u32(q)].px);
+            if (part == 0u) {
+                old.m *= rp.map_agreement;
+            }
             var dom: array<Domain, MAX_DOMAINS>;
             dom[0] = Domain(own, own.rgb, 0.0, 0.0);
             dom[1] = reused_domain(old, s, part);

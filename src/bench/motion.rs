@@ -58,8 +58,7 @@ pub struct MotionRow {
     pub per_frame: Vec<(u32, f64)>,
     /// Where the scene switches its environment among the measured frames
     /// (`[[animation.switch]]`): frames after the switch until the relMSE is back within 2x its
-    /// steady value (the mean of the last four measured frames); `None` without a switch, or
-    /// if it never gets back.
+    /// steady value ([`frames_to_follow`]); `None` without a switch, or if it never gets back.
     pub frames_to_follow: Option<u32>,
 }
 
@@ -83,14 +82,16 @@ pub fn run(a: BenchArgs, dir: PathBuf) -> Result<()> {
     let mut rows: Vec<MotionRow> = Vec::new();
     for (name, r, n, backend) in configs(&a) {
         let mut row = m.measure(&name, r, n, backend)?;
-        if let Some(base) = rows.iter().find(|b| b.backend == row.backend) {
+        let base = rows.iter().find(|b| b.backend == row.backend);
+        if let Some(base) = base {
             row.relmse_ratio = row.relmse / base.relmse;
             row.flip_ratio = row.flip / base.flip;
             row.cost_ratio = row.frame_ms / base.frame_ms;
         }
+        let base = base.map_or(row.per_frame.as_slice(), |b| b.per_frame.as_slice());
         row.frames_to_follow = m
             .switch_frame()
-            .and_then(|k| frames_to_follow(&row.per_frame, k));
+            .and_then(|k| frames_to_follow(&row.per_frame, base, k));
         let follow = m.switch_frame().map_or(String::new(), |k| {
             let n = row
                 .frames_to_follow
@@ -318,12 +319,28 @@ impl Motion {
     }
 }
 
-/// Frames from `switch` until a frame's relMSE is within 2x the steady value, the mean of the
-/// last four frames of `per_frame` ((frame, relMSE) in order); `None` if none is.
-fn frames_to_follow(per_frame: &[(u32, f64)], switch: u32) -> Option<u32> {
-    let tail = &per_frame[per_frame.len().saturating_sub(4)..];
-    let steady = tail.iter().map(|f| f.1).sum::<f64>() / tail.len().max(1) as f64;
-    (per_frame.iter())
+/// Frames from `switch` until a frame's relMSE is within 2x the steady value; `None` if none
+/// is. Each frame's relMSE is taken relative to the baseline's in the same frame (`base`, of
+/// the same frames): the maps before and after a switch differ in difficulty, and the baseline,
+/// which reuses nothing, is as hard as each frame is. The steady value is the mean ratio over
+/// the measured frames before the switch (the last four frames where there are none: those
+/// after a switch are steady only if reuse has followed it, which a slow recovery never shows).
+fn frames_to_follow(per_frame: &[(u32, f64)], base: &[(u32, f64)], switch: u32) -> Option<u32> {
+    let ratio: Vec<(u32, f64)> = (per_frame.iter().zip(base))
+        .map(|(&(k, e), &(_, b))| (k, e / b.max(f64::MIN_POSITIVE)))
+        .collect();
+    let before: Vec<f64> = (ratio.iter())
+        .filter(|f| f.0 < switch)
+        .map(|f| f.1)
+        .collect();
+    let steady = match before.is_empty() {
+        false => before.iter().sum::<f64>() / before.len() as f64,
+        true => {
+            let tail = &ratio[ratio.len().saturating_sub(4)..];
+            tail.iter().map(|f| f.1).sum::<f64>() / tail.len().max(1) as f64
+        }
+    };
+    (ratio.iter())
         .find(|&&(k, e)| k >= switch && e <= 2.0 * steady)
         .map(|&(k, _)| k - switch)
 }
@@ -356,16 +373,23 @@ fn references(scene: &Scene, size: usize, first: u32, frames: u32) -> Result<Vec
 mod tests {
     use super::frames_to_follow;
 
-    /// Counted from the switch to the first frame within 2x the steady value (the mean of the
-    /// last four frames); `None` where none after the switch is.
+    /// Counted from the switch to the first frame within 2x the steady ratio to the baseline
+    /// (before the switch; the last four frames without frames before it); `None` where none
+    /// after the switch is.
     #[test]
     fn frames_to_follow_counts_from_the_switch() {
         let run = |e: &[f64]| -> Vec<(u32, f64)> { (10..).zip(e.iter().copied()).collect() };
+        let flat = run(&[1.0; 10]);
         let settled = run(&[1.0, 1.0, 9.0, 5.0, 2.5, 1.5, 1.0, 1.0, 1.0, 1.0]);
-        assert_eq!(frames_to_follow(&settled, 12), Some(3));
-        assert_eq!(frames_to_follow(&settled, 10), Some(0));
-        // A switch at the last frame, far off: the steady value is (1 + 1 + 1 + 10) / 4.
-        let never = run(&[1.0, 1.0, 1.0, 1.0, 1.0, 10.0]);
-        assert_eq!(frames_to_follow(&never, 15), None);
+        assert_eq!(frames_to_follow(&settled, &flat, 12), Some(3));
+        // No frames before the switch: the last four's mean.
+        assert_eq!(frames_to_follow(&settled, &flat, 10), Some(0));
+        // A slow recovery is not steady: still 4x the value before the switch at the end.
+        let slow = run(&[1.0, 1.0, 30.0, 20.0, 14.0, 10.0, 8.0, 6.0, 5.0, 4.0]);
+        assert_eq!(frames_to_follow(&slow, &flat, 12), None);
+        // A harder map after the switch (the baseline's error doubles) is not a lag.
+        let harder = run(&[1.0, 1.0, 6.0, 4.0, 4.0, 4.0, 4.0, 4.0, 4.0, 4.0]);
+        let base = run(&[1.0, 1.0, 2.0, 2.0, 2.0, 2.0, 2.0, 2.0, 2.0, 2.0]);
+        assert_eq!(frames_to_follow(&harder, &base, 12), Some(1));
     }
 }

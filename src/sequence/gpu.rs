@@ -7,7 +7,7 @@ use super::{Posed, SequenceFrame, SequenceOptions, frame_stats, split_map};
 use crate::error::{Error, Result};
 use crate::gpu::resampling::{GpuFrame, GpuHistory, GpuResampler};
 use crate::gpu::{GpuContext, GpuRenderer};
-use crate::render::resampling::{ReuseStats, Split};
+use crate::render::resampling::{ReuseStats, Split, map_agreement};
 use crate::scene::Scene;
 
 /// [`super::run`] on a new headless device.
@@ -53,6 +53,7 @@ pub(super) fn run(
         let history = (prev.as_ref().zip(reproject.as_deref())).map(|((_, ps), rep)| GpuHistory {
             reproject: rep,
             same_bright: ps.bright.same_light(&split.bright),
+            map_agreement: map_agreement(&ps.rest, &split.rest),
         });
         let input = GpuFrame {
             screen: &cur.screen(None, &split),

@@ -81,6 +81,12 @@ fn gpu_resampling_matches_cpu_sequence() {
         ("sun speed 1", moving_scene(&dir, 1.0), false, 4),
         ("sun still", moving_scene(&dir, 0.0), true, 4),
         ("still scene", still, true, 10),
+        (
+            "map switch",
+            support::switching_scene(&dir, "switch", 2),
+            true,
+            4,
+        ),
     ];
     for (name, scene, unbiased, frames) in cases {
         let r = Resampling::for_mode(ResamplingMode::Spatiotemporal, unbiased).unwrap();
@@ -122,6 +128,11 @@ fn gpu_resampling_matches_cpu_sequence() {
             let (cr, gr) = (&c.stats.reuse, &g.stats.reuse);
             assert!(close(cr.temporal_accepted, gr.temporal_accepted), "{label}");
             assert!(close(cr.spatial_accepted, gr.spatial_accepted), "{label}");
+            let history = (cr.mean_history - gr.mean_history).abs();
+            assert!(
+                history <= 0.03 * cr.mean_history,
+                "{label}: {cr:?} vs {gr:?}"
+            );
             assert_eq!(
                 c.stats.samples_evaluated, g.stats.samples_evaluated,
                 "{label}"
@@ -199,8 +210,10 @@ fn bevy_sequence_keeps_the_previous_geometry() {
 }
 
 /// A resampled Bevy frame's counts, read back, against the oracle's: the same rays per pixel
-/// and mean history `M` within 10% (measured within 4.4% and 1.5%), and its own frame's reuse
-/// (no history in frame 0, most pixels' after).
+/// and mean history `M` within 10% (measured within 4.4% and 1.5%; with the sun an hour a
+/// frame the history keeps half its confidence, `map_agreement`: left out of the Bevy pass, a
+/// hand mutation, 1.84 against 1.49, and it failed), and its own frame's reuse (no history in
+/// frame 0, most pixels' after).
 fn bevy_counts_are_the_oracles(b: &SequenceFrame, c: &SequenceFrame, label: &str) {
     let (rb, rc) = (b.stats.shadow_rays_per_pixel, c.stats.shadow_rays_per_pixel);
     eprintln!("  rays per pixel {rb:?} vs {rc:?}");

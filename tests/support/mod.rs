@@ -267,10 +267,11 @@ impl Drop for TempDir {
     }
 }
 
-/// The resampling tests' small scene (the CPU oracle's and its WGSL twin's): a diffuse and a glossy sphere on a plane (contact shadows) under the built-in
-/// sky with 8^2 faces, the camera close enough that almost every pixel sees geometry.
-/// `orbit` (degrees per second), the glossy sphere's `velocity` (x, units per second) and the
-/// sky's `speed` (hours per second) move it on a clock of `fps` frames per second.
+/// The resampling tests' small scene (the CPU oracle's and its WGSL twin's): a diffuse and a
+/// glossy sphere on a plane (contact shadows) under the built-in sky with 8^2 faces, the camera
+/// close enough that almost every pixel sees geometry. `orbit` (degrees per second), the glossy
+/// sphere's `velocity` (x, units per second) and the sky's `speed` (hours per second) move it on
+/// a clock of `fps` frames per second.
 pub fn resampling_scene(
     dir: &Path,
     name: &str,
@@ -279,7 +280,33 @@ pub fn resampling_scene(
     speed: f32,
     fps: f32,
 ) -> envis::scene::Scene {
-    let text = format!(
+    load_scene(
+        dir,
+        name,
+        &resampling_scene_text(orbit, velocity, speed, fps),
+    )
+}
+
+/// The resampling tests' scene held still, its sky switching at frame `at` (of 30 a second) to
+/// `assets/hdri/park.exr`, as a carousel step would: another map's light.
+pub fn switching_scene(dir: &Path, name: &str, at: u32) -> envis::scene::Scene {
+    let mut text = resampling_scene_text(0.0, 0.0, 0.0, 30.0);
+    let at = (at as f32 - 0.5) / 30.0;
+    let park = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/hdri/park.exr");
+    let park = park.display().to_string().replace('\\', "/");
+    text += &format!("[[animation.switch]]\nat = {at}\nsource = \"{park}\"\n");
+    load_scene(dir, name, &text)
+}
+
+/// `text` written to `dir/name.toml` and loaded.
+fn load_scene(dir: &Path, name: &str, text: &str) -> envis::scene::Scene {
+    let p = dir.join(format!("{name}.toml"));
+    std::fs::write(&p, text).unwrap();
+    envis::scene::Scene::load(&p).unwrap()
+}
+
+fn resampling_scene_text(orbit: f32, velocity: f32, speed: f32, fps: f32) -> String {
+    format!(
         r#"
 [environment]
 source = "builtin:sky:14"
@@ -313,8 +340,5 @@ shape = "plane"
 size = 8.0
 material = {{ type = "diffuse", albedo = 0.6 }}
 "#
-    );
-    let p = dir.join(format!("{name}.toml"));
-    std::fs::write(&p, text).unwrap();
-    envis::scene::Scene::load(&p).unwrap()
+    )
 }

@@ -13,7 +13,7 @@ use super::cpu_maps::CpuEnvMaps;
 use crate::envmap::CubeMap;
 use crate::gpu::EnvSampler;
 use crate::gpu::resampling::{split_tables, storage_init};
-use crate::render::resampling::{BrightLight, Split};
+use crate::render::resampling::{BrightLight, Split, map_agreement};
 use crate::sampling::TileGrid;
 use bevy::prelude::*;
 use std::sync::Arc;
@@ -30,6 +30,11 @@ pub(super) struct BrightSplit {
     pub count: u32,
     pub bright: Arc<BrightLight>,
     pub sampler: EnvSampler,
+    /// The rest of the map (what [`map_agreement`] compares when the map changes).
+    rest: Arc<CubeMap>,
+    /// How far this frame's map agrees with the previous frame's as light: [`map_agreement`]
+    /// of the two rests in the frame the map changed, 1 while it stays.
+    pub map_agreement: f32,
 }
 
 /// What the sampler is built for: face size, tiles, pool slots, blocks, `global` table.
@@ -59,8 +64,12 @@ pub(super) fn view_split(
     };
     let map_key = (revision, like.n);
     let fresh = match old {
-        Some(s) if shape(&s.sampler) == shape(like) && s.map_key == map_key => s,
+        Some(s) if shape(&s.sampler) == shape(like) && s.map_key == map_key => BrightSplit {
+            map_agreement: 1.0,
+            ..s
+        },
         old => {
+            let old_rest = old.as_ref().map(|s| s.rest.clone());
             let sampler = match old {
                 Some(s) if shape(&s.sampler) == shape(like) => s.sampler,
                 _ => match new_sampler(device, queue, like) {
@@ -68,8 +77,10 @@ pub(super) fn view_split(
                     None => return,
                 },
             };
-            let s = build(device, queue, &cube, map_key, sampler);
+            let mut s = build(device, queue, &cube, map_key, sampler);
             s.sampler.encode_distribution(enc, None);
+            // (Without a split the frame before, its map is not on the CPU: not measured.)
+            s.map_agreement = old_rest.map_or(1.0, |r| map_agreement(&r, &s.rest));
             s
         }
     };
@@ -115,6 +126,8 @@ fn build(
         tables,
         bright: Arc::new(split.bright),
         sampler,
+        rest: Arc::new(split.rest),
+        map_agreement: 1.0,
     }
 }
 

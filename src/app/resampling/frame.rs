@@ -79,7 +79,7 @@ pub(super) fn write_uniforms(
         bvh_nodes: f.bvh.as_ref().map_or(0, |b| b.2),
         prev_bvh_nodes: prev.and_then(|p| p.bvh.as_ref()).map_or(0, |b| b.2),
         layers: f.layers,
-        pad: 0,
+        map_agreement: bright.map_or(1.0, |b| b.map_agreement),
         world_from_map: [rot.x_axis, rot.y_axis, rot.z_axis].map(|c| c.extend(0.0).to_array()),
     };
     queue.write_buffer(&state.gather_view, 0, bytemuck::bytes_of(&gv));

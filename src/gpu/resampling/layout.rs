@@ -102,7 +102,10 @@ pub struct ResampleParams {
     pub prev_bvh_nodes: u32,
     /// The shadow casters seen (`visibility::Layers`' bits; all of them headless).
     pub layers: u32,
-    pub pad: u32,
+    /// How far this frame's map and the history's agree as light
+    /// ([`crate::render::resampling::map_agreement`]): the rest's history confidence is scaled
+    /// by it.
+    pub map_agreement: f32,
     /// The rotation from the map's frame (normals, view and sample directions) to the world's
     /// (points, the shadow BVH): a `mat3x3<f32>`'s three padded columns.
     pub world_from_map: [[f32; 4]; 3],

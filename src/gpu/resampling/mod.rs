@@ -40,6 +40,9 @@ pub const HISTORY_FULL_SCALE: f32 = 20.0;
 pub struct GpuHistory<'a> {
     pub reproject: &'a [Option<(usize, f32)>],
     pub same_bright: bool,
+    /// How far the previous frame's map and this one's agree as light
+    /// ([`crate::render::resampling::map_agreement`] of their rests).
+    pub map_agreement: f32,
 }
 
 /// A frame as [`GpuResampler::frame`] takes it.
@@ -185,7 +188,7 @@ impl GpuResampler {
             bvh_nodes: f.bvh.as_ref().map_or(0, |b| b.2),
             prev_bvh_nodes: prev.and_then(|p| p.bvh.as_ref()).map_or(0, |b| b.2),
             layers: u32::MAX,
-            pad: 0,
+            map_agreement: history.map_or(1.0, |h| h.map_agreement),
             world_from_map: ResampleParams::MAP_IS_WORLD,
         }
     }

@@ -45,7 +45,10 @@ mod passes;
 mod reservoir;
 mod settings;
 
-pub use agreement::{AGREEMENT_SCALE, DIFFUSE_WIDTH, MIN_AGREEMENT_WIDTH, lobe_agreement};
+pub use agreement::{
+    AGREEMENT_SCALE, DIFFUSE_WIDTH, MAP_AGREEMENT_SCALE, MIN_AGREEMENT_WIDTH, lobe_agreement,
+    map_agreement,
+};
 pub use bright::{
     BRIGHT_LIGHT_SAMPLES, BRIGHT_LIGHT_SAMPLES_BIASED, BRIGHT_MAX_AREA, BRIGHT_OVER_MEAN,
     BRIGHT_PENUMBRA_SAMPLES, BrightLight, Part, Split, bright_light_samples, bright_reservoir,
@@ -280,7 +283,8 @@ fn candidate_pass(
 
 /// Temporal (2.) and spatial (3.) reuse of the reservoirs of `part`, in place, their rays added
 /// to `rays`; the domains each accepted. The bright part's history is reused only where the
-/// bright light is the one it was made under ([`BrightLight::same_light`]).
+/// bright light is the one it was made under ([`BrightLight::same_light`]), the rest's at the
+/// confidence its map's light keeps ([`map_agreement`]).
 fn reuse_part(
     cur: &Screen,
     history: Option<(History, Reproject)>,
@@ -294,8 +298,13 @@ fn reuse_part(
         .filter(|(h, _)| part == Part::Rest || h.screen.split.bright.same_light(&cur.split.bright));
     let mut accepted = (0, 0);
     if let (true, Some((h, reproject))) = (r.temporal, history) {
+        // (The bright part's history is of the same light, above.)
+        let maps = match part {
+            Part::Rest => map_agreement(&h.screen.split.rest, &cur.split.rest),
+            Part::Bright => 1.0,
+        };
         let out = per_pixel_pass(n_px, |i| {
-            temporal(cur, &h, reproject, r, (res, part), i, stream(2, i))
+            temporal(cur, &h, (reproject, maps), r, (res, part), i, stream(2, i))
         });
         accepted.0 = replace(res, part, rays, out);
     }

@@ -80,11 +80,12 @@ pub(super) fn penumbra_before(h: &History, reproject: Reproject, i: usize) -> bo
 
 /// Pixel `i` after temporal reuse: its reservoir, the rays cast, whether history was accepted
 /// (1 or 0). The history's confidence is capped at `max_history` and scaled by how far the two
-/// pixels' targets agree ([`lobe_agreement`]).
+/// pixels' targets agree ([`lobe_agreement`]) and by `maps`, how far the two frames' maps do
+/// (`map_agreement`).
 pub(super) fn temporal(
     cur: &Screen,
     h: &History,
-    reproject: Reproject,
+    (reproject, maps): (Reproject, f32),
     r: &Resampling,
     (res, part): (&[Reservoirs], Part),
     i: usize,
@@ -106,7 +107,7 @@ pub(super) fn temporal(
         return (own, 0, 0);
     };
     let mut old = h.reservoirs[q][part as usize];
-    old.m = old.m.min(r.max_history as f32) * lobe_agreement(at.px, p.px);
+    old.m = old.m.min(r.max_history as f32) * lobe_agreement(at.px, p.px) * maps;
     let mut history = Domain::reused(old, p, cur.split, at.px);
     // The biased mode shadow-tests a final sample from elsewhere, but trusts the rest's history
     // (the sky, seen from half a pixel away a frame ago): 2.66 rays a pixel instead of 3.56 on
