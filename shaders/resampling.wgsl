@@ -81,7 +81,7 @@ struct Surface {
 // render::resampling's constants (a test checks them against Rust).
 const SPATIAL_RADIUS: f32 = 8.0;
 const SPATIAL_CONFIDENCE: f32 = 0.25;
-const SPATIAL_UNTIL_HISTORY: f32 = 8.0;
+const SPATIAL_UNTIL_HISTORY: f32 = 4.0;
 const NORMAL_COS: f32 = 0.9;
 const DEPTH_REL: f32 = 0.1;
 const AGREEMENT_SCALE: f32 = 0.1;

@@ -338,6 +338,7 @@ fn history_is_dropped_when_the_map_switches() {
     let scene = support::switching_scene(&dir, "switching", 6);
     let f = frames(&scene, 8, 1, Some(Resampling::default()));
     let m: Vec<f64> = f.iter().map(|f| f.stats.reuse.mean_history).collect();
+    eprintln!("mean confidence per frame, the switch at 6: {m:.2?}");
     assert!(m[5] > 5.0 && m[6] < 3.0 && m[7] > m[6], "{m:?}");
     let mut t = sequence_checks(&scene, &[6, 7], 48, Resampling::default());
     t.name = "history_is_dropped_when_the_map_switches".into();
