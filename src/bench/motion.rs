@@ -58,7 +58,8 @@ pub struct MotionRow {
     pub per_frame: Vec<(u32, f64)>,
     /// Where the scene switches its environment among the measured frames
     /// (`[[animation.switch]]`): frames after the switch until the relMSE is back within 2x its
-    /// steady value ([`frames_to_follow`]); `None` without a switch, or if it never gets back.
+    /// steady value (`frames_to_follow` below); `None` without a switch, or if it never gets
+    /// back.
     pub frames_to_follow: Option<u32>,
 }
 
