@@ -147,6 +147,14 @@ mod bevy_app;
 mod bevy_plugin;
 
 #[cfg(feature = "app")]
+#[path = "gpu/bevy_images.rs"]
+mod bevy_images;
+
+#[cfg(feature = "app")]
+#[path = "gpu/bevy_shadows.rs"]
+mod bevy_shadows;
+
+#[cfg(feature = "app")]
 #[path = "gpu/bevy_pose.rs"]
 mod bevy_pose;
 

@@ -1,7 +1,8 @@
 //! Deformed meshes in envis's shadows: skinned (`SkinnedMesh`) and morphed (`MeshMorphWeights`)
 //! casters cast the pose Bevy draws, refitted, not rebuilt, when it changes.
 
-use super::bevy_plugin::{top_down_camera, white_furnace_material};
+use super::bevy_plugin::white_furnace_material;
+use super::bevy_shadows::top_down_camera;
 use super::gpu;
 use bevy::asset::RenderAssetUsages;
 use bevy::mesh::morph::{MeshMorphWeights, MorphAttributes, MorphWeights};
