@@ -55,11 +55,7 @@ pub(super) fn view_split(
     (device, queue, enc): (&wgpu::Device, &wgpu::Queue, &mut wgpu::CommandEncoder),
 ) {
     let old = split.take();
-    // (A face size not yet made from a user's image is being made on the async pool.)
     let Some((revision, map)) = maps.and_then(|m| m.map(image)) else {
-        return;
-    };
-    let Some(cube) = map.cube(like.n) else {
         return;
     };
     let map_key = (revision, like.n);
@@ -69,6 +65,12 @@ pub(super) fn view_split(
             ..s
         },
         old => {
+            // (Made here only when the map or the sampler changed: the stream's frame is
+            // resampled to the face size now; a face size not yet made from a user's image is
+            // being made on the async pool.)
+            let Some(cube) = map.cube(like.n) else {
+                return;
+            };
             let old_rest = old.as_ref().map(|s| s.rest.clone());
             let sampler = match old {
                 Some(s) if shape(&s.sampler) == shape(like) => s.sampler,
