@@ -49,6 +49,11 @@ pub(crate) fn latlong_image(w: u32, f: impl Fn(Vec3) -> Vec3) -> (Image, envis::
     (img, cpu)
 }
 
+/// The one entity `F` matches in `world` (a test's set-up makes it one).
+pub(super) fn the_one<F: bevy::ecs::query::QueryFilter>(world: &mut World) -> Entity {
+    world.query_filtered::<Entity, F>().single(world).unwrap()
+}
+
 /// An app with the unit sphere in `material`, set up by `EnvisPlugin` alone: its
 /// StandardMaterials render deferred without a line of the app's own (a forward sphere would
 /// come out unlit, so every test on this app checks that set-up).
@@ -243,10 +248,7 @@ fn bevy_keeps_the_sun_and_its_shadow() {
         "sun + env - env differs from the sun alone by {worst}"
     );
     let world = h.app.world_mut();
-    let cam = world
-        .query_filtered::<Entity, With<EnvironmentSampling>>()
-        .single(world)
-        .unwrap();
+    let cam = the_one::<With<EnvironmentSampling>>(world);
     world
         .entity_mut(cam)
         .remove::<(EnvironmentSampling, EnvisEnvironment)>();
@@ -433,10 +435,7 @@ fn bevy_plugin_sets_itself_up_and_warns_once() {
     assert_eq!(warnings(&h), 3, "one warning per badly set-up camera");
     // Another of Bevy's environment lights added to the camera already warned adds nothing.
     let w = h.app.world_mut();
-    let e = w
-        .query_filtered::<Entity, With<EnvironmentMapLight>>()
-        .single(w)
-        .unwrap();
+    let e = the_one::<With<EnvironmentMapLight>>(w);
     w.entity_mut(e)
         .insert(GeneratedEnvironmentMapLight::default());
     h.update();

@@ -2,7 +2,7 @@
 //! the ground, `NotShadowCaster`, `RenderLayers`, and shadows that follow moving meshes.
 
 use super::bevy_plugin::{
-    latlong_image, sphere_camera, standard_sphere_app, white_furnace_material,
+    latlong_image, sphere_camera, standard_sphere_app, the_one, white_furnace_material,
 };
 use super::gpu;
 use bevy::prelude::*;
@@ -65,10 +65,7 @@ fn bevy_environment_shadows() {
                      (sphere_layer, camera_layers): (usize, &[usize])| {
         let mut h = standard_sphere_app(white_furnace_material());
         let world = h.app.world_mut();
-        let sphere = world
-            .query_filtered::<Entity, With<Mesh3d>>()
-            .single(world)
-            .unwrap();
+        let sphere = the_one::<With<Mesh3d>>(world);
         world
             .entity_mut(sphere)
             .insert(Transform::from_xyz(0.0, 1.0, 0.0));
@@ -90,10 +87,7 @@ fn bevy_environment_shadows() {
         let target = top_down_camera(&mut h, shadows, size, HALF);
         if camera_layers != [0] {
             let world = h.app.world_mut();
-            let camera = world
-                .query_filtered::<Entity, With<Camera3d>>()
-                .single(world)
-                .unwrap();
+            let camera = the_one::<With<Camera3d>>(world);
             let layers = RenderLayers::from_layers(camera_layers);
             world.entity_mut(camera).insert(layers);
         }
