@@ -107,7 +107,7 @@ fn sequence_checks(scene: &Scene, check: &[u32], seeds: u32, r: Resampling) -> U
 
 /// The moving scene: camera orbit, a sliding glossy sphere, the sun moving an hour a frame.
 fn moving(dir: &Path) -> Scene {
-    support::resampling_scene(dir, "moving", 40.0, 0.5, 2.0, 2.0)
+    moving_sun(dir, 2.0)
 }
 
 /// The moving scene, its sun at `speed` hours per second (2 frames a second). An hour a frame
@@ -190,11 +190,16 @@ fn biased_reuse_bias_is_detected() {
         worst > 4.0,
         "the biased mode's bias was not seen (worst |t| {worst:.2})"
     );
-    // ...and it stays bounded (measured: at most 10.7% in a region).
-    for c in &t.checks {
-        let rel = (c.mean - c.reference) / c.reference;
-        assert!(rel.abs() < 0.15, "{}: relative bias {rel:+.4}", c.label);
-    }
+    // ...and it stays bounded (measured: at most 10.7% in a region); with the sun moving an
+    // hour a frame, under 5% (as before the map's agreement; measured 1.4% then).
+    let bounded = |t: &UnbiasedTest, bound: f64| {
+        for c in &t.checks {
+            let rel = (c.mean - c.reference) / c.reference;
+            assert!(rel.abs() < bound, "{}: relative bias {rel:+.4}", c.label);
+        }
+    };
+    bounded(&t, 0.15);
+    bounded(&sequence_checks(&moving(&dir), &[3], 128, r), 0.05);
 }
 
 /// Reprojection finds, in the previous frame, the pixel that saw the point where it was then:

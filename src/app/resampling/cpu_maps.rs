@@ -53,32 +53,33 @@ impl CpuMap {
     /// The map as the sampler's texel table of face size `n` (`SourceImage::to_cube`), made
     /// now where it was not made with the map and the map allows it; `None` until then.
     pub fn cube(&self, n: usize) -> Option<std::borrow::Cow<'_, CubeMap>> {
-        match self.cubes.iter().find(|c| c.size == n) {
+        match self.made(n) {
             Some(c) => Some(std::borrow::Cow::Borrowed(c)),
             None if self.on_demand => Some(std::borrow::Cow::Owned(self.source.to_cube(n))),
             None => None,
         }
     }
 
+    /// The cube of face size `n`, where it was made with the map.
+    fn made(&self, n: usize) -> Option<&CubeMap> {
+        self.cubes.iter().find(|c| c.size == n)
+    }
+
     /// Whether every face size of `sizes` is made (or made when asked).
     fn has_cubes(&self, sizes: &[usize]) -> bool {
-        self.on_demand
-            || sizes
-                .iter()
-                .all(|&n| self.cubes.iter().any(|c| c.size == n))
+        self.on_demand || sizes.iter().all(|&n| self.made(n).is_some())
     }
 
     /// This map with the cubes of `sizes` it lacks made (the work of an async task).
     fn with_cubes(&self, sizes: &[usize]) -> CpuMap {
-        let mut cubes = self.cubes.clone();
-        for &n in sizes {
-            if !cubes.iter().any(|c| c.size == n) {
-                cubes.push(self.source.to_cube(n));
-            }
-        }
+        let mut sizes = sizes.to_vec();
+        sizes.sort_unstable();
+        sizes.dedup();
+        let missing = sizes.into_iter().filter(|&n| self.made(n).is_none());
+        let new: Vec<CubeMap> = missing.map(|n| self.source.to_cube(n)).collect();
         CpuMap {
             source: self.source.clone(),
-            cubes,
+            cubes: self.cubes.iter().cloned().chain(new).collect(),
             on_demand: self.on_demand,
         }
     }
