@@ -33,7 +33,8 @@
 // Per reservoir: the canonical sample's target with visibility at the history pixel, in the
 // previous frame (written by history_targets, read by temporal).
 @group(0) @binding(18) var<storage, read_write> hist_targets: array<f32>;
-// Per pixel: (shadow rays so far, history accepted, neighbours accepted, 0).
+// Per pixel: (shadow rays so far, history accepted, neighbours accepted, bright history
+// accepted).
 @group(0) @binding(19) var<storage, read_write> counters: array<vec4<u32>>;
 // Per pixel: the estimate (r, g, b, 1 where shaded), and the candidates' (available, green,
 // yellow, brdf) sample counts.
@@ -87,6 +88,7 @@ const DEPTH_REL: f32 = 0.1;
 const AGREEMENT_SCALE: f32 = 0.1;
 const DIFFUSE_WIDTH: f32 = 1.0;
 const MIN_AGREEMENT_WIDTH: f32 = 0.001;
+const BRIGHT_SAME_POINT: f32 = 0.0001;
 const TAU: f32 = 6.28318530717959;
 
 // The candidates' sink (resample's CandidateSink); emit (shade.wgsl) streams into it.
@@ -166,7 +168,7 @@ fn part_live(part: u32) -> bool {
 }
 
 // passes::temporal's history pixel for pixel i and part: the reprojected pixel where it passes
-// the geometric tests, -1 otherwise.
+// the geometric tests (and, for the unbiased mode's bright part, same_point), -1 otherwise.
 fn history_pixel(i: u32, part: u32) -> i32 {
     if (rp.history == 0u || rp.temporal == 0u || (part == 1u && rp.bright_history == 0u)) {
         return -1;
@@ -178,6 +180,10 @@ fn history_pixel(i: u32, part: u32) -> i32 {
     let h = prev_surfaces[r.x];
     let s = surfaces[i];
     if (h.px.n.w == 0.0 || !similar(s.px.n.xyz, bitcast<f32>(r.y), s.id.x, h)) {
+        return -1;
+    }
+    // The unbiased mode's bright history only where the point has not moved (same_point).
+    if (part == 1u && rp.unbiased != 0u && distance(s.p.xyz, h.p.xyz) > BRIGHT_SAME_POINT * s.p.w) {
         return -1;
     }
     return i32(r.x);

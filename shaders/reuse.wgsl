@@ -97,6 +97,8 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgrou
             c.x += rays;
             if (part == 0u) {
                 c.y += 1u;
+            } else {
+                c.w += 1u;
             }
         }
         res_out[2u * i + part] = out;

@@ -174,6 +174,7 @@ mod tests {
             ("AGREEMENT_SCALE", r::AGREEMENT_SCALE),
             ("DIFFUSE_WIDTH", r::DIFFUSE_WIDTH),
             ("MIN_AGREEMENT_WIDTH", r::MIN_AGREEMENT_WIDTH),
+            ("BRIGHT_SAME_POINT", r::BRIGHT_SAME_POINT),
         ] {
             assert_eq!(wgsl_const(super::RESAMPLING, name), value, "{name}");
         }

@@ -169,6 +169,7 @@ fn stats(app: &HeadlessSphere, k: u32, time: f32, counts: Option<FrameCounts>) -
         reuse: counts.map_or_else(ReuseStats::default, |c| ReuseStats {
             temporal_accepted: c.temporal_accepted,
             spatial_accepted: c.spatial_accepted,
+            bright_temporal_accepted: c.bright_temporal_accepted,
             mean_history: c.mean_history,
         }),
     }

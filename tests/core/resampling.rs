@@ -1,7 +1,8 @@
 //! Reservoir resampling across pixels and frames (the CPU oracle, `envis sequence`): unbiased on a
 //! still and on a moving sequence (each frame against the f64 reference of its own pose), the
-//! mutations that break reuse are caught, history is found where the point was, still frames
-//! converge, the shadow-ray budget holds, and the bright part's own light samples its pdf.
+//! mutations that break reuse are caught, history is found where the point was (the bright
+//! part's only where it stayed), still frames converge, the shadow-ray budget holds, and the
+//! bright part's own light samples its pdf.
 
 use super::*;
 use envis::render::reference::reference_image_with;
@@ -348,6 +349,30 @@ fn history_is_dropped_when_the_map_switches() {
     let mut t = sequence_checks(&scene, &[6, 7], 48, Resampling::default());
     t.name = "history_is_dropped_when_the_map_switches".into();
     t.assert();
+}
+
+/// The bright part's history is reused, in the unbiased mode, only where the pixel's point has
+/// not moved (`BRIGHT_SAME_POINT`): with the sun still, a still camera keeps it and an orbiting
+/// one never does, where the biased mode still takes it.
+#[test]
+fn bright_history_only_where_the_point_stayed() {
+    let dir = tempdir();
+    let still = support::resampling_scene(&dir, "still", 0.0, 0.0, 0.0, 30.0);
+    let orbit = moving_sun(&dir, 0.0);
+    let accepted = |scene: &Scene, r: Resampling| -> Vec<u64> {
+        (frames(scene, 3, 1, Some(r)).iter())
+            .map(|f| f.stats.reuse.bright_temporal_accepted)
+            .collect()
+    };
+    let biased = Resampling {
+        unbiased: false,
+        ..Default::default()
+    };
+    let kept = accepted(&still, Resampling::default());
+    assert!(kept[0] == 0 && kept[1] > 0 && kept[2] > 0, "{kept:?}");
+    assert_eq!(accepted(&orbit, Resampling::default()), [0, 0, 0]);
+    let taken = accepted(&orbit, biased);
+    assert!(taken[1] > 0 && taken[2] > 0, "{taken:?}");
 }
 
 /// The spatial pass draws neighbours only where a pixel's history is short

@@ -128,6 +128,8 @@ fn gpu_resampling_matches_cpu_sequence() {
             let (cr, gr) = (&c.stats.reuse, &g.stats.reuse);
             assert!(close(cr.temporal_accepted, gr.temporal_accepted), "{label}");
             assert!(close(cr.spatial_accepted, gr.spatial_accepted), "{label}");
+            let bright = (cr.bright_temporal_accepted, gr.bright_temporal_accepted);
+            assert!(close(bright.0, bright.1), "{label}: {cr:?} vs {gr:?}");
             let history = (cr.mean_history - gr.mean_history).abs();
             assert!(
                 history <= 0.03 * cr.mean_history,

@@ -31,12 +31,15 @@ pub struct FrameCounts {
     /// Pixels whose history passed the geometric tests, and neighbours that did.
     pub temporal_accepted: u64,
     pub spatial_accepted: u64,
+    /// Pixels whose bright part's history did (`ReuseStats::bright_temporal_accepted`).
+    pub bright_temporal_accepted: u64,
     /// The rest's confidence `M` (the history overlay's) over the shaded pixels.
     pub mean_history: f64,
 }
 
 impl FrameCounts {
-    /// Totals of the per-pixel `counters` (rays, history accepted, neighbours accepted, -),
+    /// Totals of the per-pixel `counters` (rays, history accepted, neighbours accepted, bright
+    /// history accepted),
     /// `stats` (light samples available, green, yellow, BRDF samples) and `color` (image, `M`)
     /// of `shaders/resampling.wgsl`.
     fn sum(counters: &[[u32; 4]], stats: &[[u32; 4]], color: &[[f32; 4]]) -> Self {
@@ -46,6 +49,7 @@ impl FrameCounts {
             c.shadow_rays += r[0] as u64;
             c.temporal_accepted += r[1] as u64;
             c.spatial_accepted += r[2] as u64;
+            c.bright_temporal_accepted += r[3] as u64;
             c.shaded_pixels += shaded as u64;
             c.samples_evaluated += (s[1] + s[2] + s[3]) as u64;
             c.mean_history += if shaded { px[3] as f64 } else { 0.0 };

@@ -125,6 +125,7 @@ impl Readback {
             .sum();
         let reuse = ReuseStats {
             temporal_accepted: self.counters.iter().map(|c| c[1] as u64).sum(),
+            bright_temporal_accepted: self.counters.iter().map(|c| c[3] as u64).sum(),
             spatial_accepted: self.counters.iter().map(|c| c[2] as u64).sum(),
             mean_history: rest_m / shaded as f64,
         };

@@ -3,7 +3,7 @@
 
 use super::{
     Domain, History, Reproject, Resampling, Reservoir, SPATIAL_CONFIDENCE, SPATIAL_RADIUS,
-    SPATIAL_UNTIL_HISTORY, Screen, Surface, combine, lobe_agreement, similar,
+    SPATIAL_UNTIL_HISTORY, Screen, Surface, combine, lobe_agreement, same_point, similar,
 };
 use crate::render::estimator::{FrameData, shade_pixel_into};
 use crate::render::resampling::{
@@ -79,7 +79,8 @@ pub(super) fn penumbra_before(h: &History, reproject: Reproject, i: usize) -> bo
 }
 
 /// Pixel `i` after temporal reuse: its reservoir, the rays cast, whether history was accepted
-/// (1 or 0). The history's confidence is capped at `max_history` and scaled by how far the two
+/// (1 or 0). The bright part's history, in the unbiased mode, only where the point has not
+/// moved ([`super::BRIGHT_SAME_POINT`]). The history's confidence is capped at `max_history` and scaled by how far the two
 /// pixels' targets agree ([`lobe_agreement`]) and by `maps`, how far the two frames' maps do
 /// (`map_agreement`).
 pub(super) fn temporal(
@@ -101,7 +102,9 @@ pub(super) fn temporal(
             depth,
             id: cur.surfaces[i].id,
         };
-        similar(at.px.n, expect, p.px.n, h.screen.surfaces[q]).then_some((q, p))
+        let here = cur.surfaces[i].depth;
+        let moved = part == Part::Bright && r.unbiased && !same_point(at.point, p.point, here);
+        (similar(at.px.n, expect, p.px.n, h.screen.surfaces[q]) && !moved).then_some((q, p))
     });
     let Some((q, p)) = prev else {
         return (own, 0, 0);
