@@ -117,27 +117,64 @@ fn fullscreen(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
     return vec4(uv * vec2(2.0, -2.0) + vec2(-1.0, 1.0), 0.0, 1.0);
 }
 
+// The pixel's normalised device coordinates.
+fn pixel_ndc(pos: vec4<f32>) -> vec2<f32> {
+    let uv = (pos.xy - lv.viewport.xy) / lv.viewport.zw;
+    return vec2(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0);
+}
+
+// The map's frame from world space (the inverse of EnvisEnvironment::rotation).
+fn env_from_world() -> mat3x3<f32> {
+    return mat3x3(lv.env_from_world[0].xyz, lv.env_from_world[1].xyz, lv.env_from_world[2].xyz);
+}
+
+// Where there is no geometry (reverse-Z far plane): the environment image in the direction of
+// the pixel's ray, or what Bevy drew there.
+fn background(pos: vec4<f32>) -> vec4<f32> {
+    if (lv.show_background == 0u) {
+        return vec4(0.0);
+    }
+    var dir = lv.forward;
+    if (lv.orthographic == 0u) {
+        let p = lv.world_from_clip * vec4(pixel_ndc(pos), 1.0, 1.0);
+        dir = p.xyz / p.w - lv.camera;
+    }
+    let d = normalize(env_from_world() * dir);
+    return vec4(source_radiance(source, lv.source_layout, d) * lv.radiance_scale, 1.0);
+}
+
+// The pixel's index in the viewport (the accumulation's and the resampled image's).
+fn viewport_index(pos: vec4<f32>) -> u32 {
+    let local = vec2<u32>(max(pos.xy - lv.viewport.xy, vec2(0.0)));
+    return local.y * u32(lv.viewport.z) + local.x;
+}
+
+// The pass where the camera resamples and shows no overlay (lv.resampled): the resampling
+// passes' image where `lighting` would shade, its background elsewhere. An entry point of its
+// own: `lighting`'s early return for it still cost lavapipe as much as a 192² frame's gather
+// and reuse together (docs/temporal.md).
+@fragment
+fn show_resampled(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
+    let coord = vec2<i32>(floor(pos.xy));
+    if (textureLoad(depth_tex, coord, 0) <= 0.0) {
+        return background(pos);
+    }
+    if (!ours_to_light(textureLoad(pass_ids, coord, 0).r, textureLoad(gbuffer, coord, 0))) {
+        return vec4(0.0);
+    }
+    return vec4(accum[viewport_index(pos)].xyz * lv.radiance_scale, 0.0);
+}
+
 @fragment
 fn lighting(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
     let coord = vec2<i32>(floor(pos.xy));
     let depth = textureLoad(depth_tex, coord, 0);
-    let uv = (pos.xy - lv.viewport.xy) / lv.viewport.zw;
-    let ndc = vec2(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0);
+    let ndc = pixel_ndc(pos);
     let ortho = lv.orthographic != 0u;
     let scale = lv.radiance_scale;
-    let env = mat3x3(lv.env_from_world[0].xyz, lv.env_from_world[1].xyz, lv.env_from_world[2].xyz);
+    let env = env_from_world();
     if (depth <= 0.0) {
-        // No geometry (reverse-Z far plane): the environment image in the direction of the
-        // pixel's ray, or what Bevy drew there.
-        if (lv.show_background == 0u) {
-            return vec4(0.0);
-        }
-        var dir = lv.forward;
-        if (!ortho) {
-            let p = lv.world_from_clip * vec4(ndc, 1.0, 1.0);
-            dir = p.xyz / p.w - lv.camera;
-        }
-        return vec4(source_radiance(source, lv.source_layout, normalize(env * dir)) * scale, 1.0);
+        return background(pos);
     }
     let pass_id = textureLoad(pass_ids, coord, 0).r;
     let g = textureLoad(gbuffer, coord, 0);
@@ -157,7 +194,7 @@ fn lighting(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
     var px = decode_gbuffer(pass_id, g, o);
     px.n = vec4(env * px.n.xyz, 1.0);
     let local = vec2<u32>(max(pos.xy - lv.viewport.xy, vec2(0.0)));
-    let pixel_index = local.y * u32(lv.viewport.z) + local.x;
+    let pixel_index = viewport_index(pos);
     if (lv.overlay == OVERLAY_HISTORY) {
         return vec4(heat(select(0.0, accum[pixel_index].w, lv.resampled != 0u) / HISTORY_FULL_SCALE), 1.0);
     }

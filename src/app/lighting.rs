@@ -32,7 +32,9 @@ use bevy::render::{Render, RenderApp, RenderStartup, RenderSystems};
 use bevy::shader::Shader;
 
 mod pipelines;
-pub use pipelines::{LightingPipeline, LightingResources, LightingShader, lighting_layout};
+pub use pipelines::{
+    LightingEntry, LightingPipeline, LightingResources, LightingShader, lighting_layout,
+};
 
 /// Adds the envis lighting pass to every camera with [`EnvironmentSampling`] and an
 /// [`EnvisEnvironment`].
@@ -88,11 +90,15 @@ fn drop_stale_view_buffers(
     }
 }
 
-/// The view's lighting pipeline (queued in Bevy's pipeline cache for its target format).
+/// The view's lighting pipelines (queued in Bevy's pipeline cache for its target format): the
+/// one that shades, and the one that shows the resampled image ([`LightingEntry`]).
 #[derive(Component)]
-pub struct ViewLightingPipeline(CachedRenderPipelineId);
+pub struct ViewLightingPipeline {
+    shade: CachedRenderPipelineId,
+    show_resampled: CachedRenderPipelineId,
+}
 
-/// Each sampling view gets the pipeline of its target format.
+/// Each sampling view gets the pipelines of its target format.
 fn prepare_lighting_pipelines(
     mut commands: Commands,
     cache: Res<PipelineCache>,
@@ -102,8 +108,11 @@ fn prepare_lighting_pipelines(
 ) {
     let Some(pipeline) = pipeline else { return };
     for (entity, view) in &views {
-        let id = pipelines.specialize(&cache, &pipeline, view.target_format);
-        commands.entity(entity).insert(ViewLightingPipeline(id));
+        let mut entry = |e| pipelines.specialize(&cache, &pipeline, (view.target_format, e));
+        commands.entity(entity).insert(ViewLightingPipeline {
+            shade: entry(LightingEntry::Shade),
+            show_resampled: entry(LightingEntry::ShowResampled),
+        });
     }
 }
 
@@ -174,12 +183,12 @@ pub(crate) fn mis_lighting(
 ) {
     let t0 = std::time::Instant::now();
     let view_entity = view.entity();
-    let (target, prepass, ev, cam, sampling, env, vs, vp_id, extras) = view.into_inner();
+    let (target, prepass, ev, cam, sampling, env, vs, pipelines, extras) = view.into_inner();
     let (Some(layout), Some(res), Some(slot)) = (pipeline, res, samplers.slots.get(&vs.key)) else {
         return;
     };
     // Compiled asynchronously: lit from the frame its pipeline is ready.
-    let Some(render_pipeline) = cache.get_render_pipeline(vp_id.0) else {
+    let Some(shading) = cache.get_render_pipeline(pipelines.shade) else {
         return;
     };
     let Some(prepass_views) = prepass_views(prepass) else {
@@ -194,6 +203,11 @@ pub(crate) fn mis_lighting(
     // The resampling pass's image, where it ran for this view this frame.
     let resampled = resampling.and_then(|r| r.take_image(view_entity));
     lv.resampled = resampled.is_some() as u32;
+    // Its own pipeline shows it, once compiled (until then the shading one does, the same).
+    let showing = resampled.is_some() && sampling.overlay == Overlay::None;
+    let render_pipeline = (showing.then(|| cache.get_render_pipeline(pipelines.show_resampled)))
+        .flatten()
+        .unwrap_or(shading);
     let (bvh_nodes, bvh_triangles) = geometry.map_or((&res.no_shadows, &res.no_shadows), |g| {
         (&g.nodes, &g.triangles)
     });

@@ -25,7 +25,20 @@ use std::sync::Mutex;
 #[derive(Resource, Clone)]
 pub struct LightingShader(pub Handle<Shader>);
 
-/// The lighting pipeline's layout and shader; [`SpecializedRenderPipeline`] by target format.
+/// Which fragment entry point of the pass a pipeline runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum LightingEntry {
+    /// `lighting`: shades the pixel (or shows an overlay, or the resampled image).
+    Shade,
+    /// `show_resampled`: the resampling passes' image only, for a camera that resamples and
+    /// shows no overlay. Through `lighting`'s early return the same image cost lavapipe 23 ms
+    /// a 192² frame, through its own entry point 4 ms (docs/temporal.md): the compiled
+    /// fragment stage is the whole shader's either way.
+    ShowResampled,
+}
+
+/// The lighting pipeline's layout and shader; [`SpecializedRenderPipeline`] by target format
+/// and entry point.
 #[derive(Resource)]
 pub struct LightingPipeline {
     pub(super) layout: BindGroupLayoutDescriptor,
@@ -68,9 +81,9 @@ pub fn lighting_layout() -> BindGroupLayoutDescriptor {
 }
 
 impl SpecializedRenderPipeline for LightingPipeline {
-    type Key = TextureFormat;
+    type Key = (TextureFormat, LightingEntry);
 
-    fn specialize(&self, format: TextureFormat) -> RenderPipelineDescriptor {
+    fn specialize(&self, (format, entry): Self::Key) -> RenderPipelineDescriptor {
         RenderPipelineDescriptor {
             label: Some("envis lighting".into()),
             layout: vec![self.layout.clone()],
@@ -81,7 +94,13 @@ impl SpecializedRenderPipeline for LightingPipeline {
             },
             fragment: Some(FragmentState {
                 shader: self.shader.clone(),
-                entry_point: Some("lighting".into()),
+                entry_point: Some(
+                    match entry {
+                        LightingEntry::Shade => "lighting",
+                        LightingEntry::ShowResampled => "show_resampled",
+                    }
+                    .into(),
+                ),
                 // Premultiplied: alpha 0 adds to Bevy's lighting, alpha 1 replaces.
                 targets: vec![Some(ColorTargetState {
                     format,
