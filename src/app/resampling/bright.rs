@@ -33,7 +33,8 @@ pub(super) struct BrightSplit {
     /// The rest of the map (what [`map_agreement`] compares when the map changes).
     rest: Arc<CubeMap>,
     /// How far this frame's map agrees with the previous frame's as light: [`map_agreement`]
-    /// of the two rests in the frame the map changed, 1 while it stays.
+    /// of the two rests in the frame the map changed, 1 while it stays, 0 where the frame
+    /// before had no split (its history was made under the whole map).
     pub map_agreement: f32,
 }
 
@@ -81,8 +82,12 @@ pub(super) fn view_split(
             };
             let mut s = build(device, queue, &cube, map_key, sampler);
             s.sampler.encode_distribution(enc, None);
-            // (Without a split the frame before, its map is not on the CPU: not measured.)
-            s.map_agreement = old_rest.map_or(1.0, |r| map_agreement(&r, &s.rest));
+            // Without a split the frame before, that frame's history was made under the whole
+            // map (a new version of it was being read, or its first texels): another rest,
+            // which the CPU cannot compare, so the history is dropped. Kept, a new image would
+            // be followed at a twentieth a frame (the carousel before the map agreement,
+            // docs/temporal.md).
+            s.map_agreement = old_rest.map_or(0.0, |r| map_agreement(&r, &s.rest));
             s
         }
     };
