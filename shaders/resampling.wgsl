@@ -65,6 +65,8 @@ struct ResampleParams {
     // How far this frame's map and the history's agree as light (agreement::map_agreement,
     // computed on the CPU): the rest's history confidence is scaled by it.
     map_agreement: f32,
+    // 1 where nothing that casts shadows moved since the previous frame (History::still_geometry).
+    still_geometry: u32,
     // Surfaces' normals and view directions, and samples' directions, are in the map's frame
     // (the Bevy pass rotates them there, as its lighting pass does); points and the shadow BVH
     // are in the world's. Identity headless.
@@ -183,10 +185,21 @@ fn history_pixel(i: u32, part: u32) -> i32 {
         return -1;
     }
     // The unbiased mode's bright history only where the point has not moved (same_point).
-    if (part == 1u && rp.unbiased != 0u && distance(s.p.xyz, h.p.xyz) > BRIGHT_SAME_POINT * s.p.w) {
+    if (part == 1u && rp.unbiased != 0u && !same_point(s, h)) {
         return -1;
     }
     return i32(r.x);
+}
+
+// resampling::same_point: b's point is a's, within BRIGHT_SAME_POINT of a's camera distance.
+fn same_point(a: Surface, b: Surface) -> bool {
+    return distance(a.p.xyz, b.p.xyz) <= BRIGHT_SAME_POINT * a.p.w;
+}
+
+// passes::temporal: pixel i and its history pixel q see the same directions (the same point,
+// nothing moved), so the unbiased combination's rays between them are known without casting.
+fn sees_as_history(i: u32, q: u32) -> bool {
+    return rp.unbiased != 0u && rp.still_geometry != 0u && same_point(surfaces[i], prev_surfaces[q]);
 }
 
 // passes::penumbra_before: whether the previous frame's bright candidates found a penumbra at

@@ -19,7 +19,8 @@ fn history_targets(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_w
         if (rp.unbiased != 0u && part_live(part) && surfaces[i].px.n.w != 0.0 && q >= 0 && own.ucw > 0.0 && own.p_hat > 0.0) {
             let h = prev_surfaces[u32(q)];
             t = luminance(target_rgb(h.px, true, part, own.dir));
-            if (t > 0.0 && !visible_through(h.px, h.p.xyz, own.dir, rp.prev_bvh_nodes, &rays)) {
+            let known = sees_as_history(i, u32(q));
+            if (t > 0.0 && !known && !visible_through(h.px, h.p.xyz, own.dir, rp.prev_bvh_nodes, &rays)) {
                 t = 0.0;
             }
         }
@@ -37,14 +38,15 @@ fn reused_domain(res: Reservoir, s: Surface, part: u32) -> Domain {
 }
 
 // combine::canonical_target for every domain: the canonical sample's own target where live; a
-// reused sample's target here with this pixel's visibility (a ray where it is positive).
-fn canonical_targets(dom: ptr<function, array<Domain, MAX_DOMAINS>>, count: u32, s: Surface, rays: ptr<function, u32>) {
+// reused sample's target here with this pixel's visibility (a ray where it is positive, unless
+// `known`: live samples seen from here, DomainSurface::without_rays).
+fn canonical_targets(dom: ptr<function, array<Domain, MAX_DOMAINS>>, count: u32, s: Surface, known: bool, rays: ptr<function, u32>) {
     let own = (*dom)[0].res;
     (*dom)[0].p_c = select(0.0, own.p_hat, own.ucw > 0.0);
     for (var j = 1u; j < count; j++) {
         let d = (*dom)[j];
         var t = luminance(d.here);
-        if (!(t > 0.0 && d.res.ucw > 0.0 && visible_from(s.px, s.p.xyz, d.res.dir, rays))) {
+        if (!(t > 0.0 && d.res.ucw > 0.0 && (known || visible_from(s.px, s.p.xyz, d.res.dir, rays)))) {
             t = 0.0;
         }
         (*dom)[j].p_c = t;
@@ -61,7 +63,8 @@ fn combine(dom: ptr<function, array<Domain, MAX_DOMAINS>>, count: u32, rng: ptr<
 
 // Pass 2 (passes::temporal): each part's reservoir combined with the history pixel's, its
 // confidence capped at max_history and scaled by lobe_agreement, and the rest's by
-// map_agreement (the bright part's history is of the same light: bright_history).
+// map_agreement (the bright part's history is of the same light, bright_history, and in the
+// unbiased mode at the same point, history_pixel); no rays where sees_as_history.
 @compute @workgroup_size(64)
 fn temporal(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let i = pixel_id(gid, nwg);
@@ -89,7 +92,7 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgrou
             }
             var rays = 0u;
             if (rp.unbiased != 0u) {
-                canonical_targets(&dom, 2u, s, &rays);
+                canonical_targets(&dom, 2u, s, sees_as_history(i, u32(q)), &rays);
                 dom[1].p_at_c = hist_targets[2u * i + part];
             }
             var rng = pass_rng(2u + 4u * part, i);
@@ -138,7 +141,7 @@ fn spatial(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroup
             if (count > 1u) {
                 var rays = 0u;
                 if (rp.unbiased != 0u) {
-                    canonical_targets(&dom, count, s, &rays);
+                    canonical_targets(&dom, count, s, false, &rays);
                     neighbour_targets(&dom, &at, count, part, &rays);
                 }
                 out = combine(&dom, count, &rng);

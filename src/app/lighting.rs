@@ -7,6 +7,7 @@
 
 use super::components::{EnvironmentSampling, EnvisEnvironment};
 use super::lighting_uniforms::{LightingView, ViewParts, decode_probe, lighting_view};
+use super::resampling::EnvironmentResampling;
 use super::sampling::{EnvSamplers, SamplerSlot, ViewSampling};
 use super::timing::EnvisTimings;
 use super::{EnvisCounters, EnvisProbe, Overlay};
@@ -91,11 +92,23 @@ fn drop_stale_view_buffers(
 }
 
 /// The view's lighting pipelines (queued in Bevy's pipeline cache for its target format): the
-/// one that shades, and the one that shows the resampled image ([`LightingEntry`]).
+/// one that shades, and for a resampling camera the one that shows the resampled image
+/// ([`LightingEntry`]).
 #[derive(Component)]
 pub struct ViewLightingPipeline {
     shade: CachedRenderPipelineId,
-    show_resampled: CachedRenderPipelineId,
+    show_resampled: Option<CachedRenderPipelineId>,
+}
+
+impl ViewLightingPipeline {
+    /// The pipeline for this frame: the one showing the resampled image where the pass has one
+    /// and draws no overlay, once compiled (until then the shading one shows it, the same);
+    /// else the shading one. `None` until that is compiled.
+    fn pick<'a>(&self, cache: &'a PipelineCache, showing: bool) -> Option<&'a RenderPipeline> {
+        let show = self.show_resampled.filter(|_| showing);
+        (show.and_then(|id| cache.get_render_pipeline(id)))
+            .or_else(|| cache.get_render_pipeline(self.shade))
+    }
 }
 
 /// Each sampling view gets the pipelines of its target format.
@@ -104,14 +117,14 @@ fn prepare_lighting_pipelines(
     cache: Res<PipelineCache>,
     mut pipelines: ResMut<SpecializedRenderPipelines<LightingPipeline>>,
     pipeline: Option<Res<LightingPipeline>>,
-    views: Query<(Entity, &ExtractedView), With<ViewSampling>>,
+    views: Query<(Entity, &ExtractedView, Has<EnvironmentResampling>), With<ViewSampling>>,
 ) {
     let Some(pipeline) = pipeline else { return };
-    for (entity, view) in &views {
+    for (entity, view, resamples) in &views {
         let mut entry = |e| pipelines.specialize(&cache, &pipeline, (view.target_format, e));
         commands.entity(entity).insert(ViewLightingPipeline {
             shade: entry(LightingEntry::Shade),
-            show_resampled: entry(LightingEntry::ShowResampled),
+            show_resampled: resamples.then(|| entry(LightingEntry::ShowResampled)),
         });
     }
 }
@@ -188,9 +201,9 @@ pub(crate) fn mis_lighting(
         return;
     };
     // Compiled asynchronously: lit from the frame its pipeline is ready.
-    let Some(shading) = cache.get_render_pipeline(pipelines.shade) else {
+    if cache.get_render_pipeline(pipelines.shade).is_none() {
         return;
-    };
+    }
     let Some(prepass_views) = prepass_views(prepass) else {
         return;
     };
@@ -203,11 +216,10 @@ pub(crate) fn mis_lighting(
     // The resampling pass's image, where it ran for this view this frame.
     let resampled = resampling.and_then(|r| r.take_image(view_entity));
     lv.resampled = resampled.is_some() as u32;
-    // Its own pipeline shows it, once compiled (until then the shading one does, the same).
     let showing = resampled.is_some() && sampling.overlay == Overlay::None;
-    let render_pipeline = (showing.then(|| cache.get_render_pipeline(pipelines.show_resampled)))
-        .flatten()
-        .unwrap_or(shading);
+    let Some(render_pipeline) = pipelines.pick(&cache, showing) else {
+        return;
+    };
     let (bvh_nodes, bvh_triangles) = geometry.map_or((&res.no_shadows, &res.no_shadows), |g| {
         (&g.nodes, &g.triangles)
     });

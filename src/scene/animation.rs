@@ -105,6 +105,14 @@ impl Scene {
         Scene::from_file(&self.path, self.file.posed(t))
     }
 
+    /// Whether no shadow-casting object moves (every caster's velocity zero): the shadow
+    /// geometry is then the same at every time.
+    pub fn geometry_is_still(&self) -> bool {
+        (self.objects.iter())
+            .filter(|o| o.spec.cast_shadows)
+            .all(|o| o.spec.velocity == [0.0; 3])
+    }
+
     /// The time of frame `k` on the sequence clock.
     pub fn frame_time(&self, k: u32) -> f32 {
         k as f32 / self.file.animation.fps

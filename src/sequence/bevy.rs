@@ -106,11 +106,15 @@ fn pose(app: &mut HeadlessSphere, scene: &Scene, t: f32, env: &mut String) -> Re
     let posed = scene.at_time(t)?;
     let cam = app.camera();
     let world = app.app.app.world_mut();
-    *world.get_mut::<Transform>(cam).expect("camera") = scene_camera(&posed).transform();
+    // Written only where they change: a transform written unchanged still marks the shadow
+    // geometry moved (a new placement), and the resampling pass then casts the rays a still
+    // scene's history does without.
+    let camera = scene_camera(&posed).transform();
+    (world.get_mut::<Transform>(cam).expect("camera")).set_if_neq(camera);
     let mut objects = world.query::<(&SceneIndex, &mut Transform)>();
     for (i, mut tr) in objects.iter_mut(world) {
         if let Some(o) = posed.objects.get(i.0) {
-            *tr = object_transform(&o.shape);
+            tr.set_if_neq(object_transform(&o.shape));
         }
     }
     if posed.environment != *env {

@@ -54,6 +54,7 @@ pub(super) fn run(
             reproject: rep,
             same_bright: ps.bright.same_light(&split.bright),
             map_agreement: map_agreement(&ps.rest, &split.rest),
+            still_geometry: scene.geometry_is_still(),
         });
         let input = GpuFrame {
             screen: &cur.screen(None, &split),

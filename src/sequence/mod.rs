@@ -197,6 +197,7 @@ fn run_cpu(
             let h = History {
                 screen: p.screen(occ, split),
                 reservoirs: res,
+                still_geometry: scene.geometry_is_still(),
             };
             (h, &reproject as resampling::Reproject)
         });

@@ -2,6 +2,7 @@
 //! passes ([`record`]), and what the next frame keeps of it ([`hand_over`]).
 
 use super::EnvironmentResampling;
+use super::bright::BrightSplit;
 use super::gather::{GatherInputs, GatherPipelines, GatherView};
 use super::view::{BvhCopy, PreviousFrame, ViewResampling};
 use crate::app::components::EnvisEnvironment;
@@ -22,8 +23,10 @@ pub(super) struct FrameInputs<'a> {
     pub layers: u32,
     pub jitter: Option<&'a TemporalJitter>,
     pub seed: u32,
-    /// The shadow BVH (nodes, triangles, node count) when the camera casts shadow rays.
+    /// The shadow BVH (nodes, triangles, node count) when the camera casts shadow rays, and
+    /// its geometry's (generation, placement).
     pub bvh: Option<(wgpu::Buffer, wgpu::Buffer, u32)>,
+    pub geometry: Option<(u64, u64)>,
 }
 
 /// The gather's view, the shading's and the passes' parameters.
@@ -79,7 +82,11 @@ pub(super) fn write_uniforms(
         bvh_nodes: f.bvh.as_ref().map_or(0, |b| b.2),
         prev_bvh_nodes: prev.and_then(|p| p.bvh.as_ref()).map_or(0, |b| b.2),
         layers: f.layers,
-        map_agreement: bright.map_or(1.0, |b| b.map_agreement),
+        map_agreement: map_agreement(bright, prev),
+        // The same (generation, placement): nothing moved (the copy the history traces is it).
+        still_geometry: (f.geometry.is_some() && prev.is_some_and(|p| p.geometry == f.geometry))
+            as u32,
+        _pad: [0; 3],
         world_from_map: [rot.x_axis, rot.y_axis, rot.z_axis].map(|c| c.extend(0.0).to_array()),
     };
     queue.write_buffer(&state.gather_view, 0, bytemuck::bytes_of(&gv));
@@ -173,6 +180,17 @@ pub(super) fn history_valid(prev: Option<&PreviousFrame>, f: &FrameInputs, face_
     })
 }
 
+/// The rest's history confidence factor ([`ResampleParams::map_agreement`]): the split's, where
+/// there is one; 0 in a frame without a split after one with it (a new version of the map is
+/// being read: a change the CPU cannot measure yet); 1 where the map is never split.
+fn map_agreement(bright: Option<&BrightSplit>, prev: Option<&PreviousFrame>) -> f32 {
+    match (bright, prev.and_then(|p| p.bright.as_ref())) {
+        (Some(b), _) => b.map_agreement,
+        (None, Some(_)) => 0.0,
+        (None, None) => 1.0,
+    }
+}
+
 /// After the frame's passes: the next frame's previous frame, its shadow geometry a copy of
 /// this frame's (see [`BvhCopy`]).
 pub(super) fn hand_over(
@@ -197,5 +215,6 @@ pub(super) fn hand_over(
         layers: f.layers,
         bright: state.bright.as_ref().map(|b| b.bright.clone()),
         bvh,
+        geometry: f.geometry,
     });
 }

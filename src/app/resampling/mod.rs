@@ -299,6 +299,7 @@ fn resample_environment(
         jitter,
         seed: vs.seed,
         bvh: geometry.map(|g| (g.nodes.clone(), g.triangles.clone(), g.node_count)),
+        geometry: geometry.map(|g| (g.generation, g.placement)),
     };
     if !history_valid(state.prev.as_ref(), &frame, n) {
         state.prev = None;

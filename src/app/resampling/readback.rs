@@ -39,9 +39,8 @@ pub struct FrameCounts {
 
 impl FrameCounts {
     /// Totals of the per-pixel `counters` (rays, history accepted, neighbours accepted, bright
-    /// history accepted),
-    /// `stats` (light samples available, green, yellow, BRDF samples) and `color` (image, `M`)
-    /// of `shaders/resampling.wgsl`.
+    /// history accepted), `stats` (light samples available, green, yellow, BRDF samples) and
+    /// `color` (image, `M`) of `shaders/resampling.wgsl`.
     fn sum(counters: &[[u32; 4]], stats: &[[u32; 4]], color: &[[f32; 4]]) -> Self {
         let mut c = FrameCounts::default();
         for ((r, s), px) in counters.iter().zip(stats).zip(color) {

@@ -29,6 +29,8 @@ pub(super) struct PreviousFrame {
     /// Its shadow BVH (nodes, triangles, node count), when it cast shadow rays: the view's
     /// copy ([`BvhCopy`]), not the live buffers, which moving instances rewrite in place.
     pub bvh: Option<(wgpu::Buffer, wgpu::Buffer, u32)>,
+    /// That geometry's (generation, placement): the same this frame, nothing moved.
+    pub geometry: Option<(u64, u64)>,
 }
 
 /// The shadow BVH as the last frame traversed it. `upload_shadow_geometry` rewrites the live

@@ -106,6 +106,10 @@ pub struct ResampleParams {
     /// ([`crate::render::resampling::map_agreement`]): the rest's history confidence is scaled
     /// by it.
     pub map_agreement: f32,
+    /// 1 where nothing that casts shadows moved since the previous frame
+    /// ([`crate::render::resampling::History::still_geometry`]).
+    pub still_geometry: u32,
+    pub _pad: [u32; 3],
     /// The rotation from the map's frame (normals, view and sample directions) to the world's
     /// (points, the shadow BVH): a `mat3x3<f32>`'s three padded columns.
     pub world_from_map: [[f32; 4]; 3],
@@ -123,4 +127,4 @@ impl ResampleParams {
 // The WGSL structs' sizes: a field added on one side only fails the build, not a test.
 const _: () = assert!(size_of::<GpuReservoir>() == 48);
 const _: () = assert!(size_of::<GpuSurface>() == 96);
-const _: () = assert!(size_of::<ResampleParams>() == 112);
+const _: () = assert!(size_of::<ResampleParams>() == 128);

@@ -43,6 +43,9 @@ pub struct GpuHistory<'a> {
     /// How far the previous frame's map and this one's agree as light
     /// ([`crate::render::resampling::map_agreement`] of their rests).
     pub map_agreement: f32,
+    /// Nothing that casts shadows moved since the previous frame
+    /// ([`crate::render::resampling::History::still_geometry`]).
+    pub still_geometry: bool,
 }
 
 /// A frame as [`GpuResampler::frame`] takes it.
@@ -189,6 +192,8 @@ impl GpuResampler {
             prev_bvh_nodes: prev.and_then(|p| p.bvh.as_ref()).map_or(0, |b| b.2),
             layers: u32::MAX,
             map_agreement: history.map_or(1.0, |h| h.map_agreement),
+            still_geometry: history.is_some_and(|h| h.still_geometry) as u32,
+            _pad: [0; 3],
             world_from_map: ResampleParams::MAP_IS_WORLD,
         }
     }

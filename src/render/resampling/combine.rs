@@ -55,6 +55,15 @@ impl DomainSurface<'_> {
         t
     }
 
+    /// This surface with every direction taken as unblocked (no occluder, no rays): for a
+    /// combination whose live samples are known to be visible from it.
+    pub fn without_rays(self) -> Self {
+        DomainSurface {
+            occluder: None,
+            ..self
+        }
+    }
+
     /// Whether `d` is unblocked from this surface (true with no occluder, no ray then).
     pub fn visible(&self, d: Vec3, rays: &mut u32) -> bool {
         let Some(occ) = self.occluder else {

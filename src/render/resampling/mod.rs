@@ -60,6 +60,7 @@ pub use combine::{Domain, DomainSurface, combine};
 pub use reservoir::{CandidateSink, Reservoir};
 pub use settings::{Mutation, Resampling, ResamplingMode};
 
+pub use passes::{BRIGHT_SAME_POINT, same_point};
 use passes::{Candidates, candidates, penumbra_before, spatial, temporal};
 
 use super::estimator::{FrameData, shading_directions};
@@ -92,15 +93,6 @@ pub const SPATIAL_CONFIDENCE: f32 = 0.25;
 /// pass the geometric tests at a finer resolution); in frames 3..5, 4.64x at 5.62 rays against
 /// 4.40x at 6.86. The threshold reads the confidences only, never the samples: unbiased.
 pub const SPATIAL_UNTIL_HISTORY: f32 = 4.0;
-/// In the unbiased mode the bright part's history is reused only where the history pixel's
-/// point is this pixel's, within this fraction of its distance from the camera: a still
-/// camera over still geometry. Elsewhere its history's penumbra is another point's, and
-/// pairwise MIS pays two rays for a worse estimate than the candidates' own: on the motion
-/// scene with the sun fixed and the camera orbiting a third of a degree a frame (4 seeds,
-/// frames 16..31 at 48², docs/temporal.md), 4.49x the relMSE of today's 32 + 32 at 6.39 rays a
-/// pixel with it, 3.90x at 4.99 without; held still it is what brings 1.91x to 0.68x. The
-/// test reads the two points only, never the samples: unbiased.
-pub const BRIGHT_SAME_POINT: f32 = 1e-4;
 /// Two pixels' surfaces may share samples when their normals are within this cosine...
 pub const NORMAL_COS: f32 = 0.9;
 /// ...their camera distances within this fraction of each other, and they are the same object
@@ -122,12 +114,6 @@ pub fn similar(n_a: Vec3, a: Surface, n_b: Vec3, b: Surface) -> bool {
     a.id == b.id
         && n_a.normalize_or_zero().dot(n_b.normalize_or_zero()) >= NORMAL_COS
         && (a.depth - b.depth).abs() <= DEPTH_REL * a.depth.max(b.depth)
-}
-
-/// Whether points `a` and `b`, at distance `depth` from the camera, are the same surface point
-/// ([`BRIGHT_SAME_POINT`]).
-pub fn same_point(a: Vec3, b: Vec3, depth: f32) -> bool {
-    a.distance(b) <= BRIGHT_SAME_POINT * depth
 }
 
 /// One frame's screen: the map (split), the G-buffer, each pixel's surface point and [`Surface`], and
@@ -161,6 +147,10 @@ impl<'a> Screen<'a> {
 pub struct History<'a> {
     pub screen: Screen<'a>,
     pub reservoirs: &'a [Reservoirs],
+    /// Nothing that casts shadows moved since that frame: where a pixel's point is its history
+    /// pixel's too ([`same_point`]), the two see the same directions, so the unbiased
+    /// combination's visibility rays between them are known without casting (`passes::temporal`).
+    pub still_geometry: bool,
 }
 
 /// A pixel's reservoirs, one per [`Part`] of the map (indexed by `Part as usize`).
