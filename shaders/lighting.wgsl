@@ -151,8 +151,8 @@ fn viewport_index(pos: vec4<f32>) -> u32 {
 
 // The pass where the camera resamples and shows no overlay (lv.resampled): the resampling
 // passes' image where `lighting` would shade, its background elsewhere. An entry point of its
-// own: `lighting`'s early return for it still cost lavapipe as much as a 192² frame's gather
-// and reuse together (docs/temporal.md).
+// own: through `lighting`'s early return the same image cost lavapipe 23 ms a 192² frame, this
+// way 3.6 ms (its fragment stage is compiled from what the entry point uses; docs/temporal.md).
 @fragment
 fn show_resampled(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
     let coord = vec2<i32>(floor(pos.xy));

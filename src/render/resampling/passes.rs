@@ -98,9 +98,9 @@ pub(super) fn penumbra_before(h: &History, reproject: Reproject, i: usize) -> bo
 
 /// Pixel `i` after temporal reuse: its reservoir, the rays cast, whether history was accepted
 /// (1 or 0). The bright part's history, in the unbiased mode, only where the point has not
-/// moved ([`BRIGHT_SAME_POINT`]). The history's confidence is capped at `max_history` and scaled by how far the two
-/// pixels' targets agree ([`lobe_agreement`]) and by `maps`, how far the two frames' maps do
-/// (`map_agreement`). Where nothing moved ([`History::still_geometry`] and the same point) the
+/// moved ([`BRIGHT_SAME_POINT`]). The history's confidence is capped at `max_history` and
+/// scaled by how far the two pixels' targets agree ([`lobe_agreement`]) and by `maps`, how far
+/// the two frames' maps do (`map_agreement`). Where nothing moved ([`History::still_geometry`] and the same point) the
 /// combination casts no rays.
 pub(super) fn temporal(
     cur: &Screen,
