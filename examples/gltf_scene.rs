@@ -19,7 +19,38 @@ fn main() {
 pub fn example(app: &mut App) {
     // No set-up of its own: EnvisPlugin makes StandardMaterials render deferred, so they write
     // the G-buffer the envis pass reads.
-    app.add_systems(Startup, setup);
+    app.add_systems(Startup, (setup, loading_screen))
+        .add_systems(Update, leave_loading_screen);
+}
+
+/// A loading screen without any UI crate: a camera drawn after the scene's (order 1) that sees
+/// nothing (an empty render layer) and clears the window to grey.
+#[derive(Component)]
+pub struct LoadingScreen;
+
+fn loading_screen(mut commands: Commands) {
+    commands.spawn((
+        LoadingScreen,
+        Camera3d::default(),
+        Camera {
+            order: 1,
+            clear_color: ClearColorConfig::Custom(Color::srgb(0.2, 0.2, 0.2)),
+            ..default()
+        },
+        bevy::camera::visibility::RenderLayers::layer(31),
+    ));
+}
+
+/// Envis marks a camera `EnvisLightReady` from the first frame it lit it (its shaders compiled,
+/// its map loaded): the loading screen goes then, and every frame shown is lit.
+fn leave_loading_screen(
+    mut commands: Commands,
+    lit: Query<(), Added<EnvisLightReady>>,
+    screens: Query<Entity, With<LoadingScreen>>,
+) {
+    if !lit.is_empty() {
+        screens.iter().for_each(|e| commands.entity(e).despawn());
+    }
 }
 
 fn setup(

@@ -33,3 +33,8 @@ pub use error::{Error, Result};
 #[cfg(all(doctest, feature = "app"))]
 #[doc = include_str!("../README.md")]
 pub struct ReadmeDoctests;
+
+/// docs/bevy.md, whose Bevy snippets `cargo test` compiles (doc tests).
+#[cfg(all(doctest, feature = "app"))]
+#[doc = include_str!("../docs/bevy.md")]
+pub struct BevyDocDoctests;

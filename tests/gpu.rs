@@ -167,6 +167,10 @@ mod bevy_resampling;
 mod bevy_post;
 
 #[cfg(feature = "app")]
+#[path = "gpu/bevy_ready.rs"]
+mod bevy_ready;
+
+#[cfg(feature = "app")]
 #[path = "gpu/examples.rs"]
 mod examples;
 

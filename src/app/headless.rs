@@ -10,7 +10,7 @@ use super::{
     EnvMapStream, EnvisBrdf, EnvisCounters, EnvisMaterial, EnvisPlugin, EnvisStreamPlugin,
 };
 use crate::stream::StreamSource;
-use bevy::asset::RenderAssetUsages;
+use bevy::asset::{AssetPlugin, RenderAssetUsages};
 use bevy::camera::{RenderTarget, ScalingMode};
 use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::image::Image;
@@ -22,6 +22,10 @@ use bevy::window::ExitCondition;
 
 /// Frames to wait for a screenshot of the render target before giving up.
 pub const CAPTURE_FRAMES: usize = 20;
+
+/// Frames [`HeadlessApp::until_lit`] waits for envis to light every camera (with pipelines
+/// compiled synchronously: a few frames while Bevy loads its shaders).
+pub const READY_FRAMES: usize = 60;
 
 /// A windowless Bevy app with envis, driven by [`HeadlessApp::update`].
 pub struct HeadlessApp {
@@ -39,12 +43,36 @@ impl HeadlessApp {
     /// `DefaultPlugins` (no window, no log, pipelines compiled synchronously) + `EnvisPlugin`.
     /// Add entities and resources through [`Self::app`] before the first update.
     pub fn new() -> Self {
+        let sync = RenderPlugin {
+            synchronous_pipeline_compilation: true,
+            ..default()
+        };
+        Self::with(sync, AssetPlugin::default(), true)
+    }
+
+    /// As a game starts: pipelines compiled asynchronously (frames go on meanwhile, Bevy's
+    /// default), assets loaded by the `AssetServer` from the folder `assets`.
+    pub fn as_a_game(assets: &std::path::Path) -> Self {
+        Self::with(RenderPlugin::default(), Self::assets(assets), true)
+    }
+
+    /// [`Self::as_a_game`] without envis: Bevy alone (a baseline).
+    pub fn bevy_alone_as_a_game(assets: &std::path::Path) -> Self {
+        Self::with(RenderPlugin::default(), Self::assets(assets), false)
+    }
+
+    fn assets(folder: &std::path::Path) -> AssetPlugin {
+        AssetPlugin {
+            file_path: folder.to_string_lossy().into_owned(),
+            ..default()
+        }
+    }
+
+    fn with(render: RenderPlugin, assets: AssetPlugin, envis: bool) -> Self {
         let mut app = App::new();
         let plugins = DefaultPlugins
-            .set(RenderPlugin {
-                synchronous_pipeline_compilation: true,
-                ..default()
-            })
+            .set(render)
+            .set(assets)
             .set(WindowPlugin {
                 primary_window: None,
                 exit_condition: ExitCondition::DontExit,
@@ -55,12 +83,14 @@ impl HeadlessApp {
         #[cfg(feature = "demo")]
         let plugins = plugins.disable::<bevy::winit::WinitPlugin>();
         // No ambient light: the environment is the only indirect light.
-        app.add_plugins(plugins)
-            .add_plugins(EnvisPlugin)
-            .insert_resource(GlobalAmbientLight {
-                brightness: 0.0,
-                ..default()
-            });
+        app.add_plugins(plugins);
+        if envis {
+            app.add_plugins(EnvisPlugin);
+        }
+        app.insert_resource(GlobalAmbientLight {
+            brightness: 0.0,
+            ..default()
+        });
         HeadlessApp {
             app,
             finished: false,
@@ -101,13 +131,30 @@ impl HeadlessApp {
     }
 
     /// Draw frames until a capture of `target` arrives (after a few frames of set-up: meshes,
-    /// materials and pipelines are prepared over the first frames). Linear RGB, row-major. An
-    /// error (never a panic) when no capture comes or it has the wrong size.
+    /// materials and pipelines are prepared over the first frames, and until every envis camera
+    /// is lit: [`Self::until_lit`]). Linear RGB, row-major. An error (never a panic) when no
+    /// capture comes or it has the wrong size.
     pub fn capture(&mut self, target: &Handle<Image>) -> crate::error::Result<Vec<Vec3>> {
         for _ in 0..3 {
             self.update();
         }
+        self.until_lit();
         self.capture_next(target)
+    }
+
+    /// Draw frames until every camera with `EnvironmentSampling` has `EnvisLightReady` (at most
+    /// [`READY_FRAMES`]: a camera envis cannot light is left as it is).
+    pub fn until_lit(&mut self) {
+        for _ in 0..READY_FRAMES {
+            let world = self.app.world_mut();
+            let mut waiting = world
+                .query_filtered::<(), (With<EnvironmentSampling>, Without<super::EnvisLightReady>)>(
+                );
+            if waiting.iter(world).next().is_none() {
+                return;
+            }
+            self.update();
+        }
     }
 
     /// [`Self::capture`] without the set-up frames: the first frame rendered from now.

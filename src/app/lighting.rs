@@ -7,73 +7,56 @@
 
 use super::components::{EnvironmentSampling, EnvisEnvironment};
 use super::lighting_uniforms::{LightingView, ViewParts, decode_probe, lighting_view};
-use super::resampling::EnvironmentResampling;
+use super::programs::EnvisPrograms;
+use super::ready::{BevyReadiness, ReadyReport};
 use super::sampling::{EnvSamplers, SamplerSlot, ViewSampling};
 use super::timing::EnvisTimings;
 use super::{EnvisCounters, EnvisProbe, Overlay};
 use crate::gpu::sampler::EnvSampler;
-use crate::gpu::shaders;
 use crate::gpu::shading::ShadeParams;
 use crate::render::Strategy;
 use bevy::camera::visibility::RenderLayers;
 use bevy::core_pipeline::core_3d::main_opaque_pass_3d;
 use bevy::core_pipeline::prepass::ViewPrepassTextures;
 use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
+use bevy::ecs::system::SystemParam;
 use bevy::light::Skybox;
+use bevy::pbr::deferred::DeferredLightingPipeline;
 use bevy::prelude::*;
 use bevy::render::camera::{ExtractedCamera, TemporalJitter};
 use bevy::render::diagnostic::RecordDiagnostics;
-use bevy::render::render_resource::{
-    BindGroup, BindGroupEntries, CachedRenderPipelineId, PipelineCache, RenderPipeline,
-    SpecializedRenderPipelines, TextureView,
-};
+use bevy::render::render_resource::{PipelineCache, TextureFormat, TextureView};
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
+use bevy::render::sync_world::MainEntity;
 use bevy::render::view::{ExtractedView, ViewTarget};
 use bevy::render::{Render, RenderApp, RenderStartup, RenderSystems};
-use bevy::shader::Shader;
 
 mod pipelines;
-pub use pipelines::{
-    LightingEntry, LightingPipeline, LightingResources, LightingShader, lighting_layout,
-};
+pub use pipelines::{LightingEntry, LightingResources, lighting_layout};
 
 /// Adds the envis lighting pass to every camera with [`EnvironmentSampling`] and an
-/// [`EnvisEnvironment`].
+/// [`EnvisEnvironment`], and the [`EnvisLightReady`](super::EnvisLightReady) marker on the
+/// cameras it lit.
 pub struct EnvisLightingPlugin;
 
 impl Plugin for EnvisLightingPlugin {
     fn build(&self, app: &mut App) {
         super::share_resources(app);
+        super::programs::add_programs(app);
+        super::ready::add_ready(app);
         app.add_systems(PostUpdate, super::coverage::warn_forward_meshes);
-        // The WGSL as a `Shader` asset: Bevy's pipeline cache compiles it (asynchronously, and
-        // again whenever the asset changes: `EnvisShaderReloadPlugin`).
-        let Some(mut shaders) = app.world_mut().get_resource_mut::<Assets<Shader>>() else {
-            return;
-        };
-        let shader = LightingShader(shaders.add(Shader::from_wgsl(
-            shaders::lighting_source(),
-            "envis/lighting.wgsl",
-        )));
-        app.insert_resource(shader.clone());
         let Some(render_app) = app.get_sub_app_mut(RenderApp) else {
             return;
         };
         render_app
-            .insert_resource(shader)
-            .init_resource::<SpecializedRenderPipelines<LightingPipeline>>()
             .add_systems(RenderStartup, init_lighting)
             .add_systems(
                 Render,
-                (
-                    poll_lighting_readbacks,
-                    drop_stale_view_buffers,
-                    prepare_lighting_pipelines,
-                )
-                    .in_set(RenderSystems::Prepare),
+                (poll_lighting_readbacks, drop_stale_view_buffers).in_set(RenderSystems::Prepare),
             )
             .add_systems(
                 Core3d,
-                mis_lighting
+                envis_lighting
                     .after(bevy::pbr::deferred::deferred_lighting)
                     .before(main_opaque_pass_3d)
                     .in_set(Core3dSystems::MainPass),
@@ -91,46 +74,21 @@ fn drop_stale_view_buffers(
     }
 }
 
-/// The view's lighting pipelines (queued in Bevy's pipeline cache for its target format): the
-/// one that shades, and for a resampling camera the one that shows the resampled image
-/// ([`LightingEntry`]).
-#[derive(Component)]
-pub struct ViewLightingPipeline {
-    shade: CachedRenderPipelineId,
-    show_resampled: Option<CachedRenderPipelineId>,
+/// The view's lighting pipeline for this frame: the one showing the resampled image where the
+/// pass has one and draws no overlay, once compiled (until then the shading one shows it, the
+/// same); else the shading one. `None` until that is compiled.
+fn pick_pipeline(
+    programs: &EnvisPrograms,
+    format: TextureFormat,
+    showing: bool,
+) -> Option<wgpu::RenderPipeline> {
+    let show = showing
+        .then(|| programs.lighting(format, LightingEntry::ShowResampled))
+        .flatten();
+    show.or_else(|| programs.lighting(format, LightingEntry::Shade))
 }
 
-impl ViewLightingPipeline {
-    /// The pipeline for this frame: the one showing the resampled image where the pass has one
-    /// and draws no overlay, once compiled (until then the shading one shows it, the same);
-    /// else the shading one. `None` until that is compiled.
-    fn pick<'a>(&self, cache: &'a PipelineCache, showing: bool) -> Option<&'a RenderPipeline> {
-        let show = self.show_resampled.filter(|_| showing);
-        (show.and_then(|id| cache.get_render_pipeline(id)))
-            .or_else(|| cache.get_render_pipeline(self.shade))
-    }
-}
-
-/// Each sampling view gets the pipelines of its target format.
-fn prepare_lighting_pipelines(
-    mut commands: Commands,
-    cache: Res<PipelineCache>,
-    mut pipelines: ResMut<SpecializedRenderPipelines<LightingPipeline>>,
-    pipeline: Option<Res<LightingPipeline>>,
-    views: Query<(Entity, &ExtractedView, Has<EnvironmentResampling>), With<ViewSampling>>,
-) {
-    let Some(pipeline) = pipeline else { return };
-    for (entity, view, resamples) in &views {
-        let mut entry = |e| pipelines.specialize(&cache, &pipeline, (view.target_format, e));
-        commands.entity(entity).insert(ViewLightingPipeline {
-            shade: entry(LightingEntry::Shade),
-            show_resampled: resamples.then(|| entry(LightingEntry::ShowResampled)),
-        });
-    }
-}
-
-fn init_lighting(mut commands: Commands, device: Res<RenderDevice>, shader: Res<LightingShader>) {
-    commands.insert_resource(LightingPipeline::new(shader.0.clone()));
+fn init_lighting(mut commands: Commands, device: Res<RenderDevice>) {
     commands.insert_resource(LightingResources::new(device.wgpu_device()));
 }
 
@@ -159,7 +117,8 @@ type ViewExtrasItem<'a> = (
     Option<&'a Skybox>,
 );
 
-/// A lit view's components: Bevy's target, prepass and extracted view, envis's settings.
+/// A lit view's components: Bevy's target, prepass and extracted view, envis's settings, and
+/// what says whether Bevy is ready under it.
 type LightingViewData = (
     &'static ViewTarget,
     &'static ViewPrepassTextures,
@@ -168,56 +127,77 @@ type LightingViewData = (
     &'static EnvironmentSampling,
     &'static EnvisEnvironment,
     &'static ViewSampling,
-    &'static ViewLightingPipeline,
     ViewExtras,
+    (
+        &'static MainEntity,
+        Option<&'static DeferredLightingPipeline>,
+    ),
+);
+
+/// The render world's state the lighting pass reads.
+#[derive(SystemParam)]
+pub struct LightingInputs<'w> {
+    cache: Res<'w, PipelineCache>,
+    programs: Option<Res<'w, EnvisPrograms>>,
+    res: Option<Res<'w, LightingResources>>,
+    samplers: Res<'w, EnvSamplers>,
+    shadows: Shadows<'w>,
+    counters: Res<'w, EnvisCounters>,
+    timings: Res<'w, EnvisTimings>,
+    queue: Res<'w, RenderQueue>,
+    resampling: Option<Res<'w, super::resampling::ResamplingResources>>,
+    report: Res<'w, ReadyReport>,
+}
+
+/// The scene's shadow geometry on the CPU (its generation) and on the GPU.
+pub(super) type Shadows<'w> = (
+    Option<Res<'w, super::shadows::ShadowGeometry>>,
+    Option<Res<'w, super::shadows::GpuShadowGeometry>>,
 );
 
 /// The per-view lighting pass: G-buffer + this frame's distribution and pool -> HDR radiance,
-/// added to Bevy's lighting inside the view's viewport.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn mis_lighting(
+/// added to Bevy's lighting inside the view's viewport. A view is lit from the frame its
+/// programs are compiled, its distribution built and Bevy's passes under it ready
+/// ([`BevyReadiness`]); until then Bevy's image is left as it is.
+pub(crate) fn envis_lighting(
     view: ViewQuery<LightingViewData>,
-    (cache, pipeline, res): (
-        Res<PipelineCache>,
-        Option<Res<LightingPipeline>>,
-        Option<Res<LightingResources>>,
-    ),
-    samplers: Res<EnvSamplers>,
-    shadows: (
-        Option<Res<super::shadows::ShadowGeometry>>,
-        Option<Res<super::shadows::GpuShadowGeometry>>,
-    ),
-    (counters, timings): (Res<EnvisCounters>, Res<EnvisTimings>),
-    (queue, resampling): (
-        Res<RenderQueue>,
-        Option<Res<super::resampling::ResamplingResources>>,
-    ),
+    inputs: LightingInputs,
+    mut readiness: ResMut<BevyReadiness>,
     mut ctx: RenderContext,
 ) {
     let t0 = std::time::Instant::now();
     let view_entity = view.entity();
-    let (target, prepass, ev, cam, sampling, env, vs, pipelines, extras) = view.into_inner();
-    let (Some(layout), Some(res), Some(slot)) = (pipeline, res, samplers.slots.get(&vs.key)) else {
+    let (target, prepass, ev, cam, sampling, env, vs, extras, (main, deferred)) = view.into_inner();
+    let i = &inputs;
+    let (Some(programs), Some(res), Some(slot)) = (&i.programs, &i.res, i.samplers.built(&vs.key))
+    else {
         return;
     };
-    // Compiled asynchronously: lit from the frame its pipeline is ready.
-    if cache.get_render_pipeline(pipelines.shade).is_none() {
-        return;
-    }
     let Some(prepass_views) = prepass_views(prepass) else {
         return;
     };
     let vp = ev.viewport;
     let Some((params, mut lv, geometry)) =
-        view_uniforms((ev, cam, extras), (sampling, env, vs), slot, &shadows)
+        view_uniforms((ev, cam, extras), (sampling, env, vs), slot, &i.shadows)
     else {
         return;
     };
+    // Compiled off the frame path: lit from the frame its pipeline is ready.
+    if programs
+        .lighting(ev.target_format, LightingEntry::Shade)
+        .is_none()
+        || !readiness.allows(view_entity, &i.cache, deferred)
+    {
+        return;
+    }
     // The resampling pass's image, where it ran for this view this frame.
-    let resampled = resampling.and_then(|r| r.take_image(view_entity));
+    let resampled = i
+        .resampling
+        .as_ref()
+        .and_then(|r| r.take_image(view_entity));
     lv.resampled = resampled.is_some() as u32;
     let showing = resampled.is_some() && sampling.overlay == Overlay::None;
-    let Some(render_pipeline) = pipelines.pick(&cache, showing) else {
+    let Some(render_pipeline) = pick_pipeline(programs, ev.target_format, showing) else {
         return;
     };
     let (bvh_nodes, bvh_triangles) = geometry.map_or((&res.no_shadows, &res.no_shadows), |g| {
@@ -225,26 +205,27 @@ pub(crate) fn mis_lighting(
     });
     let device = ctx.render_device().clone();
     let (pbuf, vbuf, accum) = res.view_buffers(
-        (device.wgpu_device(), &queue),
+        (device.wgpu_device(), &i.queue),
         view_entity,
         (sampling.accumulate, vp),
         (bytemuck::bytes_of(&params), bytemuck::bytes_of(&lv)),
     );
     // The resampled image takes the accumulation's binding (`shaders/lighting.wgsl`).
     let bind = lighting_bind_group(
-        (&device, &cache, &layout),
-        (slot, &res),
+        (device.wgpu_device(), programs),
+        (slot, res),
         prepass_views,
         [&pbuf, &vbuf, resampled.as_ref().unwrap_or(&accum)],
         (bvh_nodes, bvh_triangles),
     );
     encode_lighting(
         &mut ctx,
-        (&res, &accum),
+        (res, &accum),
         (sampling, vs),
-        (target, vp, render_pipeline, &bind),
+        (target, vp, &render_pipeline, &bind),
     );
-    count_lighting_pass((&counters, &timings), sampling, t0);
+    i.report.lit(main.id());
+    count_lighting_pass((&i.counters, &i.timings), sampling, t0);
 }
 
 /// The prepass views the pass reads: the deferred G-buffer, depth and the lighting-pass ids;
@@ -269,10 +250,7 @@ fn view_uniforms<'a>(
     (ev, cam, (render_layers, jitter, skybox)): (&ExtractedView, &ExtractedCamera, ViewExtrasItem),
     (sampling, env, vs): (&EnvironmentSampling, &EnvisEnvironment, &ViewSampling),
     slot: &SamplerSlot,
-    shadows: &'a (
-        Option<Res<super::shadows::ShadowGeometry>>,
-        Option<Res<super::shadows::GpuShadowGeometry>>,
-    ),
+    shadows: &'a Shadows,
 ) -> Option<(
     ShadeParams,
     LightingView,
@@ -298,7 +276,7 @@ fn encode_lighting(
     ctx: &mut RenderContext,
     (res, accum): (&LightingResources, &wgpu::Buffer),
     (sampling, vs): (&EnvironmentSampling, &ViewSampling),
-    (target, vp, pipeline, bind): (&ViewTarget, UVec4, &RenderPipeline, &BindGroup),
+    (target, vp, pipeline, bind): (&ViewTarget, UVec4, &wgpu::RenderPipeline, &wgpu::BindGroup),
 ) {
     let probing = sampling.probe.is_some() && res.probe_read.ready();
     let diagnostics = ctx.diagnostic_recorder();
@@ -337,10 +315,7 @@ fn count_lighting_pass(
 /// The shadow geometry the view's rays traverse, and its BVH's node count (0: no shadow rays):
 /// when the camera asks for shadows and the uploaded geometry is this frame's.
 pub(super) fn shadow_geometry<'a>(
-    shadows: &'a (
-        Option<Res<super::shadows::ShadowGeometry>>,
-        Option<Res<super::shadows::GpuShadowGeometry>>,
-    ),
+    shadows: &'a Shadows,
     sampling: &EnvironmentSampling,
 ) -> (Option<&'a super::shadows::GpuShadowGeometry>, u32) {
     match shadows {
@@ -379,15 +354,15 @@ pub(super) fn shade_params(
 /// (deferred G-buffer, depth, lighting-pass ids), the sampler's tables, the per-view buffers
 /// (params, view, accumulation or the resampled image), the source image and the shadow BVH.
 fn lighting_bind_group(
-    (device, cache, layout): (&RenderDevice, &PipelineCache, &LightingPipeline),
+    (device, programs): (&wgpu::Device, &EnvisPrograms),
     (slot, res): (&SamplerSlot, &LightingResources),
     (deferred, depth, ids): (&TextureView, &TextureView, &TextureView),
     [pbuf, vbuf, accum]: [&wgpu::Buffer; 3],
     (bvh_nodes, bvh_triangles): (&wgpu::Buffer, &wgpu::Buffer),
-) -> BindGroup {
+) -> wgpu::BindGroup {
     use wgpu::BindingResource as R;
     let sampler = &slot.sampler;
-    let entries = BindGroupEntries::sequential((
+    let entries = crate::gpu::sequential_entries([
         R::TextureView(deferred),
         R::TextureView(depth),
         sampler.texels.as_entire_binding(),
@@ -402,12 +377,12 @@ fn lighting_bind_group(
         R::TextureView(&slot.source),
         bvh_nodes.as_entire_binding(),
         bvh_triangles.as_entire_binding(),
-    ));
-    device.create_bind_group(
-        "envis lighting",
-        &cache.get_bind_group_layout(&layout.layout),
-        &entries,
-    )
+    ]);
+    device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("envis lighting"),
+        layout: &programs.lighting_group_layout(),
+        entries: &entries,
+    })
 }
 
 /// One fullscreen triangle over the view's target, limited to its viewport `vp`, timed in
@@ -417,8 +392,8 @@ fn record_lighting_pass(
     diagnostics: &impl RecordDiagnostics,
     target: &ViewTarget,
     vp: UVec4,
-    pipeline: &RenderPipeline,
-    bind: &BindGroup,
+    pipeline: &wgpu::RenderPipeline,
+    bind: &wgpu::BindGroup,
 ) {
     let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
         label: Some("envis mis lighting"),
@@ -432,7 +407,7 @@ fn record_lighting_pass(
     // Only this camera's viewport: a split-screen neighbour keeps its pixels.
     pass.set_viewport(vp.x as f32, vp.y as f32, vp.z as f32, vp.w as f32, 0.0, 1.0);
     pass.set_pipeline(pipeline);
-    pass.set_bind_group(0, &**bind, &[]);
+    pass.set_bind_group(0, bind, &[]);
     pass.draw(0..3, 0..1);
     span.end(&mut pass);
 }

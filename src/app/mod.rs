@@ -23,7 +23,12 @@
 //! - [`EnvisShadowsPlugin`] (both worlds): the scene's shadow geometry (a two-level BVH of the
 //!   shadow-casting meshes) for envis's shadow rays.
 //! - [`EnvisLightingPlugin`] (render world): per camera, the face-weighted MIS pass after Bevy's
-//!   deferred lighting (`Core3d`, main pass, before the opaque pass).
+//!   deferred lighting (`Core3d`, main pass, before the opaque pass), and [`EnvisLightReady`] on
+//!   each camera from the first frame it lit.
+//!
+//! envis's GPU programs are compiled on a thread of its own from start-up
+//! ([`programs::EnvisPrograms`]): a camera is lit from the first frame they, its distribution
+//! and Bevy's passes under it are ready, and shows Bevy's own image until then.
 //! - [`EnvisResamplingPlugin`] (both worlds): per camera with [`EnvironmentResampling`],
 //!   reservoir resampling of the environment light across pixels and frames, before the
 //!   lighting pass, which then shows its image.
@@ -43,6 +48,8 @@ pub mod lighting;
 mod lighting_uniforms;
 pub mod material;
 pub mod pose;
+pub mod programs;
+pub mod ready;
 pub mod resampling;
 pub mod sampling;
 pub mod scene_objects;
@@ -61,6 +68,7 @@ pub use material::{
     ENVIS_LIGHTING_PASS_ID, EnvisBrdf, EnvisMaterial, EnvisMaterialPlugin,
     standard_material_decoded,
 };
+pub use ready::{EnvisLightReady, ReadyReport};
 pub use resampling::{EnvironmentResampling, EnvisResamplingPlugin};
 pub use sampling::EnvisSamplingPlugin;
 pub use shader_reload::EnvisShaderReloadPlugin;
@@ -121,6 +129,7 @@ impl Plugin for EnvisPlugin {
         app.add_systems(PreUpdate, timing::read_pass_diagnostics);
         app.register_type::<EnvironmentSampling>()
             .register_type::<EnvisEnvironment>()
+            .register_type::<EnvisLightReady>()
             .add_systems(PostUpdate, setup::warn_camera_setup)
             .add_plugins((
                 EnvisMaterialPlugin,

@@ -10,14 +10,16 @@
 //! dropped.
 
 use super::components::{EnvironmentSampling, EnvisEnvironment};
+use super::programs::EnvisPrograms;
 use super::timing::EnvisTimings;
 use super::{Counters, EnvisCounters};
 use crate::envmap::resample::SourceLayout;
+use crate::gpu::EnvSampler;
 use crate::gpu::resample::source_view;
-use crate::gpu::{EnvSampler, ImageResampler};
 use crate::render::{Strategy, pool_seed};
 use bevy::camera::visibility::RenderLayers;
 use bevy::core_pipeline::schedule::camera_driver;
+use bevy::ecs::query::QueryItem;
 use bevy::prelude::*;
 use bevy::render::camera::TemporalJitter;
 use bevy::render::diagnostic::RecordDiagnostics;
@@ -30,7 +32,7 @@ use bevy::render::renderer::{
 use bevy::render::sync_world::MainEntity;
 use bevy::render::texture::GpuImage;
 use bevy::render::view::ExtractedView;
-use bevy::render::{Render, RenderApp, RenderStartup, RenderSystems};
+use bevy::render::{Render, RenderApp, RenderSystems};
 use std::collections::{HashMap, HashSet};
 
 pub use super::scene_revision::{SceneRevision, track_scene_changes};
@@ -91,11 +93,10 @@ pub struct ViewSampling {
     pub seed: u32,
 }
 
-/// Every distribution of the render world and the resample pipeline.
+/// Every distribution of the render world.
 #[derive(Resource, Default)]
 pub struct EnvSamplers {
     pub slots: HashMap<SamplerKey, SamplerSlot>,
-    resampler: Option<ImageResampler>,
     /// Per view: what its accumulation key was and how many frames it has averaged.
     accumulation: HashMap<Entity, (u64, u32)>,
     /// Per jittered view that does not accumulate: frames drawn, so that each draws new samples.
@@ -109,6 +110,7 @@ pub struct EnvisSamplingPlugin;
 impl Plugin for EnvisSamplingPlugin {
     fn build(&self, app: &mut App) {
         super::share_resources(app);
+        super::programs::add_programs(app);
         app.init_resource::<EnvImageVersions>()
             .init_resource::<SceneRevision>()
             .add_plugins((
@@ -135,7 +137,6 @@ impl Plugin for EnvisSamplingPlugin {
         };
         render_app
             .init_resource::<EnvSamplers>()
-            .add_systems(RenderStartup, init_samplers)
             .add_systems(Render, prepare_samplers.in_set(RenderSystems::Prepare))
             .add_systems(
                 RenderGraph,
@@ -148,8 +149,12 @@ impl Plugin for EnvisSamplingPlugin {
     }
 }
 
-fn init_samplers(device: Res<RenderDevice>, mut samplers: ResMut<EnvSamplers>) {
-    samplers.resampler = Some(ImageResampler::new(device.wgpu_device()));
+impl EnvSamplers {
+    /// The distribution of `key` once it has been built (from the frame of its first build:
+    /// the builds are recorded before any camera).
+    pub fn built(&self, key: &SamplerKey) -> Option<&SamplerSlot> {
+        self.slots.get(key).filter(|s| s.generation > 0)
+    }
 }
 
 /// Bump the version of every environment image that was added or changed on the CPU, and count
@@ -191,70 +196,111 @@ type ViewExtras = (
     Has<super::resampling::EnvironmentResampling>,
 );
 
+/// A view's components as [`prepare_samplers`] reads them.
+type SamplingViewData = (
+    Entity,
+    &'static MainEntity,
+    &'static ExtractedView,
+    &'static EnvironmentSampling,
+    &'static EnvisEnvironment,
+    ViewExtras,
+    Option<&'static ViewSampling>,
+);
+
+/// The render world's shared state [`prepare_samplers`] reads.
+#[derive(bevy::ecs::system::SystemParam)]
+pub struct SamplingInputs<'w> {
+    accumulated: Res<'w, super::AccumulatedFrames>,
+    images: Res<'w, RenderAssets<GpuImage>>,
+    versions: Option<Res<'w, EnvImageVersions>>,
+    scene: Option<Res<'w, SceneRevision>>,
+    device: Res<'w, RenderDevice>,
+    queue: Res<'w, RenderQueue>,
+    counters: Res<'w, EnvisCounters>,
+    programs: Option<Res<'w, EnvisPrograms>>,
+}
+
 /// Per view: choose (and allocate) its distribution, decide whether that needs a rebuild, and
-/// track accumulation. Drops distributions and view state that no view uses any more.
-#[allow(clippy::too_many_arguments)]
+/// track accumulation. Drops distributions and view state that no view uses any more. A view
+/// whose new image is still loading keeps the distribution it had (lit by the old map until
+/// the new one is there); a view with no distribution loses its [`ViewSampling`].
 pub fn prepare_samplers(
     mut commands: Commands,
-    views: Query<(
-        Entity,
-        &MainEntity,
-        &ExtractedView,
-        &EnvironmentSampling,
-        &EnvisEnvironment,
-        ViewExtras,
-    )>,
-    accumulated: Res<super::AccumulatedFrames>,
-    images: Res<RenderAssets<GpuImage>>,
-    versions: Option<Res<EnvImageVersions>>,
-    scene: Option<Res<SceneRevision>>,
-    device: Res<RenderDevice>,
-    queue: Res<RenderQueue>,
+    views: Query<SamplingViewData>,
+    inputs: SamplingInputs,
     mut samplers: ResMut<EnvSamplers>,
-    counters: Res<EnvisCounters>,
 ) {
     let samplers = &mut *samplers;
     let mut used = HashSet::new();
-    let mut live_views = HashSet::new();
-    let mut frames = cleared_frames(&accumulated);
-    for (entity, main, view, sampling, env, (layers, jittered, resampled)) in &views {
-        // Resampling, as TAA, averages over frames: each frame draws new samples.
-        let jittered = jittered || resampled;
-        let Some(gpu) = images.get(env.image.id()) else {
-            continue; // not loaded yet: Bevy's lighting alone until it is
-        };
-        let Some(layout) = usable_layout(samplers, gpu, env) else {
-            continue;
-        };
-        let version = image_version(versions.as_deref(), env.image.id());
-        let scene = scene.as_ref().map_or(0, |s| s.0);
-        let (frame, seed, key) = view_frame(
-            samplers,
-            entity,
-            (view, sampling, env),
-            (layers, jittered),
-            (version, scene),
-        );
-        if let Some(f) = frames.as_mut() {
-            f.insert(main.id(), frame);
+    let mut frames = cleared_frames(&inputs.accumulated);
+    for view in &views {
+        let (entity, main) = (view.0, view.1.id());
+        let sampled = view_sampling(samplers, &inputs, view)
+            .or_else(|| kept_while_loading(samplers, &inputs, view));
+        match sampled {
+            Some(vs) => {
+                if let Some(f) = frames.as_mut() {
+                    f.insert(main, vs.frame);
+                }
+                used.insert(vs.key);
+                commands.entity(entity).insert(vs);
+            }
+            None => {
+                commands.entity(entity).remove::<ViewSampling>();
+            }
         }
-        let Some(slot) = slot_for(samplers, key, gpu, layout, &device, &queue, &counters) else {
-            continue;
-        };
-        let source = (gpu, layout, (version, env.dynamic));
-        slot.refresh(
-            source,
-            pool_seed(seed),
-            sampling.strategy,
-            (&device, &queue),
-        );
-        used.insert(key);
-        live_views.insert(entity);
-        commands
-            .entity(entity)
-            .insert(ViewSampling { key, frame, seed });
     }
-    drop_unused(samplers, (&used, &live_views), &counters);
+    let live_views: HashSet<Entity> = views.iter().map(|v| v.0).collect();
+    drop_unused(samplers, (&used, &live_views), &inputs.counters);
+}
+
+/// The view's distribution for its image this frame, allocated and marked for a rebuild as
+/// needed; `None` while the image is not on the GPU, cannot be used, or the build is not
+/// compiled yet.
+fn view_sampling(
+    samplers: &mut EnvSamplers,
+    inputs: &SamplingInputs,
+    (entity, _, view, sampling, env, (layers, jittered, resampled), _): QueryItem<SamplingViewData>,
+) -> Option<ViewSampling> {
+    // Resampling, as TAA, averages over frames: each frame draws new samples.
+    let jittered = jittered || resampled;
+    let build = inputs.programs.as_ref()?.build()?;
+    let gpu = inputs.images.get(env.image.id())?;
+    let layout = usable_layout(samplers, gpu, env)?;
+    let version = image_version(inputs.versions.as_deref(), env.image.id());
+    let scene = inputs.scene.as_ref().map_or(0, |s| s.0);
+    let (frame, seed, key) = view_frame(
+        samplers,
+        entity,
+        (view, sampling, env),
+        (layers, jittered),
+        (version, scene),
+    );
+    let device = (&*inputs.device, &*inputs.queue);
+    let slot = slot_for(
+        samplers,
+        key,
+        (gpu, layout),
+        build,
+        device,
+        &inputs.counters,
+    )?;
+    let source = (gpu, layout, (version, env.dynamic));
+    slot.refresh(source, pool_seed(seed), sampling.strategy, device);
+    Some(ViewSampling { key, frame, seed })
+}
+
+/// While a view's image is not loaded yet (a new image replaced its old one), the view keeps
+/// the distribution it had, built from the old image: no frame goes without light.
+fn kept_while_loading(
+    samplers: &EnvSamplers,
+    inputs: &SamplingInputs,
+    (_, _, _, _, env, _, previous): QueryItem<SamplingViewData>,
+) -> Option<ViewSampling> {
+    let previous = previous?;
+    let loading = inputs.images.get(env.image.id()).is_none();
+    (loading && previous.key.image != env.image.id() && samplers.built(&previous.key).is_some())
+        .then_some(*previous)
 }
 
 /// The frames each view has averaged (shared with the main world), emptied for this frame's
@@ -361,12 +407,12 @@ fn sampler_key(
 pub fn build_distributions(
     mut ctx: RenderContext,
     mut samplers: ResMut<EnvSamplers>,
-    counters: Res<EnvisCounters>,
-    timings: Res<EnvisTimings>,
+    programs: Option<Res<EnvisPrograms>>,
+    (counters, timings): (Res<EnvisCounters>, Res<EnvisTimings>),
 ) {
     let t0 = std::time::Instant::now();
     let samplers = &mut *samplers;
-    let Some(resampler) = &samplers.resampler else {
+    let Some(resampler) = programs.as_ref().and_then(|p| p.resample()) else {
         return;
     };
     let device = ctx.render_device().wgpu_device().clone();

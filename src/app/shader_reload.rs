@@ -2,14 +2,13 @@
 //! for working on the shaders with an example or the demo running. The shaders are plain WGSL
 //! modules concatenated (they are shared with the headless wgpu backend, which has no naga_oil
 //! imports), so they cannot be Bevy file assets one by one: this polls the files' modification
-//! times twice a second and, on a change, replaces the `Shader` asset ([`LightingShader`]);
-//! Bevy's pipeline cache then recompiles the pipelines that use it (an error is logged and the
-//! last good pipeline kept).
+//! times twice a second and, on a change, replaces the [`LightingSource`]; envis's compile thread
+//! then compiles the new version beside the one in use (`programs::EnvisPrograms`), which it
+//! replaces once compiled (an error is logged and the last good pipeline kept).
 
-use super::lighting::LightingShader;
+use super::programs::LightingSource;
 use crate::gpu::shaders;
 use bevy::prelude::*;
-use bevy::shader::Shader;
 use std::path::PathBuf;
 use std::time::SystemTime;
 
@@ -62,13 +61,12 @@ fn newest_change(dir: &std::path::Path) -> Option<SystemTime> {
 fn reload_changed_shaders(
     time: Res<Time>,
     mut state: ResMut<ShaderDir>,
-    shader: Option<Res<LightingShader>>,
-    mut assets: ResMut<Assets<Shader>>,
+    source: Option<ResMut<LightingSource>>,
 ) {
     if !state.timer.tick(time.delta()).just_finished() {
         return;
     }
-    let Some(shader) = shader else { return };
+    let Some(mut source) = source else { return };
     let now = newest_change(&state.dir);
     if now.is_none() || now == state.seen {
         return;
@@ -80,7 +78,8 @@ fn reload_changed_shaders(
                 "envis: {} changed: recompiling the lighting pass",
                 state.dir.display()
             );
-            let _ = assets.insert(shader.0.id(), Shader::from_wgsl(src, "envis/lighting.wgsl"));
+            source.wgsl = src.into();
+            source.version += 1;
         }
         Err(e) => warn!("envis: cannot read {}: {e}", state.dir.display()),
     }

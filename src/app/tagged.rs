@@ -39,4 +39,12 @@ impl<T> Tagged<T> {
         let i = got.iter().position(|(t, _)| *t == tag)?;
         Some(got.swap_remove(i).1)
     }
+
+    /// Every result that arrived, with its tag, in the order they arrived.
+    pub fn take_all(&self) -> Vec<(u32, T)> {
+        self.0
+            .lock()
+            .map(|mut got| std::mem::take(&mut *got))
+            .unwrap_or_default()
+    }
 }

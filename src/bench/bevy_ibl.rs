@@ -222,6 +222,7 @@ impl Shot<'_> {
             Light::Envis { frames, .. } | Light::Resampled { frames, .. } => frames as usize + 3,
             Light::Bevy => 4,
         };
+        h.until_lit();
         for _ in 0..frames {
             h.update();
         }

@@ -19,6 +19,8 @@
 //!
 //! Suite `motion`: reservoir resampling on an animated scene (see [`motion`]).
 //!
+//! Suite `ready`: how long a game-like Bevy app waits for its first lit frame (`bench/ready.rs`).
+//!
 //! Suite `accuracy`: error vs time over strategies, budgets, materials and maps (see [`accuracy`]).
 
 pub mod accuracy;
@@ -33,6 +35,8 @@ pub mod gpu;
 pub mod motion;
 mod offset;
 mod popping;
+#[cfg(feature = "app")]
+mod ready;
 mod speed;
 pub mod tiles;
 pub mod visibility;
@@ -69,6 +73,8 @@ pub enum Suite {
     Motion,
     /// envis beside Bevy's `GeneratedEnvironmentMapLight`: error and frame cost (feature `app`).
     BevyIbl,
+    /// Time to the first lit frame of a game-like app, and what it waits on (feature `app`).
+    Ready,
 }
 crate::vocab::display_as_value_enum!(Suite);
 
@@ -148,8 +154,10 @@ pub fn run(a: BenchArgs) -> Result<()> {
         ))),
         #[cfg(feature = "app")]
         Suite::BevyIbl => bevy_ibl::run(a, dir),
+        #[cfg(feature = "app")]
+        Suite::Ready => ready::run(a, dir),
         #[cfg(not(feature = "app"))]
-        s @ Suite::BevyIbl => Err(Error::invalid(format!(
+        s @ (Suite::BevyIbl | Suite::Ready) => Err(Error::invalid(format!(
             "bench suite '{s}': this envis was built without the `app` feature"
         ))),
     }

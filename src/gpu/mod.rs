@@ -19,7 +19,7 @@ pub mod visibility;
 
 pub use context::GpuContext;
 pub use resample::ImageResampler;
-pub use sampler::{EnvSampler, GpuTables};
+pub use sampler::{BuildPipelines, EnvSampler, GpuTables};
 pub use shading::{GpuGPixel, Shader};
 
 use crate::envmap::CubeMap;

@@ -65,7 +65,7 @@ pub struct EnvSampler {
     pub gdist: wgpu::Buffer,
     params: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
-    pipelines: [wgpu::ComputePipeline; 5],
+    pipelines: std::sync::Arc<BuildPipelines>,
     timer: Option<super::shading::PassTimer>,
     pool_timer: Option<super::shading::PassTimer>,
     global: Option<GlobalBuild>,
@@ -152,10 +152,25 @@ impl EnvSampler {
         Ok(sampler)
     }
 
-    /// Build on any device (the Bevy render world passes its own), for faces and tiles `grid`.
+    /// Build on any device, for faces and tiles `grid`, compiling the build's pipelines for it
+    /// (see [`Self::with_pipelines`] to share them).
     pub fn with_device(
         device: &wgpu::Device,
         queue: &wgpu::Queue,
+        grid: TileGrid,
+        m: usize,
+        timestamps: bool,
+    ) -> Result<Self> {
+        let pipelines = std::sync::Arc::new(BuildPipelines::new(device));
+        Self::with_pipelines(device, queue, &pipelines, grid, m, timestamps)
+    }
+
+    /// [`Self::with_device`] with `pipelines` compiled before (the Bevy render world compiles
+    /// them once, off the frame path, for all its samplers).
+    pub fn with_pipelines(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        pipelines: &std::sync::Arc<BuildPipelines>,
         grid: TileGrid,
         m: usize,
         timestamps: bool,
@@ -177,19 +192,18 @@ impl EnvSampler {
         let params = super::uniform_buffer::<Params>(device, "envis build params");
         let angles = face_solid_angles(n);
         queue.write_buffer(&solid_angle, 0, bytemuck::cast_slice(angles.as_slice()));
-        let (bind_group, pipelines) = build_pipelines(
-            device,
-            [
-                &texels,
-                &solid_angle,
-                &weights,
-                &cdfs,
-                &totals,
-                &pool,
-                &problems,
-                &params,
-            ],
-        );
+        let bufs = [
+            &texels,
+            &solid_angle,
+            &weights,
+            &cdfs,
+            &totals,
+            &pool,
+            &problems,
+            &params,
+        ];
+        let bind_group =
+            super::whole_buffers(device, "envis build bind group", &pipelines.layout, &bufs);
         let timer = |label| timestamps.then(|| super::shading::PassTimer::new(device, label));
         let (timer, pool_timer) = (timer("envis build timer"), timer("envis pool timer"));
         let gdist = storage(device, "envis global placeholder", 16);
@@ -207,11 +221,17 @@ impl EnvSampler {
             gdist,
             params,
             bind_group,
-            pipelines,
+            pipelines: pipelines.clone(),
             timer,
             pool_timer,
             global: None,
         })
+    }
+
+    /// The compiled build this sampler records (to make another sampler without compiling it
+    /// again: [`Self::with_pipelines`]).
+    pub fn build_pipelines(&self) -> &std::sync::Arc<BuildPipelines> {
+        &self.pipelines
     }
 
     /// The pool's slots: `m` per region, over every face's tiles (one thread each in the pool's
@@ -304,10 +324,26 @@ impl EnvSampler {
             timestamp_writes: writes,
         });
         pass.set_bind_group(0, &self.bind_group, &[]);
-        grid(&mut pass, &self.pipelines[0], dispatch_size(texels, 256));
-        grid(&mut pass, &self.pipelines[1], dispatch_size(6 * n * k, 1));
-        grid(&mut pass, &self.pipelines[2], dispatch_size(6 * k * k, 1));
-        grid(&mut pass, &self.pipelines[3], dispatch_size(texels, 256));
+        grid(
+            &mut pass,
+            &self.pipelines.passes[0],
+            dispatch_size(texels, 256),
+        );
+        grid(
+            &mut pass,
+            &self.pipelines.passes[1],
+            dispatch_size(6 * n * k, 1),
+        );
+        grid(
+            &mut pass,
+            &self.pipelines.passes[2],
+            dispatch_size(6 * k * k, 1),
+        );
+        grid(
+            &mut pass,
+            &self.pipelines.passes[3],
+            dispatch_size(texels, 256),
+        );
         if let Some(g) = &self.global {
             let (w, h) = (4 * n, 2 * n);
             pass.set_bind_group(0, &g.bind_group, &[]);
@@ -333,7 +369,7 @@ impl EnvSampler {
         pass.set_bind_group(0, &self.bind_group, &[]);
         grid(
             &mut pass,
-            &self.pipelines[4],
+            &self.pipelines.passes[4],
             dispatch_size(self.pool_slots(), 64),
         );
     }
@@ -367,30 +403,36 @@ fn grid(pass: &mut wgpu::ComputePass, p: &wgpu::ComputePipeline, (x, y): (u32, u
     pass.dispatch_workgroups(x, y, 1);
 }
 
-/// The build's bind group and its five passes' pipelines, over `bufs` bound 0..=7 as in
-/// `shaders/distribution.wgsl`: storage (the solid angles, 1, read only), then the parameters.
-fn build_pipelines(
-    device: &wgpu::Device,
-    bufs: [&wgpu::Buffer; 8],
-) -> (wgpu::BindGroup, [wgpu::ComputePipeline; 5]) {
-    let ro = wgpu::BufferBindingType::Storage { read_only: true };
-    let rw = wgpu::BufferBindingType::Storage { read_only: false };
-    let kinds = [rw, ro, rw, rw, rw, rw, rw, wgpu::BufferBindingType::Uniform];
-    let layout = super::buffer_layout(device, "envis build layout", &kinds);
-    let bind_group = super::whole_buffers(device, "envis build bind group", &layout, &bufs);
-    let pl = super::one_group_layout(device, "envis build", &layout);
-    let module = shaders::module(
-        device,
-        "envis distribution.wgsl",
-        &shaders::distribution_source(),
-    );
-    let pipe = |entry: &str| super::compute_pipeline(device, &pl, &module, entry);
-    let pipelines = [
-        pipe("texel_weights"),
-        pipe("column_cdfs"),
-        pipe("marginal_cdfs"),
-        pipe("pdf_table"),
-        pipe("build_pool"),
-    ];
-    (bind_group, pipelines)
+/// The build's five compute pipelines (`shaders/distribution.wgsl`) and their bind group layout:
+/// storage buffers bound 0..=7 (the solid angles, 1, read only), then the parameters. One set
+/// serves every [`EnvSampler`] of a device.
+pub struct BuildPipelines {
+    layout: wgpu::BindGroupLayout,
+    /// `texel_weights`, `column_cdfs`, `marginal_cdfs`, `pdf_table`, `build_pool`.
+    passes: [wgpu::ComputePipeline; 5],
+}
+
+impl BuildPipelines {
+    /// Compile the build on `device` (what takes time: a driver compiling five entry points).
+    pub fn new(device: &wgpu::Device) -> Self {
+        let ro = wgpu::BufferBindingType::Storage { read_only: true };
+        let rw = wgpu::BufferBindingType::Storage { read_only: false };
+        let kinds = [rw, ro, rw, rw, rw, rw, rw, wgpu::BufferBindingType::Uniform];
+        let layout = super::buffer_layout(device, "envis build layout", &kinds);
+        let pl = super::one_group_layout(device, "envis build", &layout);
+        let module = shaders::module(
+            device,
+            "envis distribution.wgsl",
+            &shaders::distribution_source(),
+        );
+        let pipe = |entry: &str| super::compute_pipeline(device, &pl, &module, entry);
+        let passes = [
+            pipe("texel_weights"),
+            pipe("column_cdfs"),
+            pipe("marginal_cdfs"),
+            pipe("pdf_table"),
+            pipe("build_pool"),
+        ];
+        BuildPipelines { layout, passes }
+    }
 }

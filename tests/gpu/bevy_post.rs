@@ -214,6 +214,7 @@ impl SphereScene {
         );
         let camera = h.app.world_mut().spawn(camera).id();
         extra(&mut h, camera);
+        h.until_lit();
         for _ in 0..self.frames {
             h.update();
         }

@@ -38,6 +38,8 @@ pub(super) struct PanelStats<'w, 's> {
     counters: Res<'w, EnvisCounters>,
     windows: Query<'w, 's, &'static Window, With<PrimaryWindow>>,
     diagnostics: Res<'w, bevy::diagnostic::DiagnosticsStore>,
+    /// The demo camera once envis lit it (`EnvisLightReady`).
+    ready: Query<'w, 's, (), (With<DemoCamera>, With<crate::app::EnvisLightReady>)>,
 }
 
 /// The scene's objects and their material assets, edited by the "Materials" section.
@@ -137,6 +139,11 @@ fn envis_window_ui(
     objects: &mut PanelObjects,
     stats: &PanelStats,
 ) {
+    if stats.ready.is_empty() {
+        // Until envis's programs are compiled (seconds on a CPU driver), Bevy's own image shows.
+        let waiting = "envis is compiling its shaders: Bevy's own lighting until it is ready";
+        ui.colored_label(egui::Color32::from_rgb(255, 170, 60), waiting);
+    }
     ui.collapsing("Environment", |ui| {
         environment_ui(ui, stream, &mut cam.env, state)
     });

@@ -1,8 +1,9 @@
-//! The lighting pass's GPU objects: its pipeline, one per target format through Bevy's
-//! `PipelineCache` (compiled from the `Shader` asset [`LightingShader`], so a changed source
-//! recompiles it), its bind group layout as one table, and the resources it keeps: the probe and
-//! its readback, and per view the uniforms and the accumulation buffer, written in place each
-//! frame.
+//! The lighting pass's GPU objects: its bind group layout as one table, the fragment entry
+//! points its pipelines run (compiled per target format by [`EnvisPrograms`], off the frame
+//! path), and the resources it keeps: the probe and its readback, and per view the uniforms and
+//! the accumulation buffer, written in place each frame.
+//!
+//! [`EnvisPrograms`]: crate::app::programs::EnvisPrograms
 
 use crate::app::lighting_uniforms::PROBE_BYTES;
 use crate::app::timing::AsyncRead;
@@ -12,18 +13,10 @@ use bevy::render::render_resource::binding_types::{
     uniform_buffer_sized,
 };
 use bevy::render::render_resource::{
-    BindGroupLayoutDescriptor, BindGroupLayoutEntries, BlendState, ColorTargetState, ColorWrites,
-    FragmentState, RenderPipelineDescriptor, ShaderStages, SpecializedRenderPipeline,
-    TextureFormat, TextureSampleType, VertexState,
+    BindGroupLayoutDescriptor, BindGroupLayoutEntries, ShaderStages, TextureSampleType,
 };
-use bevy::shader::Shader;
 use std::collections::HashMap;
 use std::sync::Mutex;
-
-/// The lighting pass's WGSL (`gpu::shaders::lighting_source`) as a `Shader` asset, held in both
-/// worlds (the render world compiles from it; replacing the asset recompiles the pipelines).
-#[derive(Resource, Clone)]
-pub struct LightingShader(pub Handle<Shader>);
 
 /// Which fragment entry point of the pass a pipeline runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -37,25 +30,18 @@ pub enum LightingEntry {
     ShowResampled,
 }
 
-/// The lighting pipeline's layout and shader; [`SpecializedRenderPipeline`] by target format
-/// and entry point.
-#[derive(Resource)]
-pub struct LightingPipeline {
-    pub(super) layout: BindGroupLayoutDescriptor,
-    shader: Handle<Shader>,
-}
-
-impl LightingPipeline {
-    pub(super) fn new(shader: Handle<Shader>) -> Self {
-        LightingPipeline {
-            layout: lighting_layout(),
-            shader,
+impl LightingEntry {
+    /// The entry point's name in `shaders/lighting.wgsl`.
+    pub fn entry_point(self) -> &'static str {
+        match self {
+            LightingEntry::Shade => "lighting",
+            LightingEntry::ShowResampled => "show_resampled",
         }
     }
 }
 
 /// The bind group layout, in binding order (`@binding(0)` ... `@binding(13)` of
-/// `shaders/lighting.wgsl`; `mis_lighting` binds the resources in the same order).
+/// `shaders/lighting.wgsl`; `envis_lighting` binds the resources in the same order).
 pub fn lighting_layout() -> BindGroupLayoutDescriptor {
     let ro = || storage_buffer_read_only_sized(false, None);
     let entries = BindGroupLayoutEntries::sequential(
@@ -78,40 +64,6 @@ pub fn lighting_layout() -> BindGroupLayoutDescriptor {
         ),
     );
     BindGroupLayoutDescriptor::new("envis lighting layout", &entries)
-}
-
-impl SpecializedRenderPipeline for LightingPipeline {
-    type Key = (TextureFormat, LightingEntry);
-
-    fn specialize(&self, (format, entry): Self::Key) -> RenderPipelineDescriptor {
-        RenderPipelineDescriptor {
-            label: Some("envis lighting".into()),
-            layout: vec![self.layout.clone()],
-            vertex: VertexState {
-                shader: self.shader.clone(),
-                entry_point: Some("fullscreen".into()),
-                ..default()
-            },
-            fragment: Some(FragmentState {
-                shader: self.shader.clone(),
-                entry_point: Some(
-                    match entry {
-                        LightingEntry::Shade => "lighting",
-                        LightingEntry::ShowResampled => "show_resampled",
-                    }
-                    .into(),
-                ),
-                // Premultiplied: alpha 0 adds to Bevy's lighting, alpha 1 replaces.
-                targets: vec![Some(ColorTargetState {
-                    format,
-                    blend: Some(BlendState::PREMULTIPLIED_ALPHA_BLENDING),
-                    write_mask: ColorWrites::ALL,
-                })],
-                ..default()
-            }),
-            ..default()
-        }
-    }
 }
 
 /// One view's kept buffers: its uniforms (written each frame) and its running mean.

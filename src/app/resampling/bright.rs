@@ -103,7 +103,10 @@ fn new_sampler(
     like: &EnvSampler,
 ) -> Option<EnvSampler> {
     let grid = TileGrid::new(like.n, like.tiles);
-    let made = EnvSampler::with_device(device, queue, grid, like.m, false).and_then(|mut s| {
+    // The shared sampler's compiled build: nothing is compiled on the frame path.
+    let pipelines = like.build_pipelines();
+    let made = EnvSampler::with_pipelines(device, queue, pipelines, grid, like.m, false);
+    let made = made.and_then(|mut s| {
         s.set_blocks(like.blocks)?;
         if like.has_global() {
             s.enable_global(device, queue)?;

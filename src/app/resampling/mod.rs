@@ -29,6 +29,7 @@ pub use cpu_maps::source_from_image;
 pub use readback::{FrameCounts, ResamplingCounts, ResamplingReadback};
 
 use super::components::{EnvironmentSampling, EnvisEnvironment};
+use super::programs::EnvisPrograms;
 use super::sampling::{EnvSamplers, ViewSampling};
 use super::shadows::{GpuShadowGeometry, ShadowGeometry};
 use super::{EnvisCounters, EnvisTimings, lighting};
@@ -48,7 +49,7 @@ use bevy::render::{ExtractSchedule, MainWorld, Render, RenderApp, RenderSystems}
 use frame::{FrameInputs, hand_over, history_valid, record, write_uniforms};
 use gather::GatherPipelines;
 use std::collections::HashMap;
-use std::sync::{Mutex, OnceLock};
+use std::sync::Mutex;
 use view::ViewResampling;
 
 /// Reservoir resampling of the environment light on this camera: with it,
@@ -96,6 +97,7 @@ pub struct EnvisResamplingPlugin;
 impl Plugin for EnvisResamplingPlugin {
     fn build(&self, app: &mut App) {
         super::share_resources(app);
+        super::programs::add_programs(app);
         app.register_type::<EnvironmentResampling>();
         let Some(render_app) = app.get_sub_app_mut(RenderApp) else {
             return;
@@ -114,7 +116,7 @@ impl Plugin for EnvisResamplingPlugin {
                 Core3d,
                 resample_environment
                     .after(bevy::pbr::deferred::deferred_lighting)
-                    .before(lighting::mis_lighting)
+                    .before(lighting::envis_lighting)
                     .in_set(Core3dSystems::MainPass),
             );
     }
@@ -191,29 +193,31 @@ fn poll_readbacks(res: Option<Res<ResamplingResources>>) {
     }
 }
 
-/// What the resampling pass keeps: its pipelines (compiled when a camera first resamples) and
-/// each resampling camera's buffers.
+/// The resampling pass's programs: the passes and the gather (compiled by
+/// [`EnvisPrograms`](super::programs::EnvisPrograms), off the frame path).
+pub struct ResamplingPrograms {
+    passes: ResamplingPasses,
+    gather: GatherPipelines,
+}
+
+impl ResamplingPrograms {
+    /// Compile both on `device` (the caller checked that it can run them:
+    /// [`ResamplingPasses::supported`]).
+    pub(crate) fn new(device: &wgpu::Device) -> Self {
+        ResamplingPrograms {
+            passes: ResamplingPasses::new(device),
+            gather: GatherPipelines::new(device),
+        }
+    }
+}
+
+/// What the resampling pass keeps: each resampling camera's buffers.
 #[derive(Resource, Default)]
 pub struct ResamplingResources {
-    pipelines: OnceLock<(ResamplingPasses, GatherPipelines)>,
     views: Mutex<HashMap<Entity, ViewResampling>>,
 }
 
 impl ResamplingResources {
-    /// The pipelines, compiled at the first resampled frame (a scene without resampling pays
-    /// nothing); `None`, with a warning once, where the device binds fewer storage buffers than
-    /// the passes need.
-    fn pipelines(&self, device: &wgpu::Device) -> Option<&(ResamplingPasses, GatherPipelines)> {
-        if let Err(e) = ResamplingPasses::supported(&device.limits()) {
-            bevy::log::warn_once!("envis resampling is off: {e}");
-            return None;
-        }
-        Some(
-            self.pipelines
-                .get_or_init(|| (ResamplingPasses::new(device), GatherPipelines::new(device))),
-        )
-    }
-
     /// The image view `entity` resampled this frame, for the lighting pass to show (taken once:
     /// `None` on a frame the pass did not run for it).
     pub(super) fn take_image(&self, entity: Entity) -> Option<wgpu::Buffer> {
@@ -253,30 +257,44 @@ fn prepass_views(
     ))
 }
 
+/// The render world's state the resampling pass reads besides the view.
+#[derive(bevy::ecs::system::SystemParam)]
+pub struct ResamplingInputs<'w> {
+    res: Option<Res<'w, ResamplingResources>>,
+    programs: Option<Res<'w, EnvisPrograms>>,
+    counters: Res<'w, EnvisCounters>,
+    timings: Res<'w, EnvisTimings>,
+    queue: Res<'w, RenderQueue>,
+}
+
 /// The per-view resampling pass: gather, then the resampling passes, recorded into the frame's
 /// encoder.
 fn resample_environment(
     view: ViewQuery<ResamplingViewData>,
     samplers: Res<EnvSamplers>,
     shadows: (Option<Res<ShadowGeometry>>, Option<Res<GpuShadowGeometry>>),
-    (res, counters, timings, queue): (
-        Option<Res<ResamplingResources>>,
-        Res<EnvisCounters>,
-        Res<EnvisTimings>,
-        Res<RenderQueue>,
-    ),
+    inputs: ResamplingInputs,
     maps: Option<Res<cpu_maps::CpuEnvMaps>>,
     mut ctx: RenderContext,
 ) {
     let t0 = std::time::Instant::now();
+    let ResamplingInputs {
+        res,
+        programs,
+        counters,
+        timings,
+        queue,
+    } = inputs;
     let entity = view.entity();
     let (ev, prepass, sampling, env, vs, settings, layers, jitter, readback) = view.into_inner();
-    let (Some(res), Some(slot)) = (res, samplers.slots.get(&vs.key)) else {
+    let (Some(res), Some(programs), Some(slot)) = (res, programs, samplers.slots.get(&vs.key))
+    else {
         return;
     };
     let device = ctx.render_device().wgpu_device().clone();
-    let (Some((passes, gather)), Some(textures), Some(shade)) = (
-        res.pipelines(&device),
+    // Until its programs are compiled the camera is lit without resampling.
+    let (Some(ResamplingPrograms { passes, gather }), Some(textures), Some(shade)) = (
+        programs.resampling(),
         prepass_views(prepass),
         lighting::shade_params(sampling, vs.seed, &slot.sampler, ev.viewport),
     ) else {

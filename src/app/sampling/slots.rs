@@ -18,15 +18,14 @@ pub(super) fn check_source(gpu: &GpuImage) -> Result<SourceLayout, String> {
     SourceLayout::detect(d.size.width, d.size.height, d.size.depth_or_array_layers)
 }
 
-/// The slot for `key`, allocated on first use; `None` (reported once) when the device refuses.
-#[allow(clippy::too_many_arguments)]
+/// The slot for `key`, allocated on first use with the compiled `build`; `None` (reported once)
+/// when the device refuses.
 pub(super) fn slot_for<'a>(
     samplers: &'a mut EnvSamplers,
     key: SamplerKey,
-    gpu: &GpuImage,
-    layout: SourceLayout,
-    device: &RenderDevice,
-    queue: &RenderQueue,
+    (gpu, layout): (&GpuImage, SourceLayout),
+    build: &std::sync::Arc<crate::gpu::BuildPipelines>,
+    (device, queue): (&RenderDevice, &RenderQueue),
     counters: &EnvisCounters,
 ) -> Option<&'a mut SamplerSlot> {
     use std::collections::hash_map::Entry;
@@ -35,11 +34,18 @@ pub(super) fn slot_for<'a>(
         Entry::Vacant(v) => v,
     };
     let grid = crate::sampling::TileGrid::new(key.face_size, key.tiles);
-    let built = EnvSampler::with_device(device.wgpu_device(), queue, grid, key.pool_slots, false)
-        .and_then(|mut s| {
-            s.set_blocks(key.pool_blocks)?;
-            Ok(s)
-        });
+    let built = EnvSampler::with_pipelines(
+        device.wgpu_device(),
+        queue,
+        build,
+        grid,
+        key.pool_slots,
+        false,
+    )
+    .and_then(|mut s| {
+        s.set_blocks(key.pool_blocks)?;
+        Ok(s)
+    });
     match built {
         Ok(sampler) => {
             counters.bump(|c: &Counters| &c.allocations);
