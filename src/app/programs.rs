@@ -29,7 +29,7 @@ use std::time::Instant;
 
 pub use super::resampling::ResamplingPrograms;
 pub use worker::Compiled;
-use worker::{Worker, checked};
+use worker::{Worker, checked, validate_wgsl};
 
 mod worker;
 
@@ -264,9 +264,12 @@ impl EnvisPrograms {
             let program = Program::Lighting(format, entry, version);
             let (device, timed, c) = (self.device.clone(), self.timed(program), compiled.clone());
             self.worker.push(program, move || {
-                c.set(checked(&device, |d| {
-                    lighting_pipeline(d, &layout, &wgsl, (format, entry))
-                }));
+                let made = validate_wgsl(&wgsl).and_then(|()| {
+                    checked(&device, |d| {
+                        lighting_pipeline(d, &layout, &wgsl, (format, entry))
+                    })
+                });
+                c.set(made);
                 timed();
             });
             let kept = Some((version, compiled));

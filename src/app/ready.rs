@@ -45,6 +45,8 @@ pub const BEVY_PIPELINES_WAIT: Duration = Duration::from_secs(10);
 pub struct ReadyReport {
     frames: Arc<Mutex<ReportFrames>>,
     programs: ProgramLog,
+    /// When the render world first found Bevy's start-up pipelines compiled ([`BevyStarted`]).
+    bevy_started: Arc<Mutex<Option<Instant>>>,
 }
 
 /// envis's programs queued and compiled, written by its compile thread as it goes.
@@ -129,9 +131,50 @@ impl ReadyReport {
             .unwrap_or_default()
     }
 
+    /// When the render world first found Bevy's start-up pipelines compiled (`None` before).
+    pub fn bevy_started(&self) -> Option<Instant> {
+        self.bevy_started.lock().ok().and_then(|t| *t)
+    }
+
     /// envis's programs, as its compile thread reports them.
     pub fn programs(&self) -> &ProgramLog {
         &self.programs
+    }
+}
+
+/// Whether Bevy's pipeline cache has been idle once since start-up (or [`BEVY_PIPELINES_WAIT`]
+/// has passed): envis records its first build only then. A driver that compiles a shader at its
+/// first dispatch, on the one thread that runs the GPU's work (lavapipe), stalls every frame
+/// meanwhile: the first build, earlier, held back Bevy's first frames by seconds (black), where
+/// now Bevy's image shows while envis's shaders compile.
+#[derive(Resource)]
+pub struct BevyStarted {
+    since: Instant,
+    started: bool,
+    report: ReadyReport,
+}
+
+impl BevyStarted {
+    /// Whether Bevy had compiled what it queued at start-up when last looked at.
+    pub fn started(&self) -> bool {
+        self.started
+    }
+
+    /// Look at `cache` now (each frame, before envis's passes): the moment Bevy first has its
+    /// start-up pipelines compiled goes to the [`ReadyReport`].
+    fn check(&mut self, cache: &PipelineCache) -> bool {
+        if !self.started {
+            // Bevy's pipelines queued at start-up reach the cache's list at its first frame.
+            let queued = cache.pipelines().next().is_some();
+            let idle = queued && cache.waiting_pipelines().next().is_none();
+            self.started = idle || self.since.elapsed() >= BEVY_PIPELINES_WAIT;
+            if self.started
+                && let Ok(mut at) = self.report.bevy_started.lock()
+            {
+                *at = Some(Instant::now());
+            }
+        }
+        self.started
     }
 }
 
@@ -177,6 +220,13 @@ impl BevyReadiness {
         self.allowed.contains(&view)
     }
 
+    /// Whether `view` has been allowed (read-only: the resampling pass, which runs before the
+    /// lighting pass, starts from the frame after the first lit one, so that no history is made
+    /// from a G-buffer Bevy has not finished).
+    pub(crate) fn allowed(&self, view: Entity) -> bool {
+        self.allowed.contains(&view)
+    }
+
     /// Forget views that are gone.
     fn retain(&mut self, keep: impl Fn(Entity) -> bool) {
         self.allowed.retain(|e| keep(*e));
@@ -195,16 +245,25 @@ pub(crate) fn add_ready(app: &mut App) {
         .add_systems(First, mark_ready_cameras);
     if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
         render_app
-            .insert_resource(report)
+            .insert_resource(report.clone())
             .init_resource::<BevyReadiness>()
+            .insert_resource(BevyStarted {
+                since: Instant::now(),
+                started: false,
+                report: report.clone(),
+            })
             .add_systems(
                 Render,
                 (
                     end_lit_frame.in_set(RenderSystems::Cleanup),
-                    forget_gone_views.in_set(RenderSystems::Prepare),
+                    (forget_gone_views, note_bevy_started).in_set(RenderSystems::Prepare),
                 ),
             );
     }
+}
+
+fn note_bevy_started(mut started: ResMut<BevyStarted>, cache: Res<PipelineCache>) {
+    started.check(&cache);
 }
 
 fn end_lit_frame(report: Res<ReadyReport>, cache: Res<PipelineCache>) {

@@ -11,6 +11,7 @@
 
 use super::components::{EnvironmentSampling, EnvisEnvironment};
 use super::programs::EnvisPrograms;
+use super::ready::BevyStarted;
 use super::timing::EnvisTimings;
 use super::{Counters, EnvisCounters};
 use crate::envmap::resample::SourceLayout;
@@ -409,8 +410,13 @@ pub fn build_distributions(
     mut samplers: ResMut<EnvSamplers>,
     programs: Option<Res<EnvisPrograms>>,
     (counters, timings): (Res<EnvisCounters>, Res<EnvisTimings>),
+    started: Option<Res<BevyStarted>>,
 ) {
     let t0 = std::time::Instant::now();
+    // Not before Bevy's own start-up pipelines are compiled (see `BevyStarted`).
+    if started.is_some_and(|s| !s.started()) {
+        return;
+    }
     let samplers = &mut *samplers;
     let Some(resampler) = programs.as_ref().and_then(|p| p.resample()) else {
         return;

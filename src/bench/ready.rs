@@ -14,7 +14,6 @@
 
 use super::BenchArgs;
 use crate::app::headless::HeadlessApp;
-use crate::app::ready::LastFrame;
 use crate::app::{
     EnvironmentResampling, EnvironmentSampling, EnvisEnvironment, EnvisLightReady, ReadyReport,
 };
@@ -35,7 +34,8 @@ enum Config {
     Sampling,
     /// The same with `EnvironmentResampling::default()`.
     Resampling,
-    /// No envis at all: Bevy alone (the baseline).
+    /// No envis at all: Bevy alone, rendering deferred with the prepasses envis needs (the
+    /// baseline: the same pipelines of Bevy's to compile).
     BevyAlone,
 }
 
@@ -116,6 +116,9 @@ fn measure(config: Config, a: &BenchArgs, (assets, ext): (&Path, &str)) -> Resul
             let mut h = HeadlessApp::bevy_alone_as_a_game(assets);
             // Only the report of what each frame waited on (envis's part of it stays empty).
             crate::app::ready::add_ready(&mut h.app);
+            // Deferred, as envis makes it: the same pipelines of Bevy's to compile.
+            h.app
+                .insert_resource(bevy::pbr::DefaultOpaqueRendererMethod::deferred());
             h
         }
         _ => HeadlessApp::as_a_game(assets),
@@ -136,8 +139,8 @@ fn measure(config: Config, a: &BenchArgs, (assets, ext): (&Path, &str)) -> Resul
         if row.map_loaded_s.is_none() && server.is_loaded_with_dependencies(&map) {
             row.map_loaded_s = Some(since(now));
         }
-        if row.bevy_compiled_s.is_none() && pipelines_settled(&h) {
-            row.bevy_compiled_s = Some(since(now));
+        if row.bevy_compiled_s.is_none() {
+            row.bevy_compiled_s = bevy_compiled(&h).map(since);
         }
         if row.ready_s.is_none() && h.app.world().get::<EnvisLightReady>(camera).is_some() {
             row.ready_s = Some(since(now));
@@ -173,7 +176,11 @@ fn spawn_view(
         RenderTarget::from(target),
         Transform::from_xyz(0.0, 0.0, 3.0).looking_at(Vec3::ZERO, Vec3::Y),
     ));
-    if !matches!(config, Config::BevyAlone) {
+    if matches!(config, Config::BevyAlone) {
+        // What `EnvironmentSampling` requires of a camera.
+        use bevy::core_pipeline::prepass::{DeferredPrepass, DepthPrepass};
+        camera.insert((DepthPrepass, DeferredPrepass, Msaa::Off, bevy::camera::Hdr));
+    } else {
         camera.insert((
             EnvironmentSampling {
                 light_samples: a.light_samples,
@@ -189,14 +196,9 @@ fn spawn_view(
     camera.id()
 }
 
-/// The render world's last frame, as it reported it.
-fn last_frame(h: &HeadlessApp) -> Option<LastFrame> {
-    report(h).map(|r| r.last_frame())
-}
-
-/// Whether Bevy's pipeline cache had nothing left to compile in the last rendered frame.
-fn pipelines_settled(h: &HeadlessApp) -> bool {
-    last_frame(h).is_some_and(|l| l.number > 0 && l.bevy_pipelines_waiting == 0)
+/// When the render world first found Bevy's start-up pipelines compiled.
+fn bevy_compiled(h: &HeadlessApp) -> Option<Instant> {
+    report(h).and_then(|r| r.bevy_started())
 }
 
 fn report(h: &HeadlessApp) -> Option<&ReadyReport> {

@@ -193,7 +193,8 @@ fn bevy_builds_only_when_the_frame_changes() {
     assert_eq!(c.get(|c| &c.builds), 1, "static map: {:?}", c.0);
     // One CPU upload of the stream's cube image (6 layers of 16^2 RGBA32F texels).
     assert_eq!(c.get(|c| &c.image_bytes_uploaded), 6 * 16 * 16 * 16);
-    assert!(c.get(|c| &c.lighting_passes) >= 95, "{:?}", c.0);
+    // Lit from the frame Bevy's pipelines are ready, a few frames in (`EnvisLightReady`).
+    assert!(c.get(|c| &c.lighting_passes) >= 90, "{:?}", c.0);
     let before = h.capture().unwrap();
     // Move the sun: exactly one more upload + build, and the image changes.
     h.stream_mut().stream.set_sky_hours(16.0);

@@ -149,20 +149,46 @@ fn run_jobs(queue: &(Mutex<Queue>, Condvar)) {
                 };
             }
         };
-        (job.run)();
+        // A job that panics outside `checked` must not end the thread (its slot stays empty,
+        // and is logged).
+        let program = job.program;
+        if let Err(panic) = std::panic::catch_unwind(std::panic::AssertUnwindSafe(job.run)) {
+            error!(
+                "envis: compiling {program:?} panicked: {}",
+                panic_message(&panic)
+            );
+        }
     }
 }
 
-/// Run `make` on `device` and turn the validation error it raised, if any, into an `Err` (the
-/// device's error scopes are per thread: this catches this job's errors only).
+/// Run `make` on `device`, a panic turned into an `Err`, so that whoever waits for the program
+/// learns that it failed and never waits for ever. No error scope: this build of wgpu keeps one
+/// stack of them for all threads, which Bevy's pipeline cache pushes and pops on its own threads
+/// (a scope here made both panic: "mismatched pop_error_scope"). Sources that may not compile
+/// (an edited lighting pass) are validated before ([`validate_wgsl`]); a device error past that
+/// goes to Bevy's handler.
 pub(super) fn checked<T>(
     device: &wgpu::Device,
     make: impl FnOnce(&wgpu::Device) -> T,
 ) -> Result<T, String> {
-    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-    let made = make(device);
-    match bevy::tasks::block_on(scope.pop()) {
-        None => Ok(made),
-        Some(e) => Err(e.to_string()),
-    }
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| make(device)))
+        .map_err(|panic| format!("compiling panicked: {}", panic_message(&panic)))
+}
+
+/// Parse and validate `wgsl` on the CPU (naga, as wgpu would): the error as text.
+pub(super) fn validate_wgsl(wgsl: &str) -> Result<(), String> {
+    use wgpu::naga;
+    let module = naga::front::wgsl::parse_str(wgsl).map_err(|e| e.emit_to_string(wgsl))?;
+    let flags = naga::valid::ValidationFlags::all();
+    naga::valid::Validator::new(flags, naga::valid::Capabilities::all())
+        .validate(&module)
+        .map_err(|e| e.emit_to_string(wgsl))?;
+    Ok(())
+}
+
+/// The text of a panic's payload.
+fn panic_message(panic: &Box<dyn std::any::Any + Send>) -> &str {
+    (panic.downcast_ref::<&str>().copied())
+        .or_else(|| panic.downcast_ref::<String>().map(String::as_str))
+        .unwrap_or("(no message)")
 }

@@ -194,7 +194,7 @@ fn poll_readbacks(res: Option<Res<ResamplingResources>>) {
 }
 
 /// The resampling pass's programs: the passes and the gather (compiled by
-/// [`EnvisPrograms`](super::programs::EnvisPrograms), off the frame path).
+/// [`EnvisPrograms`], off the frame path).
 pub struct ResamplingPrograms {
     passes: ResamplingPasses,
     gather: GatherPipelines,
@@ -265,6 +265,7 @@ pub struct ResamplingInputs<'w> {
     counters: Res<'w, EnvisCounters>,
     timings: Res<'w, EnvisTimings>,
     queue: Res<'w, RenderQueue>,
+    readiness: Option<Res<'w, super::ready::BevyReadiness>>,
 }
 
 /// The per-view resampling pass: gather, then the resampling passes, recorded into the frame's
@@ -284,8 +285,13 @@ fn resample_environment(
         counters,
         timings,
         queue,
+        readiness,
     } = inputs;
     let entity = view.entity();
+    // Not before the view is lit: its G-buffer may not be Bevy's whole one yet.
+    if readiness.is_some_and(|r| !r.allowed(entity)) {
+        return;
+    }
     let (ev, prepass, sampling, env, vs, settings, layers, jitter, readback) = view.into_inner();
     let (Some(res), Some(programs), Some(slot)) = (res, programs, samplers.slots.get(&vs.key))
     else {
