@@ -2,9 +2,10 @@
 //! format, the resampling passes), compiled on envis's own thread from start-up, never on the
 //! frame path and never on Bevy's async compute pool.
 //!
-//! Why a thread of its own: a driver that compiles on the CPU (Mesa's lavapipe, and the first
-//! run of any driver without a warm shader cache) takes seconds for the lighting pass. Bevy's
-//! `PipelineCache` compiles on the async compute pool, which has one thread on a 2-core machine:
+//! Why a thread of its own: creating a pipeline is where a GPU's driver compiles it (lavapipe
+//! takes 0.5-1 s to create the lighting pass, and compiles the machine code later, at its first
+//! draw: `docs/bevy.md`, "Ready to light"). Bevy's `PipelineCache` compiles on the async compute
+//! pool, which has one thread on a 2-core machine:
 //! queued there, envis's programs held back Bevy's own (tonemapping, the deferred lighting, the
 //! lighting-pass ids), and frames came out black or without the ids envis reads
 //! (`docs/bevy.md`, "Ready to light"). Compiled on the render thread they stall frames.
