@@ -75,17 +75,18 @@ fn drop_stale_view_buffers(
 }
 
 /// The view's lighting pipeline for this frame: the one showing the resampled image where the
-/// pass has one and draws no overlay, once compiled (until then the shading one shows it, the
-/// same); else the shading one. `None` until that is compiled.
+/// pass has one and draws no overlay, once compiled (until then the shading one, `shade`, shows
+/// it, the same); else `shade`.
 fn pick_pipeline(
     programs: &EnvisPrograms,
     format: TextureFormat,
     showing: bool,
-) -> Option<wgpu::RenderPipeline> {
+    shade: wgpu::RenderPipeline,
+) -> wgpu::RenderPipeline {
     let show = showing
         .then(|| programs.lighting(format, LightingEntry::ShowResampled))
         .flatten();
-    show.or_else(|| programs.lighting(format, LightingEntry::Shade))
+    show.unwrap_or(shade)
 }
 
 fn init_lighting(mut commands: Commands, device: Res<RenderDevice>) {
@@ -183,11 +184,10 @@ pub(crate) fn envis_lighting(
         return;
     };
     // Compiled off the frame path: lit from the frame its pipeline is ready.
-    if programs
-        .lighting(ev.target_format, LightingEntry::Shade)
-        .is_none()
-        || !readiness.allows(view_entity, &i.cache, deferred)
-    {
+    let Some(shade) = programs.lighting(ev.target_format, LightingEntry::Shade) else {
+        return;
+    };
+    if !readiness.allows(view_entity, &i.cache, deferred) {
         return;
     }
     // The resampling pass's image, where it ran for this view this frame.
@@ -197,9 +197,7 @@ pub(crate) fn envis_lighting(
         .and_then(|r| r.take_image(view_entity));
     lv.resampled = resampled.is_some() as u32;
     let showing = resampled.is_some() && sampling.overlay == Overlay::None;
-    let Some(render_pipeline) = pick_pipeline(programs, ev.target_format, showing) else {
-        return;
-    };
+    let render_pipeline = pick_pipeline(programs, ev.target_format, showing, shade);
     let (bvh_nodes, bvh_triangles) = geometry.map_or((&res.no_shadows, &res.no_shadows), |g| {
         (&g.nodes, &g.triangles)
     });
@@ -380,7 +378,7 @@ fn lighting_bind_group(
     ]);
     device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("envis lighting"),
-        layout: &programs.lighting_group_layout(),
+        layout: programs.lighting_group_layout(),
         entries: &entries,
     })
 }

@@ -78,7 +78,6 @@ struct LightingSlot {
 
 /// The lighting pass's programs, their shared layout and the source they compile.
 struct LightingPrograms {
-    group: wgpu::BindGroupLayout,
     layout: Arc<wgpu::PipelineLayout>,
     source: LightingSource,
     slots: HashMap<(TextureFormat, LightingEntry), LightingSlot>,
@@ -101,6 +100,8 @@ pub struct EnvisPrograms {
     resample: Compiled<ImageResampler>,
     build: Compiled<Arc<BuildPipelines>>,
     resampling: Compiled<ResamplingPrograms>,
+    /// The lighting pipelines' bind group layout (`lighting_layout`): the frames bind with it.
+    lighting_group: wgpu::BindGroupLayout,
     lighting: Mutex<LightingPrograms>,
     /// Each program queued, and when it was compiled, from start-up.
     log: ProgramLog,
@@ -123,8 +124,8 @@ impl EnvisPrograms {
             resample: Compiled::default(),
             build: Compiled::default(),
             resampling: Compiled::default(),
+            lighting_group: group,
             lighting: Mutex::new(LightingPrograms {
-                group,
                 layout: Arc::new(layout),
                 source: LightingSource::default(),
                 slots: HashMap::new(),
@@ -290,9 +291,8 @@ impl EnvisPrograms {
     }
 
     /// The bind group layout of the lighting pipelines (`lighting_layout`).
-    pub fn lighting_group_layout(&self) -> wgpu::BindGroupLayout {
-        let l = self.lighting.lock().unwrap_or_else(|e| e.into_inner());
-        l.group.clone()
+    pub fn lighting_group_layout(&self) -> &wgpu::BindGroupLayout {
+        &self.lighting_group
     }
 }
 

@@ -99,8 +99,6 @@ pub struct LastFrame {
     pub number: u64,
     /// The cameras (main-world entities) envis lit in it.
     pub lit: HashSet<Entity>,
-    /// Pipelines Bevy's pipeline cache was still compiling (0: Bevy draws everything it has).
-    pub bevy_pipelines_waiting: usize,
 }
 
 impl ReadyReport {
@@ -112,13 +110,12 @@ impl ReadyReport {
     }
 
     /// The frame has been rendered: its cameras become the last frame's.
-    fn end_frame(&self, cache: &PipelineCache) {
+    fn end_frame(&self) {
         if let Ok(mut f) = self.frames.lock() {
             let lit = std::mem::take(&mut f.current);
             f.last = LastFrame {
                 number: f.last.number + 1,
                 lit,
-                bevy_pipelines_waiting: cache.waiting_pipelines().count(),
             };
         }
     }
@@ -162,20 +159,24 @@ impl BevyStarted {
 
     /// Look at `cache` now (each frame, before envis's passes): the moment Bevy first has its
     /// start-up pipelines compiled goes to the [`ReadyReport`].
-    fn check(&mut self, cache: &PipelineCache) -> bool {
-        if !self.started {
-            // Bevy's pipelines queued at start-up reach the cache's list at its first frame.
-            let queued = cache.pipelines().next().is_some();
-            let idle = queued && cache.waiting_pipelines().next().is_none();
-            self.started = idle || self.since.elapsed() >= BEVY_PIPELINES_WAIT;
-            if self.started
-                && let Ok(mut at) = self.report.bevy_started.lock()
-            {
-                *at = Some(Instant::now());
-            }
+    fn check(&mut self, cache: &PipelineCache) {
+        if self.started {
+            return;
         }
-        self.started
+        self.started = bevy_idle(cache) || self.since.elapsed() >= BEVY_PIPELINES_WAIT;
+        if self.started
+            && let Ok(mut at) = self.report.bevy_started.lock()
+        {
+            *at = Some(Instant::now());
+        }
     }
+}
+
+/// Whether Bevy's pipeline cache has compiled all it was given: it holds pipelines (those queued
+/// at start-up reach its list at its first frame) and none is still compiling or waiting for its
+/// shader.
+fn bevy_idle(cache: &PipelineCache) -> bool {
+    cache.pipelines().next().is_some() && cache.waiting_pipelines().next().is_none()
 }
 
 /// Per view (render world), whether envis may light it now as far as Bevy is concerned (see the
@@ -202,7 +203,7 @@ impl BevyReadiness {
         }
         let deferred_ready =
             deferred.is_none_or(|d| cache.get_render_pipeline(d.pipeline_id).is_some());
-        let settled = deferred_ready && cache.waiting_pipelines().next().is_none();
+        let settled = deferred_ready && bevy_idle(cache);
         let since = *self.waiting.entry(view).or_insert_with(Instant::now);
         let waited = since.elapsed() >= BEVY_PIPELINES_WAIT;
         if !settled && waited {
@@ -266,8 +267,8 @@ fn note_bevy_started(mut started: ResMut<BevyStarted>, cache: Res<PipelineCache>
     started.check(&cache);
 }
 
-fn end_lit_frame(report: Res<ReadyReport>, cache: Res<PipelineCache>) {
-    report.end_frame(&cache);
+fn end_lit_frame(report: Res<ReadyReport>) {
+    report.end_frame();
 }
 
 fn forget_gone_views(
