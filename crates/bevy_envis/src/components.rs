@@ -1,0 +1,82 @@
+//! The two camera components a Bevy user adds: [`EnvironmentSampling`] (how to sample) and
+//! [`EnvisEnvironment`] (what to sample). Both live on the camera, as Bevy's own
+//! `EnvironmentMapLight` does, so two cameras can sample differently in one app.
+
+use crate::EnvisSamplingPlugin;
+use bevy::prelude::*;
+use bevy::render::extract_component::ExtractComponent;
+use bevy::render::sync_component::SyncComponent;
+
+pub use envis::render::EnvironmentSampling;
+
+/// The camera component is the core's settings type (a `Component` with the core's `bevy`
+/// feature); the plugin marker lets this crate extract it to the render world.
+impl SyncComponent<EnvisSamplingPlugin> for EnvironmentSampling {
+    type Target = Self;
+}
+
+impl ExtractComponent<EnvisSamplingPlugin> for EnvironmentSampling {
+    type QueryData = &'static Self;
+    type QueryFilter = ();
+    type Out = Self;
+
+    fn extract_component(settings: &Self) -> Option<Self> {
+        Some(*settings)
+    }
+}
+
+/// What a sampling camera needs from Bevy, added with it as required components: the depth
+/// and deferred prepasses (envis lights the G-buffer), HDR, and no MSAA (deferred has none).
+pub(crate) fn require_camera_set_up(app: &mut App) {
+    use bevy::core_pipeline::prepass::{DeferredPrepass, DepthPrepass};
+    // `try_`: a second call (two apps sharing a plugin set-up) finds them registered.
+    let _ = app.try_register_required_components::<EnvironmentSampling, DepthPrepass>();
+    let _ = app.try_register_required_components::<EnvironmentSampling, DeferredPrepass>();
+    let _ = app.try_register_required_components::<EnvironmentSampling, bevy::camera::Hdr>();
+    let _ = app.try_register_required_components_with::<EnvironmentSampling, Msaa>(|| Msaa::Off);
+}
+
+/// The environment this camera is lit by: an `Image` asset, read on the GPU.
+///
+/// `image` is a 2:1 lat-long image (Bevy's `.exr` / `.hdr` loaders give `Rgba32Float`; render
+/// targets are usually `Rgba16Float`) or a 6-layer cube image in Bevy's convention. The sampling
+/// distribution is rebuilt on the GPU from the texture when the asset changes, and every frame
+/// when `dynamic` is set.
+#[derive(Component, Clone, Debug, Reflect, ExtractComponent)]
+#[reflect(Component, Clone)]
+pub struct EnvisEnvironment {
+    pub image: Handle<Image>,
+    /// Multiplies the map, as `EnvironmentMapLight::intensity` does: the result is in cd/m²,
+    /// and the camera's `Exposure` then applies as it does to every Bevy light.
+    pub intensity: f32,
+    /// World-space rotation of the map.
+    pub rotation: Quat,
+    /// Rebuild the distribution every frame: for images written on the GPU (a compute shader,
+    /// a render target), which change detection cannot see.
+    pub dynamic: bool,
+    /// Draw the map where there is no geometry (off: Bevy's clear colour). A camera with a
+    /// `Skybox` (with an image) has Bevy's skybox there instead, whatever this says: one
+    /// background, with one brightness (`Skybox::brightness`).
+    pub show_background: bool,
+}
+
+impl EnvisEnvironment {
+    /// The environment `image` at intensity 1, unrotated, static, shown in the background.
+    pub fn new(image: Handle<Image>) -> Self {
+        EnvisEnvironment {
+            image,
+            intensity: 1.0,
+            rotation: Quat::IDENTITY,
+            dynamic: false,
+            show_background: true,
+        }
+    }
+}
+
+/// The `Exposure` that multiplies radiance by `m` (Bevy's exposure is `1 / (1.2 * 2^ev100)`):
+/// `exposure_multiplier(1.0)` shows the map's values as they are.
+pub fn exposure_multiplier(m: f32) -> bevy::camera::Exposure {
+    bevy::camera::Exposure {
+        ev100: -(1.2 * m.max(1e-30)).log2(),
+    }
+}

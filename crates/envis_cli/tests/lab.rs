@@ -1,0 +1,125 @@
+//! The lab's tests: the `envis` binary (commands, bench suites, sequences on the CPU, the WGSL
+//! passes and Bevy), and everything that runs Bevy (the plugins through a headless app, the
+//! examples, the demo under Xvfb). One binary, so Bevy is linked once.
+
+use envis::envmap::load::{EnvSource, load_env};
+use envis::envmap::*;
+use envis::render::reference::reference_image;
+use envis::render::{GPixel, Settings, render, sphere_gbuffer};
+use envis::sampling::rng::Rng;
+use envis::sampling::*;
+use envis_stats::{Chi2Test, FacePlane, MeanCheck, UnbiasedTest};
+use envis_wgpu::GpuContext;
+use glam::{DVec3, Vec2, Vec3};
+use std::path::Path;
+use std::sync::OnceLock;
+
+#[path = "../../envis/tests/support/mod.rs"]
+mod support;
+
+// Helpers
+
+fn rng_vec2(r: &mut Rng) -> Vec2 {
+    Vec2::new(r.next_f32(), r.next_f32())
+}
+
+fn tempdir() -> support::TempDir {
+    support::TempDir::new("test")
+}
+
+/// `envis bench --suite SUITE_AND_ARGS --out DIR`, which must succeed; returns `DIR/json`.
+fn bench_json(dir: &Path, suite_and_args: &[&str], json: &str) -> serde_json::Value {
+    let mut args = vec!["bench", "--suite"];
+    args.extend_from_slice(suite_and_args);
+    args.extend_from_slice(&["--out", dir.to_str().unwrap()]);
+    let r = envis_cmd(&args);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    support::read_json(&dir.join(json))
+}
+
+fn envis_cmd(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_envis"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// One device for the whole binary (device creation on lavapipe costs ~100 ms; tests run in
+/// parallel on it). `None` only when `ENVIS_SKIP_GPU=1` asked to skip (see `support`).
+fn gpu() -> Option<&'static GpuContext> {
+    static CTX: OnceLock<Option<GpuContext>> = OnceLock::new();
+    CTX.get_or_init(|| match GpuContext::new() {
+        Ok(c) => {
+            eprintln!(
+                "GPU tests on: {} ({:?}, timestamps: {})",
+                c.info.name, c.info.backend, c.timestamps
+            );
+            Some(c)
+        }
+        Err(e) => {
+            support::skip_gpu_or_fail(
+                "the GPU tests",
+                &format!("no Vulkan device ({e})"),
+                support::INSTALL_LAVAPIPE,
+            );
+            None
+        }
+    })
+    .as_ref()
+}
+
+fn rel(a: f64, b: f64) -> f64 {
+    (a - b).abs() / a.abs().max(b.abs()).max(1e-30)
+}
+
+fn mean_lum(d: &[Vec3]) -> f64 {
+    d.iter().map(|c| luminance(*c) as f64).sum::<f64>() / d.len() as f64
+}
+
+#[path = "lab/core_cli.rs"]
+mod core_cli;
+
+#[path = "lab/core_bench.rs"]
+mod core_bench;
+
+#[path = "lab/core_scenes.rs"]
+mod core_scenes;
+
+#[path = "lab/core_resampling.rs"]
+mod core_resampling;
+
+#[path = "lab/gpu_resampling.rs"]
+mod gpu_resampling;
+
+#[path = "lab/gpu_cli.rs"]
+mod gpu_cli;
+
+#[path = "lab/bevy_app.rs"]
+mod bevy_app;
+
+#[path = "lab/bevy_plugin.rs"]
+mod bevy_plugin;
+
+#[path = "lab/bevy_images.rs"]
+mod bevy_images;
+
+#[path = "lab/bevy_shadows.rs"]
+mod bevy_shadows;
+
+#[path = "lab/bevy_pose.rs"]
+mod bevy_pose;
+
+#[path = "lab/bevy_resampling.rs"]
+mod bevy_resampling;
+
+#[path = "lab/bevy_post.rs"]
+mod bevy_post;
+
+#[path = "lab/bevy_ready.rs"]
+mod bevy_ready;
+
+#[path = "lab/examples.rs"]
+mod examples;
+
+#[path = "lab/demo.rs"]
+mod demo;
