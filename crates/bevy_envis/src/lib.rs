@@ -249,8 +249,8 @@ pub struct Counters {
     pub shadow_tlas_builds: AtomicU64,
     pub shadow_tlas_refits: AtomicU64,
     /// Deformed casters' BVHs refitted to a new pose (one per skinned or morphed mesh whose
-    /// joints moved or morph weights changed; the name is from before morph targets).
-    pub shadow_skin_refits: AtomicU64,
+    /// joints moved or morph weights changed).
+    pub shadow_deformed_refits: AtomicU64,
     /// Lighting passes recorded (one per camera per frame).
     pub lighting_passes: AtomicU64,
     /// Lighting passes that ran an overlay (the overlay is a branch of the lighting pass: with

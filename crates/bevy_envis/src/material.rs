@@ -192,7 +192,8 @@ impl EnvisMaterial {
     }
 }
 
-/// The GPU form of [`EnvisMaterial`]: kd (w = [`Lobe::gpu_code`]), ks (w = [`Lobe::gpu_param`]).
+/// The GPU form of [`EnvisMaterial`]: kd (w = the lobe's code, [`envis_wgpu::GpuCode`]), ks (w = its
+/// parameter, [`envis_wgpu::codes::lobe_param`]).
 #[derive(Clone, Default, ShaderType)]
 pub struct EnvisMaterialUniform {
     pub kd: Vec4,

@@ -1,4 +1,4 @@
-//! A headless Bevy app (no window) built on the public API only (`envis::prelude`):
+//! A headless Bevy app (no window) built on the public API only (`bevy_envis::prelude`):
 //! [`HeadlessApp`] is Bevy's `DefaultPlugins` without a window, [`bevy_envis::EnvisPlugin`], and
 //! float render targets read back as linear RGB. [`HeadlessSphere`] is the `sphere` scene of the
 //! CPU renderer — the unit sphere seen by an orthographic camera on +Z looking down -Z, framing

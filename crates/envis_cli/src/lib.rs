@@ -1,6 +1,6 @@
 //! The lab behind the `envis` binary: what the command line runs, and what the tests share.
 //!
-//! - [`bench`]: `envis bench`, speed and accuracy measured as ratios against baselines run in
+//! - [`bench`](mod@bench): `envis bench`, speed and accuracy measured as ratios against baselines run in
 //!   the same process, with plots.
 //! - [`sequence`]: `envis sequence`, an animated scene frame by frame on the CPU oracle, the
 //!   WGSL passes (`envis_wgpu`) or Bevy (`bevy_envis`).

@@ -68,7 +68,7 @@ fn sink_finish(s: Sink) -> Reservoir {
     return reservoir_empty(1.0);
 }
 
-// The canonical pixel's own reservoir and at most SPATIAL_MAX others.
+// The canonical pixel's own reservoir and at most MAX_SPATIAL others.
 const MAX_DOMAINS: u32 = 9u;
 
 // combine::Domain, with what the including module evaluated for it: `p_c`, its sample's target

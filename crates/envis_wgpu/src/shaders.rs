@@ -1,6 +1,7 @@
-//! The WGSL sources, embedded in the binary. Each module is `common.wgsl` plus its own files
-//! (WGSL has no includes; Bevy's naga_oil imports are not needed for four small modules:
-//! distribution + pool, the `global` build, headless shading, and the Bevy lighting pass).
+//! The WGSL sources, embedded in the binary. Each program's source is `common.wgsl` plus its own
+//! files, joined by one builder function each below (`distribution_source`, `shade_source`,
+//! `lighting_source`, ...): WGSL has no includes, and a fixed concatenation per program is
+//! simpler than Bevy's naga_oil imports for programs that share only a few files.
 
 pub const COMMON: &str = include_str!("../shaders/common.wgsl");
 pub const SAMPLING: &str = include_str!("../shaders/sampling.wgsl");

@@ -9,7 +9,7 @@ use envis::render::{GPixel, PixelStats, Settings};
 
 /// A G-buffer texel as the shader reads it: `n.w = 1` where there is geometry, `kd.w` = the lobe's
 /// [`envis::sampling::Lobe::gpu_code`], `ks.w` = its
-/// [`envis::sampling::Lobe::gpu_param`].
+/// parameter, [`crate::codes::lobe_param`].
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct GpuGPixel {

@@ -7,7 +7,7 @@
 //!    ids, motion vectors) into the surfaces and the reprojection the passes read, and the
 //!    map's texel table into the split map;
 //! 2. the resampling passes themselves, the WGSL the headless twin runs
-//!    (`gpu::resampling::ResamplingPasses`): candidates (the camera's `light_samples` +
+//!    (`envis_wgpu::resampling::ResamplingPasses`): candidates (the camera's `light_samples` +
 //!    `brdf_samples`), temporal reuse of the previous frame's reservoirs, spatial reuse, shading
 //!    with one shadow ray for the selected sample (plus the unbiased reuse's visibility rays).
 //!

@@ -19,7 +19,7 @@ pub struct ResamplingReadback {
 pub type ResamplingCounts = crate::tagged::Tagged<FrameCounts>;
 
 /// One frame's totals over the viewport, as the headless twin counts them
-/// (`gpu::resampling::GpuResampler`).
+/// (`envis_wgpu::resampling::GpuResampler`).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct FrameCounts {
     /// Shadow rays: the selected samples' and the unbiased reuse's visibility rays.

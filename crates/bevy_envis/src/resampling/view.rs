@@ -5,13 +5,13 @@
 
 use bevy::prelude::*;
 use envis::error::Result;
-use envis_wgpu::resampling::ResampleParams;
+use envis_wgpu::resampling::{GpuReservoir, GpuSurface, ResampleParams};
 use envis_wgpu::sampler::{check_binding, storage};
 use envis_wgpu::shading::ShadeParams;
 
-/// Bytes per pixel of a [`envis_wgpu::resampling::GpuSurface`] and of a pixel's two reservoirs.
-const SURFACE_BYTES: u64 = 96;
-const RESERVOIRS_BYTES: u64 = 96;
+/// Bytes per pixel of a [`GpuSurface`] and of a pixel's two reservoirs (a light and a BRDF one).
+const SURFACE_BYTES: u64 = size_of::<GpuSurface>() as u64;
+const RESERVOIRS_BYTES: u64 = 2 * size_of::<GpuReservoir>() as u64;
 
 /// The previous frame as the next one reuses it.
 pub(super) struct PreviousFrame {

@@ -28,7 +28,7 @@ impl PosedBlas {
         if !Arc::make_mut(&mut self.blas).refit(&p, &self.triangles, &self.order) {
             return false;
         }
-        counters.bump(|c: &Counters| &c.shadow_skin_refits);
+        counters.bump(|c: &Counters| &c.shadow_deformed_refits);
         true
     }
 }

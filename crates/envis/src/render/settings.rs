@@ -12,7 +12,7 @@ use bevy_reflect::std_traits::ReflectDefault;
 /// Which estimator shades the pixels. The same lowercase names serve the command line
 /// (`--strategy`), scene files (`strategy = "paper"`), JSON output and the demo panel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-// Reflected for the Bevy camera component (`app::EnvironmentSampling`); the core stays Bevy-free.
+// Reflected for the Bevy camera component (`bevy_envis::EnvironmentSampling`, feature `bevy`).
 #[cfg_attr(feature = "bevy", derive(bevy_reflect::Reflect))]
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
@@ -66,8 +66,8 @@ pub const DEFAULT_POOL_BLOCKS: usize = 16;
 ///
 /// The CPU renderer, the GPU stages, the command line (`envis render`'s flags), scene files
 /// (`[sampling]`) and the Bevy camera component read these fields under these names (the core
-/// calls it [`Settings`]; with the `app` feature it *is* the camera component
-/// `envis::prelude::EnvironmentSampling`, reflected and extracted). Every pixel with geometry gets
+/// calls it [`Settings`]; with the `bevy` feature it *is* the camera component
+/// `bevy_envis::prelude::EnvironmentSampling`, reflected and extracted). Every pixel with geometry gets
 /// `light_samples` face-weighted light samples and `brdf_samples` BRDF samples, combined by
 /// multiple importance sampling (Lu, Pacanowski & Granier 2013).
 ///
@@ -195,11 +195,12 @@ impl Default for EnvironmentSampling {
 }
 
 impl Settings {
-    /// Refuse settings that cannot produce an estimate.
+    /// Refuse settings that cannot produce an estimate. The messages name the fields (as the
+    /// Bevy component and scene files spell them; the CLI's flags are the same words with `-`).
     pub fn validate(&self) -> Result<()> {
         if self.light_samples == 0 && self.brdf_samples == 0 {
             return Err(Error::invalid(
-                "--light-samples and --brdf-samples are both 0: nothing to estimate with",
+                "light_samples and brdf_samples are both 0: nothing to estimate with",
             ));
         }
         if self.light_samples > 1 << 16 || self.brdf_samples > 1 << 16 || self.pool_size > 1 << 20 {
@@ -209,13 +210,13 @@ impl Settings {
         }
         if self.pool_layout == PoolLayout::Blocks && !(1..=1024).contains(&self.pool_blocks) {
             return Err(Error::invalid(format!(
-                "--pool-blocks {} is out of range (1 to 1024)",
+                "pool_blocks {} is out of range (1 to 1024)",
                 self.pool_blocks
             )));
         }
         if !(1..=crate::sampling::MAX_TILES).contains(&self.tiles) {
             return Err(Error::invalid(format!(
-                "--tiles {} is out of range (1 to {})",
+                "tiles {} is out of range (1 to {})",
                 self.tiles,
                 crate::sampling::MAX_TILES
             )));
@@ -233,7 +234,7 @@ impl Settings {
         self.validate()?;
         if self.tiles > n {
             return Err(Error::invalid(format!(
-                "--tiles {} needs faces of at least {} texels (these have {n})",
+                "tiles {} needs faces of at least {} texels (these have {n})",
                 self.tiles, self.tiles
             )));
         }

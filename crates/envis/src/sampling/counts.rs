@@ -3,7 +3,7 @@
 
 /// How the per-face counts `N_f` become samples.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-// Reflected for the Bevy camera component (`app::EnvironmentSampling`); the core stays Bevy-free.
+// Reflected for the Bevy camera component (`bevy_envis::EnvironmentSampling`, feature `bevy`).
 #[cfg_attr(feature = "bevy", derive(bevy_reflect::Reflect))]
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]

@@ -309,13 +309,6 @@ pub fn texel_weights(map: &CubeMap) -> Vec<f32> {
         .collect()
 }
 
-/// The old name of [`face_texel_weights`], which read as the per-pixel face weights `mu_f`
-/// ([`super::faceweights::face_weights`]).
-#[deprecated(since = "0.1.0", note = "renamed `face_texel_weights`")]
-pub fn face_weights(face: &[Vec3], omega: &[f32]) -> Vec<f32> {
-    face_texel_weights(face, omega)
-}
-
 impl CubeDistribution {
     /// The paper's distribution: one per face.
     pub fn build(map: &CubeMap) -> Self {

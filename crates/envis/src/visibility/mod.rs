@@ -51,7 +51,7 @@ pub trait Occluder: Sync {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
-// Reflected for the Bevy camera component (`app::EnvironmentSampling`); the core stays Bevy-free.
+// Reflected for the Bevy camera component (`bevy_envis::EnvironmentSampling`, feature `bevy`).
 #[cfg_attr(feature = "bevy", derive(bevy_reflect::Reflect))]
 pub enum ShadowRays {
     /// On when some object can shadow a visible point: two or more shadow-casting objects, or
@@ -62,10 +62,6 @@ pub enum ShadowRays {
     Off,
 }
 crate::display_as_serde_name!(ShadowRays);
-
-/// The old name of [`ShadowRays`], kept so that code written against it still compiles.
-#[deprecated(note = "renamed `ShadowRays` (no clash with Bevy's `Visibility`)")]
-pub type Visibility = ShadowRays;
 
 /// How far a shadow ray starts from its surface, along the normal: relative to the point's
 /// distance from the origin (f32 positions carry about 1e-7 of it in error), with a floor.

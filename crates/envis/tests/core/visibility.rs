@@ -390,11 +390,3 @@ fn point_culling_matches_full_query() {
         "40 spheres are too many to list"
     );
 }
-
-/// Code written against the old name of `ShadowRays` still compiles (a deprecated alias).
-#[test]
-#[allow(deprecated)]
-fn the_old_visibility_name_is_an_alias() {
-    let old: envis::visibility::Visibility = ShadowRays::Off;
-    assert_eq!(old, ShadowRays::Off);
-}

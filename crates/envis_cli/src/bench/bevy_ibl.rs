@@ -1,4 +1,4 @@
-//! `envis bench --suite bevy-ibl` (feature `app`): envis beside Bevy's own dynamic environment
+//! `envis bench --suite bevy-ibl`: envis beside Bevy's own dynamic environment
 //! light, `GeneratedEnvironmentMapLight` (the map refiltered on the GPU every frame, then the
 //! split-sum lookup per pixel), in the same headless Bevy app, on the same scenes, map and
 //! exposure. Each image against the converged one (envis accumulating many frames, with its

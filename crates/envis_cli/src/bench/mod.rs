@@ -61,12 +61,14 @@ pub enum Suite {
     Flicker,
     /// Temporal stability of integer vs fractional counts.
     Popping,
-    /// GPU pass times of the WGSL stages and the Bevy pipeline (feature `gpu`).
+    /// GPU pass times of the WGSL stages and the Bevy pipeline.
     Gpu,
-    /// Static diffuse vs dynamic glossy frame cost on the scene files (feature `gpu`).
+    /// Static diffuse vs dynamic glossy frame cost on the scene files.
     Scene,
     /// Shadow rays on the CPU: frame cost with and without, rays per second, BVH builds.
     Visibility,
+    /// Reservoir resampling on an animated scene: per-frame error against each frame's own
+    /// reference, rays and time, on the CPU, the WGSL passes and Bevy.
     Motion,
     /// envis beside Bevy's `GeneratedEnvironmentMapLight`: error and frame cost.
     BevyIbl,

@@ -9,10 +9,10 @@
 //! - `restir 4+4 shadowed candidates`: every candidate shadow-tested (`candidate_visibility`);
 //! - `restir 4+4 unsplit`: the map's bright part resampled with the rest (`split_bright` off).
 //!
-//! With the `gpu` feature, a device (a machine without an adapter gets the CPU rows and a
-//! message) and without `--cpu-only`, the first four again on the WGSL passes
+//! With a device (a machine without an adapter gets the CPU rows and a message) and without
+//! `--cpu-only`, the first four again on the WGSL passes
 //! (`wgpu ...`, a headless device: lavapipe in CI), each timed against `wgpu single 32+32` in the
-//! same sitting; with the `app` feature, the first four once more through Bevy (`bevy ...`:
+//! same sitting; and the first four once more through Bevy (`bevy ...`:
 //! `envis sequence --backend gpu`, the `EnvironmentResampling` pass on the stream's map split as
 //! the oracle splits it, its counts read back; the plain rows' rays are not counted, `null`;
 //! its cost is the GPU timestamps').

@@ -1,4 +1,4 @@
-//! `envis bench --suite ready` (feature `app`): how long a game waits for envis's first lit
+//! `envis bench --suite ready`: how long a game waits for envis's first lit
 //! frame, and on what. A headless Bevy app started as a game starts (pipelines compiled
 //! asynchronously, the map loaded by the `AssetServer`: `assets/hdri/park.exr`, or `--env`'s
 //! `.exr` / `.hdr` file), a sphere and a camera at `--size`; per configuration:

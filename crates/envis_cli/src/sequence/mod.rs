@@ -3,7 +3,8 @@
 //! estimator alone or with reservoir resampling across pixels and frames
 //! ([`envis::render::resampling`]), which needs each pixel's place in the previous frame: the
 //! point, moved back by its object's velocity, seen by the previous frame's camera. On the CPU
-//! (the oracle) or, with the `gpu` feature, on a headless wgpu device (module `gpu`: the WGSL twins).
+//! (the oracle), on a headless wgpu device (module `gpu`: the WGSL twins) or through Bevy
+//! (module `bevy`).
 
 mod bevy;
 mod gpu;

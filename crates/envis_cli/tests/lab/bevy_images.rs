@@ -1,5 +1,5 @@
 //! `Image` environments changed after they were lit by: modified on the CPU (rebuilt once) or
-//! written on the GPU every frame (`EnvisEnvironment::dynamic`), through `envis::prelude`.
+//! written on the GPU every frame (`EnvisEnvironment::dynamic`), through `bevy_envis::prelude`.
 
 use super::bevy_plugin::{
     latlong_image, sphere_camera, sphere_mean, standard_sphere_app, white_furnace_material,

@@ -1,4 +1,4 @@
-//! The public plugin API on a user's kind of scene, through `envis::prelude` only (plus the
+//! The public plugin API on a user's kind of scene, through `bevy_envis::prelude` only (plus the
 //! headless harness): `StandardMaterial` meshes, Bevy's sun and its shadows, split screen, the
 //! plugin's own set-up; and the helpers the other Bevy test files build their apps with.
 //! `Image` environments changed after they were lit are in `bevy_images.rs`, environment

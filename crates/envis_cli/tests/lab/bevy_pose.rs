@@ -145,7 +145,7 @@ fn bevy_skinned_mesh_casts_its_pose() {
         "the shadow did not follow the joint: {right:?}"
     );
     assert_eq!(builds(&h), 2, "a new pose rebuilt a BVH");
-    assert!(h.counters().get(|c| &c.shadow_skin_refits) >= 1);
+    assert!(h.counters().get(|c| &c.shadow_deformed_refits) >= 1);
 }
 
 /// A mesh with morph targets casts the pose Bevy draws: a plate over x = -1.8 whose one target
@@ -213,7 +213,7 @@ fn bevy_morphed_mesh_casts_its_pose() {
         "weight 0.5: no shadow at 0: {middle:?}"
     );
     assert_eq!(builds(&h), 2, "a new pose rebuilt a BVH");
-    assert!(h.counters().get(|c| &c.shadow_skin_refits) >= 2);
+    assert!(h.counters().get(|c| &c.shadow_deformed_refits) >= 2);
 }
 
 /// A glTF with a skin and a morph target, through Bevy's own glTF loader and scene spawning

@@ -1,5 +1,5 @@
 //! The resampling pipelines and what a frame binds to them: shared by the headless resampler
-//! ([`super::GpuResampler`]) and the Bevy pass (`app::resampling`), which own their buffers
+//! ([`super::GpuResampler`]) and the Bevy pass (`bevy_envis::resampling`), which own their buffers
 //! each in their own way and record the same passes.
 
 use super::super::sampler::EnvSampler;

@@ -48,7 +48,7 @@ impl BrightLight {
     }
 
     /// Its texels in table order: cube-map index, radiance and probability (the GPU's copy,
-    /// `gpu::resampling`).
+    /// `envis_wgpu::resampling`).
     pub fn texels(&self) -> impl Iterator<Item = (u32, Vec3, f32)> + '_ {
         let pmf = |k| self.dist.as_ref().map_or(0.0, |d| d.bin_pmf(k));
         (self.texels.iter().zip(&self.radiance).enumerate())
