@@ -1,8 +1,10 @@
-//! The two camera components a Bevy user adds: [`EnvironmentSampling`] (how to sample) and
-//! [`EnvisEnvironment`] (what to sample). Both live on the camera, as Bevy's own
-//! `EnvironmentMapLight` does, so two cameras can sample differently in one app.
+//! The camera components a Bevy user adds: [`EnvironmentSampling`] (how to sample) and
+//! [`EnvisEnvironment`] (what to sample), and [`EnvironmentResampling`] (reuse across pixels and
+//! frames). All live on the camera, as Bevy's own `EnvironmentMapLight` does, so two cameras can
+//! sample differently in one app. They are leaf data: the plugins read them, they depend on none.
 
 use crate::EnvisSamplingPlugin;
+use bevy::core_pipeline::prepass::{DeferredPrepass, DepthPrepass, MotionVectorPrepass};
 use bevy::prelude::*;
 use bevy::render::extract_component::ExtractComponent;
 use bevy::render::sync_component::SyncComponent;
@@ -28,7 +30,6 @@ impl ExtractComponent<EnvisSamplingPlugin> for EnvironmentSampling {
 /// What a sampling camera needs from Bevy, added with it as required components: the depth
 /// and deferred prepasses (envis lights the G-buffer), HDR, and no MSAA (deferred has none).
 pub(crate) fn require_camera_set_up(app: &mut App) {
-    use bevy::core_pipeline::prepass::{DeferredPrepass, DepthPrepass};
     // `try_`: a second call (two apps sharing a plugin set-up) finds them registered.
     let _ = app.try_register_required_components::<EnvironmentSampling, DepthPrepass>();
     let _ = app.try_register_required_components::<EnvironmentSampling, DeferredPrepass>();
@@ -78,5 +79,43 @@ impl EnvisEnvironment {
 pub fn exposure_multiplier(m: f32) -> bevy::camera::Exposure {
     bevy::camera::Exposure {
         ev100: -(1.2 * m.max(1e-30)).log2(),
+    }
+}
+
+/// Reservoir resampling of the environment light on this camera: with it,
+/// [`EnvironmentSampling`]'s `light_samples` / `brdf_samples` are the candidates each pixel
+/// draws per frame, and the image reuses the previous frame's and the neighbours' samples.
+/// Removing it gives the plain estimator back.
+#[derive(Component, Clone, Copy, Debug, PartialEq, Reflect)]
+#[reflect(Component, Default, Clone)]
+#[require(MotionVectorPrepass, DepthPrepass, DeferredPrepass)]
+pub struct EnvironmentResampling {
+    /// Reuse the previous frame's reservoirs (found through the motion vectors).
+    pub temporal: bool,
+    /// Spatial neighbours reused per pixel (at most 8: more are clamped), drawn where the
+    /// pixel's history is short (under [`SPATIAL_UNTIL_HISTORY`] frames: a disocclusion, the
+    /// first frames after a reset, `temporal: false`).
+    ///
+    /// [`SPATIAL_UNTIL_HISTORY`]: envis::render::resampling::SPATIAL_UNTIL_HISTORY
+    pub spatial: u32,
+    /// The cap on a reservoir's confidence from its history (frames' worth of candidates).
+    pub max_history: u32,
+    /// Pairwise MIS with visibility in the reuse (unbiased, a few more shadow rays); `false`:
+    /// 1/M weights, no visibility reuse (faster, biased: measured in `docs/temporal.md`).
+    pub unbiased: bool,
+    /// Clear the history this frame (a camera cut), as TAA's `reset`; set back to `false`
+    /// after the frame is extracted.
+    pub reset: bool,
+}
+
+impl Default for EnvironmentResampling {
+    fn default() -> Self {
+        EnvironmentResampling {
+            temporal: true,
+            spatial: 3,
+            max_history: 20,
+            unbiased: true,
+            reset: false,
+        }
     }
 }

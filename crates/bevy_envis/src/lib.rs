@@ -65,7 +65,9 @@ pub mod stream;
 pub mod tagged;
 pub mod timing;
 
-pub use components::{EnvironmentSampling, EnvisEnvironment, exposure_multiplier};
+pub use components::{
+    EnvironmentResampling, EnvironmentSampling, EnvisEnvironment, exposure_multiplier,
+};
 pub use envis::render::Overlay;
 pub use lighting::EnvisLightingPlugin;
 pub use material::{
@@ -73,7 +75,7 @@ pub use material::{
     standard_material_decoded,
 };
 pub use ready::{EnvisLightReady, ReadyReport};
-pub use resampling::{EnvironmentResampling, EnvisResamplingPlugin};
+pub use resampling::EnvisResamplingPlugin;
 pub use sampling::EnvisSamplingPlugin;
 pub use shader_reload::EnvisShaderReloadPlugin;
 pub use shadows::EnvisShadowsPlugin;

@@ -49,11 +49,13 @@ impl Plugin for EnvisLightingPlugin {
             return;
         };
         render_app
+            .init_resource::<ShownImages>()
             .add_systems(RenderStartup, init_lighting)
             .add_systems(
                 Render,
                 (poll_lighting_readbacks, drop_stale_view_buffers).in_set(RenderSystems::Prepare),
             )
+            .add_systems(Render, ShownImages::clear.in_set(RenderSystems::Cleanup))
             .add_systems(
                 Core3d,
                 envis_lighting
@@ -61,6 +63,34 @@ impl Plugin for EnvisLightingPlugin {
                     .before(main_opaque_pass_3d)
                     .in_set(Core3dSystems::MainPass),
             );
+    }
+}
+
+/// Images a pass before this one made for a view this frame, which the lighting pass shows
+/// instead of its own estimate (the resampling pass's image): the one way resampling hands its
+/// result to lighting, so lighting needs nothing of resampling. Each is taken once; what a frame
+/// did not take is dropped at its end.
+#[derive(Resource, Default)]
+pub struct ShownImages(std::sync::Mutex<std::collections::HashMap<Entity, wgpu::Buffer>>);
+
+impl ShownImages {
+    /// Show `image` (laid out as `shaders/lighting.wgsl`'s accumulation binding) on `view` this
+    /// frame.
+    pub fn show(&self, view: Entity, image: wgpu::Buffer) {
+        if let Ok(mut images) = self.0.lock() {
+            images.insert(view, image);
+        }
+    }
+
+    /// The image made for `view` this frame, if any (taken: a second call gets `None`).
+    fn take(&self, view: Entity) -> Option<wgpu::Buffer> {
+        self.0.lock().ok()?.remove(&view)
+    }
+
+    fn clear(images: Res<ShownImages>) {
+        if let Ok(mut images) = images.0.lock() {
+            images.clear();
+        }
     }
 }
 
@@ -146,7 +176,7 @@ pub struct LightingInputs<'w> {
     counters: Res<'w, EnvisCounters>,
     timings: Res<'w, EnvisTimings>,
     queue: Res<'w, RenderQueue>,
-    resampling: Option<Res<'w, super::resampling::ResamplingResources>>,
+    shown: Res<'w, ShownImages>,
     report: Res<'w, ReadyReport>,
 }
 
@@ -191,10 +221,7 @@ pub(crate) fn envis_lighting(
         return;
     }
     // The resampling pass's image, where it ran for this view this frame.
-    let resampled = i
-        .resampling
-        .as_ref()
-        .and_then(|r| r.take_image(view_entity));
+    let resampled = i.shown.take(view_entity);
     lv.resampled = resampled.is_some() as u32;
     let showing = resampled.is_some() && sampling.overlay == Overlay::None;
     let render_pipeline = pick_pipeline(programs, ev.target_format, showing, shade);

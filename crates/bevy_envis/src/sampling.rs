@@ -195,7 +195,7 @@ pub fn track_image_versions(
 type ViewExtras = (
     Option<&'static RenderLayers>,
     Has<TemporalJitter>,
-    Has<super::resampling::EnvironmentResampling>,
+    Has<super::components::EnvironmentResampling>,
 );
 
 /// A view's components as [`prepare_samplers`] reads them.

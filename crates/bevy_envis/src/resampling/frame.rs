@@ -12,7 +12,7 @@ use bevy::render::camera::TemporalJitter;
 use bevy::render::renderer::RenderQueue;
 use bevy::render::view::ExtractedView;
 use envis_wgpu::resampling::{
-    BvhBuffers, MAX_SPATIAL, PassBuffers, ResampleParams, ResamplingPasses,
+    BvhBuffers, FrameReuse, PassBuffers, ResampleParams, ResamplingPasses,
 };
 
 /// What of the view and its settings a frame's uniforms and passes take.
@@ -57,7 +57,6 @@ pub(super) fn write_uniforms(
         viewport: [vp.x as f32, vp.y as f32, vp.z as f32, vp.w as f32],
     };
     let r = f.settings;
-    let rot = Mat3::from_quat(f.env.rotation);
     // The bright part's tables replace the gather's whole map; its history is reused while
     // it is the same light.
     let bright = state.bright.as_ref();
@@ -66,29 +65,26 @@ pub(super) fn write_uniforms(
     }
     let bright_history = (bright.zip(prev.and_then(|p| p.bright.as_ref())))
         .is_some_and(|(b, p)| b.bright.same_light(p));
-    let params = ResampleParams {
+    let params = ResampleParams::for_frame(&FrameReuse {
         width: vp.z,
         height: vp.w,
-        n: (state.texels / 6).isqrt(),
-        prev_n: prev.map_or(0, |p| p.face_size),
+        face_size: (state.texels / 6).isqrt(),
+        prev_face_size: prev.map(|p| p.face_size),
         bright_count: bright.map_or(0, |b| b.count),
-        history: prev.is_some() as u32,
-        bright_history: bright_history as u32,
-        temporal: r.temporal as u32,
-        spatial: r.spatial.min(MAX_SPATIAL),
-        max_history: r.max_history.max(1) as f32,
-        unbiased: r.unbiased as u32,
+        bright_history,
+        temporal: r.temporal,
+        spatial: r.spatial,
+        max_history: r.max_history,
+        unbiased: r.unbiased,
         seed: f.seed,
         bvh_nodes: f.bvh.as_ref().map_or(0, |b| b.2),
         prev_bvh_nodes: prev.and_then(|p| p.bvh.as_ref()).map_or(0, |b| b.2),
         layers: f.layers,
         map_agreement: map_agreement(bright, prev),
         // The same (generation, placement): nothing moved (the copy the history traces is it).
-        still_geometry: (f.geometry.is_some() && prev.is_some_and(|p| p.geometry == f.geometry))
-            as u32,
-        _pad: [0; 3],
-        world_from_map: [rot.x_axis, rot.y_axis, rot.z_axis].map(|c| c.extend(0.0).to_array()),
-    };
+        still_geometry: f.geometry.is_some() && prev.is_some_and(|p| p.geometry == f.geometry),
+        world_from_map: Mat3::from_quat(f.env.rotation),
+    });
     queue.write_buffer(&state.gather_view, 0, bytemuck::bytes_of(&gv));
     queue.write_buffer(&state.shade_params, 0, bytemuck::bytes_of(shade));
     queue.write_buffer(&state.params, 0, bytemuck::bytes_of(&params));
@@ -160,7 +156,6 @@ pub(super) fn record(
         pixels,
     };
     passes.record(device, enc, &buffers);
-    state.ready = true;
 }
 
 /// A kept BVH (nodes, triangles, node count) as the passes bind it.

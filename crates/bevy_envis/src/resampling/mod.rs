@@ -28,15 +28,13 @@ mod view;
 pub use cpu_maps::source_from_image;
 pub use readback::{FrameCounts, ResamplingCounts, ResamplingReadback};
 
-use super::components::{EnvironmentSampling, EnvisEnvironment};
+use super::components::{EnvironmentResampling, EnvironmentSampling, EnvisEnvironment};
 use super::programs::EnvisPrograms;
 use super::sampling::{EnvSamplers, ViewSampling};
 use super::shadows::{GpuShadowGeometry, ShadowGeometry};
 use super::{EnvisCounters, EnvisTimings, lighting};
 use bevy::camera::visibility::RenderLayers;
-use bevy::core_pipeline::prepass::{
-    DeferredPrepass, DepthPrepass, MotionVectorPrepass, ViewPrepassTextures,
-};
+use bevy::core_pipeline::prepass::ViewPrepassTextures;
 use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
 use bevy::prelude::*;
 use bevy::render::camera::TemporalJitter;
@@ -51,44 +49,6 @@ use gather::GatherPipelines;
 use std::collections::HashMap;
 use std::sync::Mutex;
 use view::ViewResampling;
-
-/// Reservoir resampling of the environment light on this camera: with it,
-/// [`EnvironmentSampling`]'s `light_samples` / `brdf_samples` are the candidates each pixel
-/// draws per frame, and the image reuses the previous frame's and the neighbours' samples.
-/// Removing it gives the plain estimator back.
-#[derive(Component, Clone, Copy, Debug, PartialEq, Reflect)]
-#[reflect(Component, Default, Clone)]
-#[require(MotionVectorPrepass, DepthPrepass, DeferredPrepass)]
-pub struct EnvironmentResampling {
-    /// Reuse the previous frame's reservoirs (found through the motion vectors).
-    pub temporal: bool,
-    /// Spatial neighbours reused per pixel (at most 8: more are clamped), drawn where the
-    /// pixel's history is short (under [`SPATIAL_UNTIL_HISTORY`] frames: a disocclusion, the
-    /// first frames after a reset, `temporal: false`).
-    ///
-    /// [`SPATIAL_UNTIL_HISTORY`]: envis::render::resampling::SPATIAL_UNTIL_HISTORY
-    pub spatial: u32,
-    /// The cap on a reservoir's confidence from its history (frames' worth of candidates).
-    pub max_history: u32,
-    /// Pairwise MIS with visibility in the reuse (unbiased, a few more shadow rays); `false`:
-    /// 1/M weights, no visibility reuse (faster, biased: measured in `docs/temporal.md`).
-    pub unbiased: bool,
-    /// Clear the history this frame (a camera cut), as TAA's `reset`; set back to `false`
-    /// after the frame is extracted.
-    pub reset: bool,
-}
-
-impl Default for EnvironmentResampling {
-    fn default() -> Self {
-        EnvironmentResampling {
-            temporal: true,
-            spatial: 3,
-            max_history: 20,
-            unbiased: true,
-            reset: false,
-        }
-    }
-}
 
 /// Adds the resampling pass to every camera with [`EnvironmentResampling`] (part of
 /// `EnvisPlugin`).
@@ -176,7 +136,6 @@ fn drop_stale_views(
             if !std::mem::take(&mut v.ran) {
                 v.prev = None;
             }
-            v.ready = false;
         }
         counters
             .resampling_views
@@ -215,16 +174,6 @@ impl ResamplingPrograms {
 #[derive(Resource, Default)]
 pub struct ResamplingResources {
     views: Mutex<HashMap<Entity, ViewResampling>>,
-}
-
-impl ResamplingResources {
-    /// The image view `entity` resampled this frame, for the lighting pass to show (taken once:
-    /// `None` on a frame the pass did not run for it).
-    pub(super) fn take_image(&self, entity: Entity) -> Option<wgpu::Buffer> {
-        let mut views = self.views.lock().ok()?;
-        let v = views.get_mut(&entity)?;
-        std::mem::take(&mut v.ready).then(|| v.color.clone())
-    }
 }
 
 /// A resampling view's components.
@@ -266,6 +215,7 @@ pub struct ResamplingInputs<'w> {
     timings: Res<'w, EnvisTimings>,
     queue: Res<'w, RenderQueue>,
     readiness: Option<Res<'w, super::ready::BevyReadiness>>,
+    shown: Option<Res<'w, lighting::ShownImages>>,
 }
 
 /// The per-view resampling pass: gather, then the resampling passes, recorded into the frame's
@@ -286,6 +236,7 @@ fn resample_environment(
         timings,
         queue,
         readiness,
+        shown,
     } = inputs;
     let entity = view.entity();
     // Not before the view is lit: its G-buffer may not be Bevy's whole one yet.
@@ -349,6 +300,9 @@ fn resample_environment(
         (&slot.sampler, textures),
         &frame,
     );
+    if let Some(shown) = shown {
+        shown.show(entity, state.color.clone());
+    }
     let histories = state.prev.is_some();
     let bright = state.bright.as_ref().is_some_and(|b| b.count > 0);
     hand_over(state, &device, enc, geometry, &frame, n);

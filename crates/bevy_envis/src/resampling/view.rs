@@ -94,8 +94,6 @@ pub(super) struct ViewResampling {
     /// The image the lighting pass shows (w: the reservoir's confidence).
     pub color: wgpu::Buffer,
     pub stats: wgpu::Buffer,
-    /// Recorded this frame and not yet shown by the lighting pass.
-    pub ready: bool,
     /// The pass ran for this view since the last `Prepare` (a frame it skipped breaks the
     /// history: the motion vectors reach one frame back).
     pub ran: bool,
@@ -151,7 +149,6 @@ impl ViewResampling {
             counters: storage(device, "envis reuse counters", px * 16),
             color: storage(device, "envis resampled color", px * 16),
             stats: storage(device, "envis candidate stats", px * 16),
-            ready: false,
             ran: false,
             bvh_copy: None,
             reads: Default::default(),

@@ -115,13 +115,67 @@ pub struct ResampleParams {
     pub world_from_map: [[f32; 4]; 3],
 }
 
+/// What one frame's [`ResampleParams`] are made of, as both recorders of the passes know it
+/// (the headless twin, `GpuResampler`, and the Bevy pass): [`ResampleParams::for_frame`] is the
+/// one place the uniform is made, so the two cannot drift apart.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameReuse {
+    pub width: u32,
+    pub height: u32,
+    /// The face size of this frame's map (of its rest, where the bright part is apart).
+    pub face_size: u32,
+    /// The face size of the history's map, where a history is reused (`None`: none).
+    pub prev_face_size: Option<u32>,
+    /// Texels of the bright part (0: the map is resampled whole).
+    pub bright_count: u32,
+    /// The history's bright part is the same light as this frame's: its history is reused.
+    pub bright_history: bool,
+    pub temporal: bool,
+    /// Spatial neighbours (clamped to [`super::MAX_SPATIAL`]).
+    pub spatial: u32,
+    /// The cap on a reservoir's confidence (at least 1).
+    pub max_history: u32,
+    pub unbiased: bool,
+    pub seed: u32,
+    /// Nodes of this frame's shadow BVH and of the history's (0: none).
+    pub bvh_nodes: u32,
+    pub prev_bvh_nodes: u32,
+    /// The shadow casters seen (`u32::MAX`: all).
+    pub layers: u32,
+    /// See [`ResampleParams::map_agreement`].
+    pub map_agreement: f32,
+    /// See [`ResampleParams::still_geometry`].
+    pub still_geometry: bool,
+    /// The rotation from the map's frame to the world's.
+    pub world_from_map: glam::Mat3,
+}
+
 impl ResampleParams {
-    /// `world_from_map` where the map's frame is the world's.
-    pub const MAP_IS_WORLD: [[f32; 4]; 3] = [
-        [1.0, 0.0, 0.0, 0.0],
-        [0.0, 1.0, 0.0, 0.0],
-        [0.0, 0.0, 1.0, 0.0],
-    ];
+    /// The uniform of one frame.
+    pub fn for_frame(f: &FrameReuse) -> Self {
+        let m = f.world_from_map;
+        ResampleParams {
+            width: f.width,
+            height: f.height,
+            n: f.face_size,
+            prev_n: f.prev_face_size.unwrap_or(0),
+            bright_count: f.bright_count,
+            history: f.prev_face_size.is_some() as u32,
+            bright_history: f.bright_history as u32,
+            temporal: f.temporal as u32,
+            spatial: f.spatial.min(super::MAX_SPATIAL),
+            max_history: f.max_history.max(1) as f32,
+            unbiased: f.unbiased as u32,
+            seed: f.seed,
+            bvh_nodes: f.bvh_nodes,
+            prev_bvh_nodes: f.prev_bvh_nodes,
+            layers: f.layers,
+            map_agreement: f.map_agreement,
+            still_geometry: f.still_geometry as u32,
+            _pad: [0; 3],
+            world_from_map: [m.x_axis, m.y_axis, m.z_axis].map(|c| c.extend(0.0).to_array()),
+        }
+    }
 }
 
 // The WGSL structs' sizes: a field added on one side only fails the build, not a test.

@@ -12,7 +12,7 @@ mod frame;
 mod layout;
 mod passes;
 
-pub use layout::{GpuReservoir, GpuSurface, ResampleParams, split_tables};
+pub use layout::{FrameReuse, GpuReservoir, GpuSurface, ResampleParams, split_tables};
 pub use passes::{BvhBuffers, PASSES, PassBuffers, ResamplingPasses, STORAGE_BUFFERS};
 
 pub use frame::storage_init;
@@ -175,27 +175,25 @@ impl GpuResampler {
         seed: u32,
     ) -> ResampleParams {
         let prev = self.prev.as_ref().filter(|_| history.is_some());
-        ResampleParams {
+        ResampleParams::for_frame(&FrameReuse {
             width: cur.width as u32,
             height: cur.height as u32,
-            n: cur.split.rest.size as u32,
-            prev_n: prev.map_or(0, |p| p.n),
+            face_size: cur.split.rest.size as u32,
+            prev_face_size: prev.map(|p| p.n),
             bright_count: f.bright_count,
-            history: prev.is_some() as u32,
-            bright_history: history.is_some_and(|h| h.same_bright) as u32,
-            temporal: r.temporal as u32,
+            bright_history: history.is_some_and(|h| h.same_bright),
+            temporal: r.temporal,
             spatial: r.spatial,
-            max_history: r.max_history as f32,
-            unbiased: r.unbiased as u32,
+            max_history: r.max_history,
+            unbiased: r.unbiased,
             seed,
             bvh_nodes: f.bvh.as_ref().map_or(0, |b| b.2),
             prev_bvh_nodes: prev.and_then(|p| p.bvh.as_ref()).map_or(0, |b| b.2),
             layers: u32::MAX,
             map_agreement: history.map_or(1.0, |h| h.map_agreement),
-            still_geometry: history.is_some_and(|h| h.still_geometry) as u32,
-            _pad: [0; 3],
-            world_from_map: ResampleParams::MAP_IS_WORLD,
-        }
+            still_geometry: history.is_some_and(|h| h.still_geometry),
+            world_from_map: glam::Mat3::IDENTITY,
+        })
     }
 }
 
