@@ -66,10 +66,7 @@ fn bright_pdf(d: vec3<f32>) -> f32 {
 }
 
 // render::resampling::BRIGHT_LIGHT_SAMPLES, BRIGHT_LIGHT_SAMPLES_BIASED and
-// BRIGHT_PENUMBRA_SAMPLES (a test checks them against Rust).
-const BRIGHT_LIGHT_SAMPLES: u32 = 2u;
-const BRIGHT_LIGHT_SAMPLES_BIASED: u32 = 1u;
-const BRIGHT_PENUMBRA_SAMPLES: u32 = 8u;
+// BRIGHT_PENUMBRA_SAMPLES are generated from Rust: envis_wgpu::shaders::resampling_constants.
 
 // resampling::bright_light_samples: fewer in the biased mode, more where the previous frame saw
 // a penumbra (unbiased mode).

@@ -81,16 +81,8 @@ struct Surface {
     id: vec4<u32>,
 }
 
-// render::resampling's constants (a test checks them against Rust).
-const SPATIAL_RADIUS: f32 = 8.0;
-const SPATIAL_CONFIDENCE: f32 = 0.25;
-const SPATIAL_UNTIL_HISTORY: f32 = 4.0;
-const NORMAL_COS: f32 = 0.9;
-const DEPTH_REL: f32 = 0.1;
-const AGREEMENT_SCALE: f32 = 0.1;
-const DIFFUSE_WIDTH: f32 = 1.0;
-const MIN_AGREEMENT_WIDTH: f32 = 0.001;
-const BRIGHT_SAME_POINT: f32 = 0.0001;
+// render::resampling's tuning constants (SPATIAL_RADIUS, NORMAL_COS, AGREEMENT_SCALE, ...) are
+// generated from Rust: envis_wgpu::shaders::resampling_constants.
 const TAU: f32 = 6.28318530717959;
 
 // The candidates' sink (resample's CandidateSink); emit (shade.wgsl) streams into it.

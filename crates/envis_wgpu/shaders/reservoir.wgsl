@@ -68,8 +68,8 @@ fn sink_finish(s: Sink) -> Reservoir {
     return reservoir_empty(1.0);
 }
 
-// The canonical pixel's own reservoir and at most MAX_SPATIAL others.
-const MAX_DOMAINS: u32 = 9u;
+// MAX_DOMAINS (the canonical pixel's own reservoir and at most MAX_SPATIAL others) is generated
+// from Rust: envis_wgpu::shaders::resampling_constants.
 
 // combine::Domain, with what the including module evaluated for it: `p_c`, its sample's target
 // at the canonical pixel with the canonical pixel's visibility (combine's canonical_target), and

@@ -309,7 +309,9 @@ fn bevy_resampling_splits_a_user_image() {
             let mut sampling = world.get_mut::<EnvironmentSampling>(cam).unwrap();
             sampling.face_size /= 2;
             let split_frames = |h: &HeadlessApp| h.counters().get(|c| &c.resampling_bright);
-            let resumed = (0..10).any(|_| {
+            // Bounded, and left as soon as it splits: under a loaded machine (the suite's other
+            // tests on 2 cores) the pool's read can take more than the 10 frames once waited.
+            let resumed = (0..120).any(|_| {
                 h.update();
                 split_frames(&h) > bright + 1
             });

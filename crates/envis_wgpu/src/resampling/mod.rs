@@ -27,7 +27,8 @@ use envis::render::resampling::{Resampling, ReuseStats, Screen, frame_seed};
 use envis::render::{RenderStats, Settings, Strategy, pool_seed};
 use envis::visibility::FlatBvh;
 
-/// The most spatial neighbours the shaders take (`MAX_DOMAINS - 1` in `reservoir.wgsl`).
+/// The most spatial neighbours the shaders take (the WGSL's `MAX_DOMAINS`, generated from it by
+/// `shaders::resampling_constants`, is one more: the canonical pixel).
 pub const MAX_SPATIAL: u32 = 8;
 
 /// The confidence `M` the history overlay draws red (`HISTORY_FULL_SCALE` in
