@@ -9,13 +9,14 @@ use envis::render::{GPixel, Settings, render, sphere_gbuffer};
 use envis::sampling::rng::Rng;
 use envis::sampling::*;
 use envis_stats::{Chi2Test, FacePlane, MeanCheck, UnbiasedTest};
-use envis_wgpu::GpuContext;
 use glam::{DVec3, Vec2, Vec3};
 use std::path::Path;
-use std::sync::OnceLock;
 
+#[path = "../../envis_wgpu/tests/gpu/device.rs"]
+mod device;
 #[path = "../../envis/tests/support/mod.rs"]
 mod support;
+use device::gpu;
 
 // Helpers
 
@@ -42,30 +43,6 @@ fn envis_cmd(args: &[&str]) -> std::process::Output {
         .args(args)
         .output()
         .unwrap()
-}
-
-/// One device for the whole binary (device creation on lavapipe costs ~100 ms; tests run in
-/// parallel on it). `None` only when `ENVIS_SKIP_GPU=1` asked to skip (see `support`).
-fn gpu() -> Option<&'static GpuContext> {
-    static CTX: OnceLock<Option<GpuContext>> = OnceLock::new();
-    CTX.get_or_init(|| match GpuContext::new() {
-        Ok(c) => {
-            eprintln!(
-                "GPU tests on: {} ({:?}, timestamps: {})",
-                c.info.name, c.info.backend, c.timestamps
-            );
-            Some(c)
-        }
-        Err(e) => {
-            support::skip_gpu_or_fail(
-                "the GPU tests",
-                &format!("no Vulkan device ({e})"),
-                support::INSTALL_LAVAPIPE,
-            );
-            None
-        }
-    })
-    .as_ref()
 }
 
 fn rel(a: f64, b: f64) -> f64 {

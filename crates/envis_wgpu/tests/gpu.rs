@@ -15,33 +15,11 @@ use envis_wgpu::{EnvSampler, GpuContext, GpuGPixel, Shader, render_gpu};
 use glam::Vec3;
 use std::path::PathBuf;
 
+#[path = "gpu/device.rs"]
+mod device;
 #[path = "../../envis/tests/support/mod.rs"]
 mod support;
-use std::sync::OnceLock;
-
-/// One device for the whole binary (device creation on lavapipe costs ~100 ms; tests run in
-/// parallel on it). `None` only when `ENVIS_SKIP_GPU=1` asked to skip (see `support`).
-fn gpu() -> Option<&'static GpuContext> {
-    static CTX: OnceLock<Option<GpuContext>> = OnceLock::new();
-    CTX.get_or_init(|| match GpuContext::new() {
-        Ok(c) => {
-            eprintln!(
-                "GPU tests on: {} ({:?}, timestamps: {})",
-                c.info.name, c.info.backend, c.timestamps
-            );
-            Some(c)
-        }
-        Err(e) => {
-            support::skip_gpu_or_fail(
-                "the GPU tests",
-                &format!("no Vulkan device ({e})"),
-                support::INSTALL_LAVAPIPE,
-            );
-            None
-        }
-    })
-    .as_ref()
-}
+use device::gpu;
 
 fn real_map_paths() -> Vec<PathBuf> {
     support::real_maps().unwrap_or_default()
