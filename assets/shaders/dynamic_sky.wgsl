@@ -1,4 +1,4 @@
-// examples/dynamic_sky.rs: a procedural sky written into a 2:1 lat-long storage texture every
+// crates/bevy_envis/examples/dynamic_sky.rs: a procedural sky written into a 2:1 lat-long storage texture every
 // frame (Mitsuba's convention, +Y up, the one envis reads): a blue gradient, a grey ground and a
 // small, very bright sun that circles the sky.
 

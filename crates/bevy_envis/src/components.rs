@@ -29,12 +29,26 @@ impl ExtractComponent<EnvisSamplingPlugin> for EnvironmentSampling {
 
 /// What a sampling camera needs from Bevy, added with it as required components: the depth
 /// and deferred prepasses (envis lights the G-buffer), HDR, and no MSAA (deferred has none).
+/// Registered when the plugin is built, before any camera is spawned; a camera given
+/// `EnvironmentSampling` before that would miss them, which is said once.
 pub(crate) fn require_camera_set_up(app: &mut App) {
-    // `try_`: a second call (two apps sharing a plugin set-up) finds them registered.
-    let _ = app.try_register_required_components::<EnvironmentSampling, DepthPrepass>();
-    let _ = app.try_register_required_components::<EnvironmentSampling, DeferredPrepass>();
-    let _ = app.try_register_required_components::<EnvironmentSampling, bevy::camera::Hdr>();
-    let _ = app.try_register_required_components_with::<EnvironmentSampling, Msaa>(|| Msaa::Off);
+    use bevy::ecs::component::RequiredComponentsError;
+    let results = [
+        app.try_register_required_components::<EnvironmentSampling, DepthPrepass>(),
+        app.try_register_required_components::<EnvironmentSampling, DeferredPrepass>(),
+        app.try_register_required_components::<EnvironmentSampling, bevy::camera::Hdr>(),
+        app.try_register_required_components_with::<EnvironmentSampling, Msaa>(|| Msaa::Off),
+    ];
+    for r in results {
+        match r {
+            // Registered already (the plugin's set-up run again on the same app): as wanted.
+            Ok(()) | Err(RequiredComponentsError::DuplicateRegistration(..)) => {}
+            Err(e) => warn!(
+                "envis: EnvironmentSampling's camera set-up (prepasses, HDR, no MSAA) could not \
+                 be required ({e}): add EnvisPlugin before spawning sampling cameras"
+            ),
+        }
+    }
 }
 
 /// The environment this camera is lit by: an `Image` asset, read on the GPU.

@@ -1,5 +1,5 @@
 // envis — EnvisMaterial's deferred fragment shader: writes an envis BRDF into Bevy's G-buffer
-// under envis's lighting pass id (layout in src/app/material.rs; decoded by
+// under envis's lighting pass id (layout in bevy_envis/src/material.rs; decoded by
 // shaders/lighting.wgsl). Normal and motion-vector outputs follow bevy_pbr's prepass.wgsl.
 
 #import bevy_pbr::{

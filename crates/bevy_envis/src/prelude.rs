@@ -1,4 +1,4 @@
-//! What a Bevy user imports: `use bevy_envis::prelude::*;` (feature `app`).
+//! What a Bevy user imports: `use bevy_envis::prelude::*;`.
 //!
 //! - [`EnvisPlugin`]: add it next to `DefaultPlugins`; [`EnvisShaderReloadPlugin`] recompiles
 //!   the lighting pass when its WGSL changes (the examples add it).

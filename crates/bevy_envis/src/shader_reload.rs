@@ -14,8 +14,8 @@ use std::time::SystemTime;
 
 /// Recompile the lighting pass when a file of `dir` changes.
 pub struct EnvisShaderReloadPlugin {
-    /// The shaders' folder (default: `envis_wgpu`'s `shaders/` beside this crate, as in envis's
-    /// repository).
+    /// The shaders' folder (default: `envis_wgpu`'s `shaders/`,
+    /// [`envis_wgpu::shaders::SHADER_DIR`]).
     pub dir: PathBuf,
 }
 

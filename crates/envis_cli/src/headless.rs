@@ -79,7 +79,7 @@ impl HeadlessApp {
                 ..default()
             })
             .disable::<bevy::log::LogPlugin>();
-        // With the `demo` feature Bevy has a window system; a headless app drives itself.
+        // The lab's Bevy has a window system (the demo's); a headless app drives itself.
         let plugins = plugins.disable::<bevy::winit::WinitPlugin>();
         // No ambient light: the environment is the only indirect light.
         app.add_plugins(plugins);

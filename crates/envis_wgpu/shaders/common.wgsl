@@ -1,6 +1,6 @@
 // envis — shared WGSL: hashes, random streams, cube-face geometry, luminance, sanitising.
 // Each function is the twin of a Rust function named in its comment; the Rust one is the oracle.
-// Prepended to every envis shader module (see src/gpu/shaders.rs).
+// Prepended to every envis shader module (see envis_wgpu/src/shaders.rs).
 
 const PI: f32 = 3.14159265358979;
 const INV_PI: f32 = 0.318309886183791;

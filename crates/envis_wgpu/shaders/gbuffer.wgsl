@@ -6,11 +6,11 @@
 //     occlusion -> Lambert kd = base (1 - metallic) occlusion plus GGX with Schlick's Fresnel,
 //     F0 = 0.16 reflectance^2 (1 - metallic) + base metallic, alpha = clamp(roughness, 0.089, 1)^2
 //     (Bevy's conventions); unlit materials are left alone;
-//   231 (EnvisMaterial, src/app/material.rs): kd, ks (8-bit), lobe kind, exact lobe parameter;
+//   231 (EnvisMaterial, bevy_envis/src/material.rs): kd, ks (8-bit), lobe kind, exact lobe parameter;
 //   anything else (forward meshes, other deferred materials): left alone.
 
 const PBR_LIGHTING_PASS_ID: u32 = 1u;
-// app::material::ENVIS_LIGHTING_PASS_ID.
+// bevy_envis::material::ENVIS_LIGHTING_PASS_ID.
 const ENVIS_LIGHTING_PASS_ID: u32 = 231u;
 const DEFERRED_FLAGS_UNLIT_BIT: u32 = 1u;
 
@@ -44,7 +44,7 @@ fn decode_standard(g: vec4<u32>, o: vec3<f32>) -> GPixel {
     return GPixel(vec4(gbuffer_normal(g.a), 1.0), vec4(o, 0.0), vec4(kd, f32(LOBE_GGX_SCHLICK)), vec4(f0, pr * pr));
 }
 
-// An EnvisMaterial texel (src/app/material.rs).
+// An EnvisMaterial texel (bevy_envis/src/material.rs).
 fn decode_envis(g: vec4<u32>, o: vec3<f32>) -> GPixel {
     let kd = unpack4x8unorm(g.x);
     let ks = pow(unpack4x8unorm(g.y).rgb, vec3(2.2));

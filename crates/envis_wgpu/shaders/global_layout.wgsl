@@ -21,7 +21,7 @@ fn glayout(n: u32) -> GLayout {
     let rowtot = pdf + w * h;
     return GLayout(w, h, 0u, rows, pdf, rowtot, rowtot + h);
 }
-// Floats in the buffer for N x N faces (keep in step with gpu::sampler::global_len).
+// Floats in the buffer for N x N faces (keep in step with envis_wgpu::sampler::global_len).
 fn glen(n: u32) -> u32 {
     return glayout(n).misc + 4u;
 }

@@ -40,13 +40,13 @@ struct LightingView {
 }
 // The shadow BVH's node count is sp.bvh_nodes (shade.wgsl's ShadeParams; 0: no shadow rays).
 
-// app::Overlay::gpu_code (src/app/lighting_uniforms.rs).
+// envis_wgpu::codes's GpuCode for Overlay.
 const OVERLAY_NONE: u32 = 0u;
 const OVERLAY_EFFECTIVE_SAMPLES: u32 = 1u;
 const OVERLAY_WASTED: u32 = 2u;
 const OVERLAY_COUNTS_DIFFERENCE: u32 = 3u;
 const OVERLAY_HISTORY: u32 = 4u;
-// The confidence the history overlay draws red (gpu::resampling::HISTORY_FULL_SCALE).
+// The confidence the history overlay draws red (envis_wgpu::resampling::HISTORY_FULL_SCALE).
 const HISTORY_FULL_SCALE: f32 = 20.0;
 
 @group(0) @binding(0) var gbuffer: texture_2d<u32>;
@@ -94,7 +94,7 @@ fn env_radiance_factor(d: vec3<f32>, coarse: vec3<f32>) -> vec4<f32> {
 var<private> shadow_point: vec3<f32>;
 var<private> world_from_env: mat3x3<f32>;
 
-// A shadow ray through the scene's meshes (app::shadows), from the shading point; no rays when
+// A shadow ray through the scene's meshes (bevy_envis::shadows), from the shading point; no rays when
 // the camera's shadows are off (node count 0). Directions arrive in the map's frame.
 fn sample_blocked(px: GPixel, pixel_index: u32, d: vec3<f32>) -> bool {
     if (sp.bvh_nodes == 0u) {

@@ -41,7 +41,7 @@
 @group(0) @binding(20) var<storage, read_write> out_color: array<vec4<f32>>;
 @group(0) @binding(21) var<storage, read_write> out_stats: array<vec4<u32>>;
 
-// gpu::resampling::ResampleParams.
+// envis_wgpu::resampling::ResampleParams.
 struct ResampleParams {
     width: u32,
     height: u32,

@@ -3,7 +3,7 @@
 // common.wgsl before it. The including module (resampling.wgsl) evaluates targets and shadow
 // rays; the functions here are the arithmetic and the random draws, in the CPU's order.
 
-// render::resampling::Reservoir, 48 bytes (gpu::resampling::GpuReservoir).
+// render::resampling::Reservoir, 48 bytes (envis_wgpu::resampling::GpuReservoir).
 struct Reservoir {
     // The selected direction; meaningless where ucw is 0.
     dir: vec3<f32>,

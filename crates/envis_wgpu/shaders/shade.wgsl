@@ -12,7 +12,7 @@
 // lighting.wgsl (the Bevy lighting pass: the full-resolution image; shadow rays through the
 // scene's BVH). All of them are written by distribution.wgsl on the GPU; nothing is read back to
 // the CPU. The `u32` codes (STRATEGY_*, POOL_*, TILE_COUNTS_*, and sampling.wgsl's) are the
-// `gpu_code()`s of src/gpu/codes.rs, which a test checks them against.
+// `GpuCode`s of envis_wgpu/src/codes.rs, which a test checks them against.
 
 struct ShadeParams {
     // Face size N and pool slots per face (M x pool_blocks).

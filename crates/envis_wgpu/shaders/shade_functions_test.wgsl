@@ -1,6 +1,6 @@
 // envis — test-only compute entry points: one function of the shading stage at a time, on
-// inputs the test writes, against its CPU twin (tests/gpu/functions.rs), as vello tests its
-// stages. Needs the shading module before it (gpu::shaders::shade_functions_test_source): `sp`
+// inputs the test writes, against its CPU twin (envis_wgpu/tests/gpu/functions.rs), as vello tests its
+// stages. Needs the shading module before it (envis_wgpu::shaders::shade_functions_test_source): `sp`
 // and `regions` are shade_compute.wgsl's bindings. Each entry reads case i from `test_in` and
 // writes its results to `test_out`; one invocation per case.
 

@@ -3,6 +3,10 @@
 //! `lighting_source`, ...): WGSL has no includes, and a fixed concatenation per program is
 //! simpler than Bevy's naga_oil imports for programs that share only a few files.
 
+/// The folder of the WGSL files (this crate's `shaders/`), where `EnvisShaderReloadPlugin` looks
+/// for edits by default.
+pub const SHADER_DIR: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/shaders");
+
 pub const COMMON: &str = include_str!("../shaders/common.wgsl");
 pub const SAMPLING: &str = include_str!("../shaders/sampling.wgsl");
 pub const DISTRIBUTION: &str = include_str!("../shaders/distribution.wgsl");
@@ -112,7 +116,7 @@ pub fn resampling_constants() -> String {
 
 /// The shading module with its test-only entry points (`test_brdf`, `test_mis`,
 /// `test_face_count`, `test_draw_tile`, `test_pool_window`): one function at a time against its
-/// CPU twin (`tests/gpu/functions.rs`).
+/// CPU twin (`envis_wgpu/tests/gpu/functions.rs`).
 pub fn shade_functions_test_source() -> String {
     shade_source() + SHADE_FUNCTIONS_TEST
 }

@@ -47,7 +47,7 @@ pub trait Occluder: Sync {
 
 /// Whether shadow rays are cast (`--visibility`, a scene file's `[sampling] visibility`,
 /// `EnvironmentSampling::shadows`). Named so that it does not clash with Bevy's `Visibility`
-/// in a Bevy user's `use bevy::prelude::*; use envis::prelude::*;`.
+/// in a Bevy user's `use bevy::prelude::*; use bevy_envis::prelude::*;`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]

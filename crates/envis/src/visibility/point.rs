@@ -16,7 +16,7 @@
 //! The culling is exact (a direction outside a cone misses everything inside the sphere, one
 //! heading away from a plane misses it, and a hemisphere cannot reach a sphere behind its
 //! tangent plane), with a margin far larger than f32 rounding, so a ray gets the same answer as
-//! through the top level: tested ray by ray in `tests/core/visibility.rs`.
+//! through the top level: tested ray by ray in `envis/tests/core/visibility.rs`.
 
 use glam::Vec3;
 

@@ -10,7 +10,7 @@
 //!
 //! The boxes are the BVH2's, padded outwards by a relative 2^-20, so rounding in a slab test can
 //! never drop a triangle a ray meets: every answer is the triangle test's, as with the
-//! brute-force loop (`tests/core/scenes.rs`, `mesh_bvh_matches_brute_force`).
+//! brute-force loop (`envis/tests/core/scenes.rs`, `mesh_bvh_matches_brute_force`).
 
 use super::flat_bvh::inverse;
 use glam::Vec3;

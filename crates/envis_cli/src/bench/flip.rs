@@ -1,7 +1,7 @@
 //! FLIP, the perceptual image-difference evaluator of Andersson et al. ("FLIP: A Difference
 //! Evaluator for Alternating Images", HPG 2020), and HDR-FLIP ("Visualizing Errors in Rendered
 //! High Dynamic Range Images", EG 2021), written from the papers' formulas for the accuracy
-//! sweep. Checked against NVIDIA's `flip-evaluator` package (tests/core/bench.rs, values from
+//! sweep. Checked against NVIDIA's `flip-evaluator` package (envis_cli/tests/lab/core_bench.rs, values from
 //! `docs/bench/flip_reference.py`).
 //!
 //! LDR-FLIP of two sRGB images in `[0,1]`:

@@ -1,5 +1,5 @@
 //! `EnvironmentResampling` in a Bevy app (the resampling pass: gather + the WGSL passes the
-//! headless twin runs, `tests/gpu/resampling.rs`): its image is the plain estimator's in
+//! headless twin runs, `envis_cli/tests/lab/gpu_resampling.rs`): its image is the plain estimator's in
 //! expectation, its frames draw new samples, its history is found through the motion vectors
 //! on a still and on a moving camera (read through the history overlay), and removing it gives
 //! the plain estimator back.
@@ -89,7 +89,7 @@ fn sphere_mean(img: &[Vec3]) -> f64 {
     idx.iter().map(|&i| luminance(img[i]) as f64).sum::<f64>() / idx.len() as f64
 }
 
-/// `t` of the overlays' `heat(t)` ramp (app::heat), read back from a colour.
+/// `t` of the overlays' `heat(t)` ramp (bevy_envis::heat), read back from a colour.
 fn unheat(c: Vec3) -> f32 {
     let x = if c.z >= 1.0 {
         c.y

@@ -6,7 +6,7 @@
 //! with a history), `temporal`, `spatial` and `shade_reservoirs`. The previous frame's surfaces,
 //! split map, shadow geometry and reservoirs stay on the device for the next frame. Read back
 //! (a sequence's output, not a frame path's): the image (its alpha the history length), the
-//! per-pixel sample counts and the reuse counters. `tests/gpu/resampling.rs` compares whole sequences with the CPU.
+//! per-pixel sample counts and the reuse counters. `envis_cli/tests/lab/gpu_resampling.rs` compares whole sequences with the CPU.
 
 mod frame;
 mod layout;
@@ -211,6 +211,13 @@ fn check(cur: &Screen, s: &Settings, r: &Resampling) -> Result<()> {
     if r.candidate_visibility {
         return Err(Error::invalid(
             "shadow-tested candidates are a CPU-only experiment of the resampling oracle",
+        ));
+    }
+    if r.max_history == 0 {
+        // The passes cap a confidence at max(1, max_history) (ResampleParams::for_frame), the
+        // oracle at max_history: refused rather than differing.
+        return Err(Error::invalid(
+            "max_history 0: a reservoir's history cap must be at least 1 frame",
         ));
     }
     if r.spatial > MAX_SPATIAL {

@@ -1,5 +1,5 @@
 //! Hard cases on the GPU (issue: hard cases stay numerically stable). The same catalogue as
-//! `tests/core/stability.rs`, where it applies to the GPU stages: every case asserts finite,
+//! `envis/tests/core/stability.rs`, where it applies to the GPU stages: every case asserts finite,
 //! non-negative output and a positive pdf for every pool sample on a lit face, and compares with
 //! the CPU twin (same seed) or the exact value.
 
