@@ -15,15 +15,12 @@ use glam::{DVec3, Vec2, Vec3};
 use std::path::Path;
 
 mod support;
+use support::{rng_vec2, tempdir};
 
 // The unbiasedness harness, shared with the estimator and visibility tests.
 use unbiased::{few_sample_configs, unbiased_checks, unbiased_checks_with};
 
 // Helpers
-
-fn rng_vec2(r: &mut Rng) -> Vec2 {
-    Vec2::new(r.next_f32(), r.next_f32())
-}
 
 fn random_dir(r: &mut Rng) -> Vec3 {
     let z = 1.0 - 2.0 * r.next_f32();
@@ -106,10 +103,6 @@ fn chi2_sphere(
     Chi2Test::new(name, Sphere::new(axis), n, checks)
         .run(|| sample(&mut rng), |d| pdf(d) as f64)
         .assert();
-}
-
-fn tempdir() -> support::TempDir {
-    support::TempDir::new("test")
 }
 
 /// A smooth map (small texel-to-texel jumps) for tests whose expectations come from quadrature.

@@ -9,7 +9,7 @@ use envis::render::{GPixel, Settings, render, sphere_gbuffer};
 use envis::sampling::rng::Rng;
 use envis::sampling::*;
 use envis_stats::{Chi2Test, FacePlane, MeanCheck, UnbiasedTest};
-use glam::{DVec3, Vec2, Vec3};
+use glam::{DVec3, Vec3};
 use std::path::Path;
 
 #[path = "../../envis_wgpu/tests/gpu/device.rs"]
@@ -17,16 +17,9 @@ mod device;
 #[path = "../../envis/tests/support/mod.rs"]
 mod support;
 use device::gpu;
+use support::{mean_lum, rel, rng_vec2, tempdir};
 
 // Helpers
-
-fn rng_vec2(r: &mut Rng) -> Vec2 {
-    Vec2::new(r.next_f32(), r.next_f32())
-}
-
-fn tempdir() -> support::TempDir {
-    support::TempDir::new("test")
-}
 
 /// `envis bench --suite SUITE_AND_ARGS --out DIR`, which must succeed; returns `DIR/json`.
 fn bench_json(dir: &Path, suite_and_args: &[&str], json: &str) -> serde_json::Value {
@@ -43,14 +36,6 @@ fn envis_cmd(args: &[&str]) -> std::process::Output {
         .args(args)
         .output()
         .unwrap()
-}
-
-fn rel(a: f64, b: f64) -> f64 {
-    (a - b).abs() / a.abs().max(b.abs()).max(1e-30)
-}
-
-fn mean_lum(d: &[Vec3]) -> f64 {
-    d.iter().map(|c| luminance(*c) as f64).sum::<f64>() / d.len() as f64
 }
 
 #[path = "lab/core_cli.rs"]

@@ -20,6 +20,7 @@ mod device;
 #[path = "../../envis/tests/support/mod.rs"]
 mod support;
 use device::gpu;
+use support::{mean_lum, rel};
 
 fn real_map_paths() -> Vec<PathBuf> {
     support::real_maps().unwrap_or_default()
@@ -56,10 +57,6 @@ fn stage_maps(n: usize) -> Vec<(String, CubeMap)> {
     v
 }
 
-fn rel(a: f64, b: f64) -> f64 {
-    (a - b).abs() / a.abs().max(b.abs()).max(1e-30)
-}
-
 /// Build on the GPU (a pool of `blocks` blocks of `m` per face) and read every table back.
 fn gpu_build(
     ctx: &GpuContext,
@@ -93,10 +90,6 @@ fn gpu_build_tiled(
     s.upload(&ctx.queue, map);
     ctx.wait(s.run(ctx, seed)).unwrap();
     s.read_tables(ctx).unwrap()
-}
-
-fn mean_lum(d: &[Vec3]) -> f64 {
-    d.iter().map(|c| luminance(*c) as f64).sum::<f64>() / d.len() as f64
 }
 
 #[path = "gpu/twins.rs"]

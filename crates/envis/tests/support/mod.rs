@@ -6,6 +6,29 @@
 
 use std::path::{Path, PathBuf};
 
+/// Two uniform numbers in `[0, 1)` from `r`.
+pub fn rng_vec2(r: &mut envis::sampling::rng::Rng) -> glam::Vec2 {
+    glam::Vec2::new(r.next_f32(), r.next_f32())
+}
+
+/// A [`TempDir`] named `test`.
+pub fn tempdir() -> TempDir {
+    TempDir::new("test")
+}
+
+/// `|a - b|` relative to the larger magnitude (0 for two zeros).
+pub fn rel(a: f64, b: f64) -> f64 {
+    (a - b).abs() / a.abs().max(b.abs()).max(1e-30)
+}
+
+/// The mean luminance of an image's pixels.
+pub fn mean_lum(d: &[glam::Vec3]) -> f64 {
+    d.iter()
+        .map(|c| envis::envmap::luminance(*c) as f64)
+        .sum::<f64>()
+        / d.len() as f64
+}
+
 /// The workspace's root (every test crate is `crates/NAME`): `assets/` and `../shared` are there.
 pub fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
